@@ -1,0 +1,35 @@
+# The push table f(v, m, mu) -> log d and the scene's MJCF.
+
+
+rule table:
+    output:
+        "results/table/table.npz",
+    params:
+        scene=as_json(config["scene"]),
+        grid=as_json(config["table"]),
+    threads: config["threads"]
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/table.log",
+    shell:
+        "imply table build --scene-json {params.scene} --grid-json {params.grid}"
+        " --threads {threads} -o {output} > {log} 2>&1"
+
+
+rule scene_xml:
+    output:
+        "results/table/scene.xml",
+    params:
+        scene=as_json(config["scene"]),
+    resources:
+        mem_mb=500,
+        runtime=1,
+    log:
+        "results/logs/scene_xml.log",
+    shell:
+        "imply sim export-xml --scene-json {params.scene} -o {output} > {log} 2>&1"
+
+
+FINAL_TARGETS.extend(["results/table/table.npz", "results/table/scene.xml"])
