@@ -15,3 +15,9 @@ rule all:
 
 
 include: "workflow/rules/table.smk"
+include: "workflow/rules/section4.smk"
+include: "workflow/rules/gap.smk"
+include: "workflow/rules/clips.smk"
+include: "workflow/rules/model.smk"
+include: "workflow/rules/section5.smk"
+include: "workflow/rules/paper.smk"

@@ -20,6 +20,10 @@ import numpy as np
 # modules that add subcommands; each has register(subparsers)
 COMMAND_MODULES: list[str] = [
     "imply.commands_core",
+    "imply.commands_section4",
+    "imply.commands_gap",
+    "imply.commands_clips",
+    "imply.commands_model",
 ]
 
 

@@ -130,7 +130,11 @@ class PushTable:
     @cached_property
     def _interpolator(self) -> RegularGridInterpolator:
         return RegularGridInterpolator(
-            (self.speeds, np.log(self.masses), np.log(self.frictions)), self.log_d, method="cubic"
+            (self.speeds, np.log(self.masses), np.log(self.frictions)),
+            self.log_d,
+            method="cubic",
+            # scipy's default solver tolerance leaves ~1e-5 errors even at the nodes
+            solver_args={"atol": 1e-12, "rtol": 1e-12},
         )
 
     def log_displacement(self, speeds, masses, frictions) -> np.ndarray:
@@ -215,9 +219,7 @@ def config_digest(obj: Any) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def build_table(
-    scene: SceneConfig, grid: TableGrid, *, nthread: int = 0, progress: bool = False
-) -> PushTable:
+def build_table(scene: SceneConfig, grid: TableGrid, *, nthread: int = 0, progress: bool = False) -> PushTable:
     """Simulate every (speed, mass, friction) cell with the canonical box and tabulate log d."""
     speeds, masses, frictions = grid.axes()
     v, m, mu = np.meshgrid(speeds, masses, frictions, indexing="ij")

@@ -16,7 +16,9 @@ class InputError(ValueError):
     """A user table is unreadable or has a bad cell; the message names it."""
 
 
-def read_table(path: str | Path, required: list[str], numeric: list[str], optional_numeric: list[str] = ()) -> pd.DataFrame:
+def read_table(
+    path: str | Path, required: list[str], numeric: list[str], optional_numeric: list[str] = ()
+) -> pd.DataFrame:
     """Read a CSV/parquet file, check required columns and numeric cells.
 
     Columns in ``numeric`` (and those of ``optional_numeric`` that are present) must hold
@@ -48,9 +50,7 @@ def _numeric_column(values: pd.Series, col: str, path: Path) -> pd.Series:
     bad = ~np.isfinite(as_num.to_numpy(dtype=float))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(
-            f"{path}: row {i + 1} (line {i + 2}), column {col}: {values.iloc[i]!r} is not a finite number"
-        )
+        raise InputError(f"{path}: row {i + 1} (line {i + 2}), column {col}: {values.iloc[i]!r} is not a finite number")
     return as_num.astype(float)
 
 

@@ -16,3 +16,6 @@ def as_json(obj):
 
 # final outputs of every stage; each rules file extends this list
 FINAL_TARGETS = []
+
+# result parts (results/paper/parts/<stage>.json) that the paper rule merges; each stage extends it
+PAPER_PARTS = []

@@ -126,7 +126,7 @@ def simulate_pushes(
         per_sim = []
         for i, gm in enumerate(geom_models):
             mi = copy.copy(gm)
-            _set_box_physics(mi, None if masses is None else masses[i], None if frictions is None else frictions[i])
+            set_box_physics(mi, None if masses is None else masses[i], None if frictions is None else frictions[i])
             per_sim.append(mi)
         batch.set_models(per_sim)
     else:
@@ -139,6 +139,9 @@ def simulate_pushes(
             fr = np.tile(model.geom_friction[gid], (n, 1))
             fr[:, 0] = frictions
             batch.geom("box").friction = fr
+        if masses is not None:
+            # derived constants (subtree masses, constraint scaling) follow the new masses
+            batch.set_const()
     batch.reset()
 
     qpos = batch.bind("qpos")
@@ -193,7 +196,8 @@ def simulate_pushes(
     return PushResult(displacement=disp, lateral=lateral, stop_time=stop_time, tilt=tilt, ok=ok)
 
 
-def _set_box_physics(model: mujoco.MjModel, mass: float | None, friction: float | None) -> None:
+def set_box_physics(model: mujoco.MjModel, mass: float | None, friction: float | None) -> None:
+    """Give a push model's box this mass (inertia scaled along) and sliding friction, in place."""
     box = model.body("box").id
     if mass is not None:
         scale = mass / float(model.body_mass[box])
@@ -201,3 +205,5 @@ def _set_box_physics(model: mujoco.MjModel, mass: float | None, friction: float 
         model.body_inertia[box] *= scale
     if friction is not None:
         model.geom_friction[model.geom("box").id, 0] = friction
+    if mass is not None:
+        mujoco.mj_setConst(model, mujoco.MjData(model))

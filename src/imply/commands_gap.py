@@ -1,0 +1,281 @@
+"""Gap-stage subcommands: ``imply diagnose`` and ``imply gap tables|generate|benchmark``.
+
+``imply diagnose PUSHLOG.csv -o REPORT_DIR`` tells where a push table disagrees with
+observed pushes, which unmodelled effect explains it and how far the gap shrinks once
+that effect is added (see :mod:`imply.diagnose.analysis`); the report directory holds
+``summary.json``, ``report.md``, ``residuals.csv`` and plots (:mod:`imply.diagnose.report`).
+The baseline table defaults to ``results/table/table.npz``; the effect tables are
+simulated on first use and cached (``--cache-dir``, default ``$IMPLY_CACHE`` or
+``~/.cache/imply``).
+
+To test the diagnostic on physics of your own, write a push log with a modified MJCF:
+``imply sim export-xml -o my.xml``, edit it, then ``imply sim pushes PUSHES.csv --model
+my.xml -o pushlog.csv`` and ``imply diagnose pushlog.csv -o report/``.
+
+The benchmark commands are the workflow's (workflow/rules/gap.smk): ``gap tables``
+builds the effect tables into the cache, ``gap generate`` writes synthetic push logs
+with the label of each sealed in a separate file, ``gap benchmark`` scores the
+diagnoses against the sealed labels and writes the stage's paper part.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from imply.cli import UserError, json_arg
+
+log = logging.getLogger("imply")
+
+DEFAULT_TABLE = "results/table/table.npz"
+
+
+def _cache_dir(arg: str | None) -> Path:
+    if arg:
+        return Path(arg)
+    return Path(os.environ.get("IMPLY_CACHE") or Path.home() / ".cache" / "imply")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this stage's subcommands to the imply parser."""
+    d = sub.add_parser(
+        "diagnose",
+        help="locate the sim-to-real gap of a push log and rank unmodelled effects that explain it",
+        description=(
+            "PUSHLOG (CSV or parquet): object_id,speed,displacement (m/s, m) and optional direction (rad), "
+            "stop_time, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed instead of "
+            "fitted). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots."
+        ),
+    )
+    d.add_argument("pushlog")
+    d.add_argument("-o", "--output", required=True, help="report directory to write")
+    d.add_argument("--table", default=DEFAULT_TABLE, help="baseline push table (default %(default)s)")
+    d.add_argument("--cache-dir", help="effect-table cache (default $IMPLY_CACHE or ~/.cache/imply)")
+    d.add_argument("--effects", help="comma-separated candidate effects (default: the whole library)")
+    d.add_argument(
+        "--effect-grid-json", type=json_arg, help="coarse grid of the effect tables (config gap.effect_grid)"
+    )
+    d.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
+    d.add_argument("--noise-sd", type=float, help="log-displacement noise sd, used when the log has no replicates")
+    d.add_argument("--ignore-measured", action="store_true",
+                   help="fit mass and friction even where the log has measured values")  # fmt: skip
+    d.add_argument("--threads", type=int, default=0, help="simulation threads for building effect tables")
+    d.set_defaults(func=cmd_diagnose)
+
+    g = sub.add_parser("gap", help="the diagnostic's benchmark (workflow steps)")
+    gsub = g.add_subparsers(dest="gap_command", required=True)
+    dm = gsub.add_parser(
+        "diagnose-many",
+        help="run 'imply diagnose' on several push logs in one process (one report folder per log, by file stem)",
+    )
+    dm.add_argument("pushlogs", nargs="+")
+    dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
+    dm.add_argument("--table", default=DEFAULT_TABLE)
+    dm.add_argument("--cache-dir")
+    dm.add_argument("--effects")
+    dm.add_argument("--effect-grid-json", type=json_arg)
+    dm.add_argument("--options-json", type=json_arg)
+    dm.add_argument("--threads", type=int, default=0)
+    dm.set_defaults(func=cmd_diagnose_many)
+
+    t = gsub.add_parser("tables", help="build (or find) the effect tables in the cache")
+    t.add_argument("--table", default=DEFAULT_TABLE)
+    t.add_argument("--cache-dir")
+    t.add_argument("--effect-grid-json", type=json_arg)
+    t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
+    t.add_argument("--threads", type=int, default=0)
+    t.add_argument("-o", "--output", required=True, help="manifest JSON to write (digest, model floor)")
+    t.set_defaults(func=cmd_tables)
+
+    gen = gsub.add_parser("generate", help="synthetic push logs with a withheld effect, labels sealed apart")
+    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the generator's starting point")
+    gen.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark")
+    gen.add_argument("--logs", required=True, help="folder for the push logs (<case>.csv)")
+    gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
+    gen.add_argument("--threads", type=int, default=0)
+    gen.set_defaults(func=cmd_generate)
+
+    b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels; write the stage's paper part")
+    b.add_argument("--table", default=DEFAULT_TABLE)
+    b.add_argument("--bench-json", type=json_arg, required=True)
+    b.add_argument("--sealed", required=True)
+    b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
+    b.add_argument("-o", "--output", required=True, help="benchmark JSON")
+    b.add_argument("--markdown", required=True, help="benchmark report (Markdown)")
+    b.add_argument("--part", required=True, help="paper part JSON (results/paper/parts/gap.json)")
+    b.set_defaults(func=cmd_benchmark)
+
+
+def _load_table(path: str):
+    from imply.table import PushTable, TableError
+
+    try:
+        return PushTable.load(path)
+    except TableError as exc:
+        raise UserError(f"--table: {exc} (build it with 'snakemake --cores 2 results/table/table.npz')") from exc
+
+
+def _effects(arg: str | None):
+    from imply.sim import effects as E
+
+    try:
+        return E.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
+    except KeyError as exc:
+        raise UserError(f"--effects: {exc.args[0]}") from exc
+
+
+def _diagnosis_setup(args: argparse.Namespace):
+    """Table, candidate effects, options and effect tables of a diagnose call."""
+    from imply.diagnose.analysis import Options
+    from imply.diagnose.tables import CoarseGrid, load_or_build
+
+    table = _load_table(args.table)
+    effects = _effects(args.effects)
+    try:
+        opts = Options.from_dict(args.options_json)
+        grid = CoarseGrid.from_dict(args.effect_grid_json)
+    except TypeError as exc:
+        raise UserError(f"options: {exc}") from exc
+    if getattr(args, "noise_sd", None) is not None:
+        if not args.noise_sd > 0:
+            raise UserError("--noise-sd must be positive")
+        opts = Options.from_dict({**opts.__dict__, "noise_sd": args.noise_sd})
+    if getattr(args, "ignore_measured", False):
+        opts = Options.from_dict({**opts.__dict__, "use_measured": False})
+    etables = load_or_build(table, effects, grid, _cache_dir(args.cache_dir), nthread=args.threads, progress=True)
+    if opts.model_floor is None:
+        opts = Options.from_dict({**opts.__dict__, "model_floor": etables.meta.get("model_floor_rms")})
+    return table, effects, opts, etables
+
+
+def diagnose_file(pushlog_path, output, table, effects, opts, etables) -> dict:
+    """Diagnose one push log into the report directory ``output``; returns the summary."""
+    from imply.diagnose.analysis import diagnose
+    from imply.diagnose.fit import Problem
+    from imply.diagnose.pushlog import read_pushlog
+    from imply.diagnose.report import write_report
+    from imply.tabular import InputError
+
+    try:
+        pushlog = read_pushlog(pushlog_path, table.speed_range, mass_range=table.mass_range,
+                               friction_range=table.friction_range)  # fmt: skip
+    except InputError as exc:
+        raise UserError(str(exc)) from exc
+    diag = diagnose(Problem(pushlog, table, etables, grid=opts.grid, use_measured=opts.use_measured), effects, opts)
+    # write into a temporary sibling folder, then move it into place: no half-written report
+    out = Path(output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        write_report(diag, tmp)
+        tmp.chmod(0o755)
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    v = diag.summary["verdict"]
+    log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], out)
+    return diag.summary
+
+
+def _check_pushlog(path, table) -> None:
+    """Read a push log once before anything is simulated, so bad input fails fast."""
+    from imply.diagnose.pushlog import read_pushlog
+    from imply.tabular import InputError
+
+    try:
+        read_pushlog(path, table.speed_range, mass_range=table.mass_range, friction_range=table.friction_range)
+    except InputError as exc:
+        raise UserError(str(exc)) from exc
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    _check_pushlog(args.pushlog, _load_table(args.table))
+    table, effects, opts, etables = _diagnosis_setup(args)
+    diagnose_file(args.pushlog, args.output, table, effects, opts, etables)
+    return 0
+
+
+def cmd_diagnose_many(args: argparse.Namespace) -> int:
+    from tqdm.auto import tqdm
+
+    table = _load_table(args.table)
+    for path in args.pushlogs:
+        _check_pushlog(path, table)
+    table, effects, opts, etables = _diagnosis_setup(args)
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    for path in tqdm(args.pushlogs, desc="diagnoses", unit="log"):
+        diagnose_file(path, out / Path(path).stem, table, effects, opts, etables)
+    return 0
+
+
+def cmd_tables(args: argparse.Namespace) -> int:
+    from imply.diagnose.tables import CoarseGrid, load_or_build
+    from imply.io import write_json
+
+    table = _load_table(args.table)
+    et = load_or_build(table, _effects(args.effects), CoarseGrid.from_dict(args.effect_grid_json), _cache_dir(args.cache_dir),
+                       nthread=args.threads, progress=True)  # fmt: skip
+    write_json(args.output, {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
+    log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], args.output)
+    return 0
+
+
+def _design(cfg: dict):
+    from imply.diagnose.benchmark import Design
+
+    keys = set(Design.__dataclass_fields__)
+    return Design(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items() if k in keys})
+
+
+def cmd_generate(args: argparse.Namespace) -> int:
+    from tqdm.auto import tqdm
+
+    from imply.diagnose.benchmark import case_list, simulate_case
+    from imply.io import write_csv, write_json
+    from imply.sim import SceneConfig
+
+    table = _load_table(args.table)
+    scene = SceneConfig.from_dict(table.meta.get("scene"))
+    design = _design(args.bench_json)
+    labels = {}
+    for case in tqdm(case_list(args.bench_json), desc="synthetic logs", unit="log"):
+        frame, label = simulate_case(case, scene, design, nthread=args.threads)
+        write_csv(Path(args.logs) / f"{case['id']}.csv", frame)
+        labels[case["id"]] = label
+    write_json(args.sealed, labels)
+    log.info("wrote %d logs -> %s (labels sealed in %s)", len(labels), args.logs, args.sealed)
+    return 0
+
+
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    from imply.diagnose.benchmark import score_cases, visible_size
+    from imply.diagnose.report_bench import write_benchmark
+    from imply.io import write_json
+
+    table = _load_table(args.table)
+    with open(args.sealed) as fh:
+        labels = json.load(fh)
+    summaries = {}
+    for cid in labels:
+        found = [Path(r) / cid / "summary.json" for r in args.reports if (Path(r) / cid / "summary.json").is_file()]
+        if not found:
+            raise UserError(f"--reports: no diagnosis for case {cid} in {', '.join(args.reports)}")
+        path = found[0]
+        with open(path) as fh:
+            summaries[cid] = json.load(fh)
+    sizes = {cid: visible_size(lab, table) for cid, lab in labels.items()}
+    result = score_cases(labels, summaries, sizes, float(args.bench_json.get("min_size_sd", 2.0)))
+    write_json(args.output, result)
+    write_benchmark(result, args.bench_json, args.markdown, args.part)
+    log.info("top-1 %.3f (n=%d), false alarms %.3f, shrinkage %.3f", result["top1_big"], result["n_big"],
+             result["false_alarm"], result["shrinkage_median"])  # fmt: skip
+    return 0

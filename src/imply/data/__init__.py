@@ -1,0 +1,1 @@
+"""Datasets of the Section 5 study (rendered push clips)."""

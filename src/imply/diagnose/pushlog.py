@@ -1,0 +1,166 @@
+"""Reading a push log: one row per observed push, checked cell by cell.
+
+Columns (CSV or parquet): ``object_id,speed,displacement`` are required (speed in
+m/s, displacement in metres, both positive); optional ``direction`` (push direction
+in the table plane, radians, within [-2 pi, 2 pi]), ``stop_time`` (s, >= 0),
+``size_x,size_y,size_z`` (box half-extents, m, > 0; all three or none), ``mass`` (kg,
+> 0) and ``friction`` (> 0) where measured, and ``ok`` (true/false, as written by
+``imply sim pushes``). Other columns are kept and ignored.
+
+Measured ``mass`` and ``friction`` must be constant within an object and inside the
+table's range; the diagnostic then holds them fixed instead of fitting them (see
+:class:`imply.diagnose.fit.Problem`), which removes the aliasing of effects with the
+(m, mu) fit.
+
+Nothing is dropped: a bad cell raises :class:`imply.tabular.InputError` naming its
+row and column, including a push whose ``ok`` is false and an object with too few
+pushes to fit its mass and friction (at least 3 pushes at 2 or more speeds).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from imply.tabular import InputError, read_table, row_error
+
+REQUIRED = ["object_id", "speed", "displacement"]
+SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
+OPTIONAL_NUMERIC = ["direction", "stop_time", *SIZE_COLUMNS, "mass", "friction"]
+
+
+@dataclass(frozen=True)
+class PushLog:
+    """A checked push log as arrays (one entry per push) plus the frame it came from."""
+
+    path: str
+    frame: pd.DataFrame
+    objects: list[str]  # in order of first appearance
+    obj: np.ndarray  # (n,) index into objects
+    speed: np.ndarray
+    displacement: np.ndarray
+    direction: np.ndarray  # zeros where the log has no direction column
+    has_direction: bool
+    mass: np.ndarray | None = None  # measured mass per object, where the log has it
+    friction: np.ndarray | None = None  # measured friction per object, where the log has it
+
+    @property
+    def n(self) -> int:
+        return int(self.speed.size)
+
+    @property
+    def log_d(self) -> np.ndarray:
+        return np.log(self.displacement)
+
+
+def read_pushlog(
+    path: str | os.PathLike,
+    speed_range: tuple[float, float] | None = None,
+    min_pushes: int = 3,
+    mass_range: tuple[float, float] | None = None,
+    friction_range: tuple[float, float] | None = None,
+) -> PushLog:
+    """Read and check a push log; the ranges are the table's (values outside them are errors)."""
+    frame = read_table(path, REQUIRED, ["speed", "displacement"], OPTIONAL_NUMERIC)
+    ids = frame["object_id"].astype(str).str.strip()
+    if (ids == "").any():
+        raise row_error(
+            path,
+            int(np.flatnonzero((ids == "").to_numpy())[0]),
+            "object_id",
+            "is empty",
+        )
+    frame["object_id"] = ids
+
+    def first_bad(mask: np.ndarray, col: str, message) -> None:
+        if mask.any():
+            i = int(np.flatnonzero(mask)[0])
+            raise row_error(path, i, col, message(frame[col].iloc[i]))
+
+    d = frame["displacement"].to_numpy()
+    first_bad(d < 0, "displacement", lambda x: f"{x:g} is negative")
+    first_bad(
+        d == 0,
+        "displacement",
+        lambda x: "is 0; displacements must be positive (their log is fitted)",
+    )
+    v = frame["speed"].to_numpy()
+    first_bad(v <= 0, "speed", lambda x: f"{x:g} must be positive")
+    if speed_range is not None:
+        lo, hi = speed_range
+        first_bad(
+            (v < lo * (1 - 1e-9)) | (v > hi * (1 + 1e-9)),
+            "speed",
+            lambda x: f"{x:g} is outside the table's speed range [{lo:g}, {hi:g}]",
+        )
+    if "direction" in frame:
+        phi = frame["direction"].to_numpy()
+        first_bad(
+            np.abs(phi) > 2 * np.pi + 1e-9,
+            "direction",
+            lambda x: f"{x:g} is not an angle in radians in [-2 pi, 2 pi]",
+        )
+    if "stop_time" in frame:
+        first_bad(
+            frame["stop_time"].to_numpy() < 0,
+            "stop_time",
+            lambda x: f"{x:g} is negative",
+        )
+    for col in [*SIZE_COLUMNS, "mass", "friction"]:
+        if col in frame:
+            first_bad(frame[col].to_numpy() <= 0, col, lambda x: f"{x:g} must be positive")
+    present = [c for c in SIZE_COLUMNS if c in frame]
+    if present and len(present) < 3:
+        missing = [c for c in SIZE_COLUMNS if c not in frame]
+        raise InputError(f"{path}: size columns come as a set; missing {', '.join(missing)}")
+    if "ok" in frame:
+        ok = frame["ok"].astype(str).str.strip().str.lower()
+        first_bad(
+            ~ok.isin(["true", "false", "1", "0"]).to_numpy(),
+            "ok",
+            lambda x: f"{x!r} is not true/false",
+        )
+        first_bad(
+            ok.isin(["false", "0"]).to_numpy(),
+            "ok",
+            lambda x: "the push failed the simulator's checks (ok=false); remove the row or fix the model",
+        )
+
+    objects = list(dict.fromkeys(frame["object_id"]))
+    index = {o: i for i, o in enumerate(objects)}
+    obj = frame["object_id"].map(index).to_numpy()
+    for o, i in index.items():
+        rows = np.flatnonzero(obj == i)
+        if rows.size < min_pushes or np.unique(v[rows]).size < 2:
+            raise row_error(
+                path, int(rows[0]), "object_id",
+                f"object {o!r} has {rows.size} push(es) at {np.unique(v[rows]).size} speed(s); at least "
+                f"{min_pushes} pushes at 2 or more speeds are needed to fit its mass and friction",
+            )  # fmt: skip
+    measured: dict[str, np.ndarray | None] = {"mass": None, "friction": None}
+    for col, rng in (("mass", mass_range), ("friction", friction_range)):
+        if col not in frame:
+            continue
+        vals = frame[col].to_numpy(float)
+        per_obj = np.empty(len(objects))
+        for i in range(len(objects)):
+            rows = np.flatnonzero(obj == i)
+            if np.ptp(vals[rows]) > 1e-9 * abs(vals[rows[0]]):
+                bad = rows[np.flatnonzero(vals[rows] != vals[rows[0]])[0]]
+                raise row_error(path, int(bad), col, f"differs from the object's first row ({vals[rows[0]]:g}); "
+                                "a measured value must be the same on every push of an object")  # fmt: skip
+            per_obj[i] = vals[rows[0]]
+        if rng is not None:
+            lo, hi = rng
+            first_bad((vals < lo * (1 - 1e-9)) | (vals > hi * (1 + 1e-9)), col,
+                      lambda x, lo=lo, hi=hi: f"{x:g} is outside the table's range [{lo:g}, {hi:g}]")  # fmt: skip
+        measured[col] = per_obj
+    has_dir = "direction" in frame
+    return PushLog(
+        path=str(path), frame=frame, objects=objects, obj=obj, speed=v.astype(float), displacement=d.astype(float),
+        direction=frame["direction"].to_numpy(float) if has_dir else np.zeros(v.size), has_direction=has_dir,
+        mass=measured["mass"], friction=measured["friction"],
+    )  # fmt: skip

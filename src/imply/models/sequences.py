@@ -1,0 +1,144 @@
+"""Predictor input sequences built from cached encoder features and clip metadata.
+
+A *sequence* is a list of (clip, frame) steps with an action and a state per step:
+
+* ``nocalib`` layout: the query clip's 8 frames (T = 8); the first
+  ``query_context`` (2) are context, the rest are predicted.
+* ``calib`` layout: ``calib_frames`` (3 frames, default 0, 3, 7) of each of the
+  object's 2 calibration clips, then the query clip's 8 frames (T = 6 + 8 = 14);
+  context is the 6 calibration steps and the query's first 2 frames.
+
+The action of a step is its push's commanded speed (m/s); the state is the frame's
+time divided by the clip's last frame time (see :mod:`imply.models.ac_predictor`).
+Steps are gathered lazily from the float16 feature array, so a training set costs
+its feature file and a few index arrays in memory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from imply.models.ac_predictor import normalise_tokens
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How a variant lays out its sequence; from config ``model.variants.<name>``."""
+
+    calib: bool
+    calib_frames: tuple[int, ...] = (0, 3, 7)
+    query_context: int = 2
+    n_frames: int = 8
+
+    @property
+    def n_calib_steps(self) -> int:
+        return 2 * len(self.calib_frames) if self.calib else 0
+
+    @property
+    def n_steps(self) -> int:
+        return self.n_calib_steps + self.n_frames
+
+    @property
+    def n_context(self) -> int:
+        return self.n_calib_steps + self.query_context
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Layout:
+        return cls(
+            calib=bool(d["calib"]),
+            calib_frames=tuple(int(f) for f in d.get("calib_frames", (0, 3, 7))),
+            query_context=int(d.get("query_context", 2)),
+            n_frames=int(d.get("n_frames", 8)),
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "calib": self.calib,
+            "calib_frames": list(self.calib_frames),
+            "query_context": self.query_context,
+            "n_frames": self.n_frames,
+        }
+
+
+@dataclass
+class Sequences:
+    """N sequences of T steps over one feature array.
+
+    features: (n_clips, n_frames, P, D) float16/float32 encoder tokens.
+    clip, frame: (N, T) int indices into features; action, state: (N, T) float.
+    """
+
+    features: np.ndarray
+    clip: np.ndarray
+    frame: np.ndarray
+    action: np.ndarray
+    state: np.ndarray
+    n_context: int
+
+    def __len__(self) -> int:
+        return self.clip.shape[0]
+
+    @property
+    def n_steps(self) -> int:
+        return self.clip.shape[1]
+
+    def batch(self, idx: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(frames (B, T, P, D) normalised, actions (B, T, 1), states (B, T, 1))."""
+        feats = torch.from_numpy(np.asarray(self.features[self.clip[idx], self.frame[idx]], dtype=np.float32))
+        frames = normalise_tokens(feats)
+        actions = torch.from_numpy(self.action[idx].astype(np.float32))[..., None]
+        states = torch.from_numpy(self.state[idx].astype(np.float32))[..., None]
+        return frames, actions, states
+
+
+def build_sequences(
+    features: np.ndarray,
+    query_clip: np.ndarray,
+    calib_clips: np.ndarray | None,
+    speed: np.ndarray,
+    frame_time: np.ndarray,
+    layout: Layout,
+) -> Sequences:
+    """Sequences for N queries.
+
+    query_clip: (N,) clip index of each query push; calib_clips: (N, 2) clip indices
+    of the calibration pushes placed in context (any object's: the swap condition
+    passes another object's), required when ``layout.calib``; speed: (n_clips,)
+    commanded speed of every clip; frame_time: (n_clips, n_frames) seconds.
+    """
+    n_frames = features.shape[1]
+    if n_frames != layout.n_frames:
+        raise ValueError(f"features have {n_frames} frames per clip, the layout expects {layout.n_frames}")
+    if layout.calib_frames and max(layout.calib_frames) >= n_frames:
+        raise ValueError(f"calibration frame {max(layout.calib_frames)} is out of range (clips have {n_frames})")
+    query_clip = np.asarray(query_clip, dtype=np.int64)
+    n = query_clip.shape[0]
+    clips, frames = [], []
+    if layout.calib:
+        if calib_clips is None:
+            raise ValueError("the calibrated layout needs calibration clips")
+        calib_clips = np.asarray(calib_clips, dtype=np.int64).reshape(n, 2)
+        for j in range(2):
+            for f in layout.calib_frames:
+                clips.append(calib_clips[:, j])
+                frames.append(np.full(n, f))
+    for f in range(n_frames):
+        clips.append(query_clip)
+        frames.append(np.full(n, f))
+    clip = np.stack(clips, axis=1)
+    frame = np.stack(frames, axis=1)
+    speed = np.asarray(speed, dtype=np.float64)
+    frame_time = np.asarray(frame_time, dtype=np.float64)
+    last = np.maximum(frame_time[:, -1:], 1e-9)
+    rel_time = frame_time / last
+    return Sequences(
+        features=features,
+        clip=clip,
+        frame=frame,
+        action=speed[clip],
+        state=rel_time[clip, frame],
+        n_context=layout.n_context,
+    )

@@ -1,0 +1,235 @@
+"""Fine-tuning the action-conditioned predictor on cached encoder features.
+
+Objective (as V-JEPA 2-AC's): an L1 loss on layer-normed encoder tokens, the sum of
+
+* a teacher-forcing term: every query frame after the first predicted from the true
+  frames, actions and states before it (one pass, thanks to the block-causal mask);
+* a rollout term: from the context (calibration steps, if any, and the query's first
+  ``query_context`` frames) the model rolls out auto-regressively, feeding its own
+  predictions back, for ``rollout_steps`` steps; each predicted frame is compared
+  with the true one. The gradient flows through the whole rollout.
+
+Optimiser: AdamW; learning rate warms up linearly from ``start_lr`` to ``lr`` over the
+first ``warmup`` fraction of steps, stays constant, and anneals linearly to
+``final_lr`` over the last ``anneal`` fraction; gradients clipped at ``grad_clip``.
+
+Determinism: the initial weights come from ``init_seed`` (the same for every data
+seed, as fine-tuning starts from one checkpoint) and the order of examples in epoch e
+from ``numpy.random.default_rng([data_seed, e])``; no dropout, so nothing else is
+random. A checkpoint (weights, optimiser state, step, per-epoch losses, and a digest
+of everything that defines the run) is written atomically after every epoch; a run
+that finds a checkpoint with the same digest resumes after its last epoch and ends
+with the same weights as an uninterrupted run (same thread count).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+import math
+import os
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from imply.io import atomic_path
+from imply.models.ac_predictor import ACPredictor, PredictorConfig
+from imply.models.sequences import Layout, Sequences
+
+log = logging.getLogger("imply.models.train")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    epochs: int = 4
+    batch_size: int = 32
+    lr: float = 5e-4
+    start_lr: float = 5e-5
+    final_lr: float = 0.0
+    warmup: float = 0.1
+    anneal: float = 0.3
+    weight_decay: float = 0.04
+    beta1: float = 0.9
+    beta2: float = 0.999
+    grad_clip: float = 1.0
+    rollout_weight: float = 1.0
+    rollout_steps: int = 6
+    init_seed: int = 0
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainConfig:
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise ValueError(f"unknown training option(s): {sorted(unknown)}")
+        return cls(**d)
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
+    """Warmup, constant, linear anneal (step counts from 0)."""
+    warm = max(1, int(round(cfg.warmup * total))) if cfg.warmup > 0 else 0
+    anneal = int(round(cfg.anneal * total))
+    if step < warm:
+        return cfg.start_lr + (cfg.lr - cfg.start_lr) * (step + 1) / warm
+    start_anneal = total - anneal
+    if anneal > 0 and step >= start_anneal:
+        frac = (step - start_anneal + 1) / anneal
+        return cfg.lr + (cfg.final_lr - cfg.lr) * min(frac, 1.0)
+    return cfg.lr
+
+
+def losses(model: ACPredictor, frames, actions, states, n_context: int, q0: int, cfg: TrainConfig):
+    """(teacher-forcing L1, rollout L1) for one batch; q0 is the query's first step.
+
+    The teacher-forcing pass also yields the keys and values of the true context, so
+    the rollout continues from them: its first step is the teacher-forcing prediction
+    from the context, and each later step runs only its own tokens (gradients flow
+    through the fed-back predictions).
+    """
+    pred, cache = model._run(frames, actions, states, 0, None)
+    tf = (pred[:, q0:-1] - frames[:, q0 + 1 :]).abs().mean()
+    t = frames.shape[1]
+    steps = min(cfg.rollout_steps, t - n_context)
+    if cfg.rollout_weight == 0 or steps <= 0:
+        return tf, torch.zeros((), device=frames.device)
+    n_tok = n_context * model.cfg.tokens_per_step
+    cache = [(k[:, :, :n_tok], v[:, :, :n_tok]) for k, v in cache]
+    nxt = pred[:, n_context - 1]
+    rolled = [nxt]
+    for s in range(n_context, n_context + steps - 1):
+        out, cache = model._run(nxt[:, None], actions[:, s : s + 1], states[:, s : s + 1], s, cache)
+        nxt = out[:, -1]
+        rolled.append(nxt)
+    ar = (torch.stack(rolled, dim=1) - frames[:, n_context : n_context + steps]).abs().mean()
+    return tf, ar
+
+
+def run_digest(pred_cfg: PredictorConfig, train_cfg: TrainConfig, layout: Layout, data_seed: int, data_key: str) -> str:
+    blob = json.dumps(
+        {
+            "predictor": pred_cfg.to_dict(),
+            "train": train_cfg.to_dict(),
+            "layout": layout.to_dict(),
+            "seed": data_seed,
+            "data": data_key,
+        },
+        sort_keys=True,
+    )
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _save(path: Path, obj: dict) -> None:
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buf.getvalue())
+
+
+def train(
+    seqs: Sequences,
+    layout: Layout,
+    pred_cfg: PredictorConfig,
+    cfg: TrainConfig,
+    data_seed: int,
+    out: str | os.PathLike,
+    checkpoint: str | os.PathLike,
+    data_key: str = "",
+    stop_after_epoch: int | None = None,
+    device: str = "cpu",
+    rest_state: float = 1.0,
+) -> dict:
+    """Train (or resume) and write the final model to ``out``; returns its payload.
+
+    ``checkpoint`` is rewritten after every epoch. ``stop_after_epoch`` ends the run
+    after that epoch without writing ``out`` (how tests simulate a killed run).
+    """
+    checkpoint = Path(checkpoint)
+    digest = run_digest(pred_cfg, cfg, layout, data_seed, data_key)
+    torch.manual_seed(cfg.init_seed)
+    model = ACPredictor(pred_cfg).to(device)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2), weight_decay=cfg.weight_decay)
+    n = len(seqs)
+    per_epoch = math.ceil(n / cfg.batch_size)
+    total = per_epoch * cfg.epochs
+    start_epoch, history = 0, []
+    if checkpoint.exists():
+        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        if state.get("digest") == digest:
+            model.load_state_dict(state["model"])
+            opt.load_state_dict(state["optimizer"])
+            start_epoch, history = state["epoch"], state["history"]
+            log.info("resuming from %s after epoch %d", checkpoint, start_epoch)
+        else:
+            log.info("ignoring checkpoint %s: it belongs to a different run", checkpoint)
+    log.info(
+        "predictor: %d parameters, %d sequences of %d steps, %d epochs x %d steps",
+        model.n_parameters(),
+        n,
+        seqs.n_steps,
+        cfg.epochs,
+        per_epoch,
+    )
+    q0 = layout.n_calib_steps
+    model.train()
+    for epoch in range(start_epoch, cfg.epochs):
+        order = np.random.default_rng([data_seed, epoch]).permutation(n)
+        sums = np.zeros(2)
+        bar = tqdm(range(per_epoch), desc=f"epoch {epoch + 1}/{cfg.epochs}", mininterval=5.0, leave=False)
+        for b in bar:
+            step = epoch * per_epoch + b
+            for group in opt.param_groups:
+                group["lr"] = lr_at(step, total, cfg)
+            idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
+            frames, actions, states = (x.to(device) for x in seqs.batch(idx))
+            tf, ar = losses(model, frames, actions, states, seqs.n_context, q0, cfg)
+            loss = tf + cfg.rollout_weight * ar
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            if cfg.grad_clip > 0:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+            opt.step()
+            sums += [tf.item(), ar.item()]
+            bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}")
+        history.append({"epoch": epoch + 1, "teacher_forcing": sums[0] / per_epoch, "rollout": sums[1] / per_epoch})
+        log.info("epoch %d: teacher-forcing L1 %.4f, rollout L1 %.4f", epoch + 1, *(sums / per_epoch))
+        _save(
+            checkpoint,
+            {
+                "digest": digest,
+                "epoch": epoch + 1,
+                "model": model.state_dict(),
+                "optimizer": opt.state_dict(),
+                "history": history,
+            },
+        )
+        if stop_after_epoch is not None and epoch + 1 >= stop_after_epoch and epoch + 1 < cfg.epochs:
+            return {}
+    payload = {
+        "digest": digest,
+        "predictor": pred_cfg.to_dict(),
+        "layout": layout.to_dict(),
+        "train": cfg.to_dict(),
+        "data_seed": data_seed,
+        "rest_state": rest_state,
+        "history": history,
+        "model": {k: v.cpu() for k, v in model.state_dict().items()},
+    }
+    _save(Path(out), payload)
+    return payload
+
+
+def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:
+    """A trained predictor (eval mode), its layout and the saved payload."""
+    payload = torch.load(path, map_location="cpu", weights_only=False)
+    model = ACPredictor(PredictorConfig.from_dict(payload["predictor"]))
+    model.load_state_dict(payload["model"])
+    model.eval()
+    return model, Layout.from_dict(payload["layout"]), payload

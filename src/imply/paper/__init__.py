@@ -1,0 +1,1 @@
+"""Paper outputs: macros, numbers, tables, figures and the reproduction report."""

@@ -1,0 +1,170 @@
+"""Reading a push's displacement off a clip: a ridge readout from encoder features and a pixel readout.
+
+Ridge readout (latent models, :class:`RidgeReadout`): the input is the **last frame's**
+patch tokens of a clip (the box at rest), all patches concatenated in row-major patch
+order (no pooling: (n_patches * dim) features, 16 x 64 = 1024 with the CPU default),
+standardised per feature; the target is the **log** displacement (natural log of metres),
+as the paper reads log slide; alpha is chosen by leave-one-out cross-validation over a
+log grid (scikit-learn ``RidgeCV``). It is fit on every clip of the training objects and
+evaluated on every clip of the held-out objects (both held-out splits): R^2 of predicted
+against true log displacement.
+
+Apply it to predicted tokens (the predictor's rollouts)::
+
+    from imply.readout import load_readout
+    readout = load_readout("results/readout/ridge.npz")
+    d = readout.predict(last_frame_tokens)   # (N, n_patches, dim) or (N, n_patches*dim) -> (N,) metres
+
+Frame-difference readout (pixel models, :class:`FrameDiffReadout`): with the camera
+fixed, the box is the only red thing in the scene. Per pixel, a box saliency
+S = max(R - G, 0) (the table is grey, the pusher blue). The difference of the last and
+first frames' saliency, weighted by column position, divided by the box's saliency mass
+in the first frame, is the shift of the box's centroid in pixels (exact for any
+displacement, as long as the box stays in view). A linear map, fit by least squares on
+the training clips, turns pixels into metres; evaluated like the ridge readout (R^2 on
+log displacement, predictions floored at 1 mm).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from sklearn.linear_model import RidgeCV
+from sklearn.metrics import r2_score
+
+ALPHAS = np.logspace(-2, 5, 29)
+FLOOR = 1e-3  # metres; the frame-difference map can go below zero for tiny slides
+RIDGE_FORMAT = "imply-ridge-readout-v1"
+
+
+def last_frame_features(tokens: np.ndarray) -> np.ndarray:
+    """(n_clips, T, n_patches, dim) cached tokens -> (n_clips, n_patches*dim) float64 of the last frame."""
+    last = np.asarray(tokens)[:, -1]
+    return last.reshape(len(last), -1).astype(np.float64)
+
+
+@dataclass
+class RidgeReadout:
+    """log displacement = ((x - mean) / scale) . coef + intercept, x = concatenated last-frame tokens."""
+
+    mean: np.ndarray
+    scale: np.ndarray
+    coef: np.ndarray
+    intercept: float
+    alpha: float
+    n_patches: int
+    dim: int
+
+    @classmethod
+    def fit(cls, last_tokens: np.ndarray, displacement: np.ndarray, alphas: np.ndarray = ALPHAS) -> RidgeReadout:
+        """Fit on (N, n_patches, dim) last-frame tokens and true displacements (metres, > 0)."""
+        x = np.asarray(last_tokens, dtype=np.float64)
+        if x.ndim != 3:
+            raise ValueError("last_tokens must be (N, n_patches, dim)")
+        d = np.asarray(displacement, dtype=float)
+        if np.any(~np.isfinite(d)) or np.any(d <= 0):
+            raise ValueError("displacements must be finite and positive to read log slide")
+        n, p, k = x.shape
+        flat = x.reshape(n, p * k)
+        mean = flat.mean(axis=0)
+        scale = flat.std(axis=0)
+        scale[scale < 1e-8] = 1.0  # constant features carry nothing; avoid dividing by zero
+        z = (flat - mean) / scale
+        model = RidgeCV(alphas=alphas).fit(z, np.log(d))
+        return cls(
+            mean, scale, np.asarray(model.coef_, dtype=float), float(model.intercept_), float(model.alpha_), p, k
+        )
+
+    def _flat(self, tokens: np.ndarray) -> np.ndarray:
+        x = np.asarray(tokens, dtype=np.float64)
+        if x.ndim == 3:
+            if x.shape[1:] != (self.n_patches, self.dim):
+                raise ValueError(f"tokens {x.shape[1:]} do not match the readout's ({self.n_patches}, {self.dim})")
+            x = x.reshape(len(x), -1)
+        if x.ndim != 2 or x.shape[1] != self.n_patches * self.dim:
+            raise ValueError(f"expected (N, {self.n_patches}, {self.dim}) or (N, {self.n_patches * self.dim}) tokens")
+        return x
+
+    def predict_log(self, tokens: np.ndarray) -> np.ndarray:
+        """Natural log of displacement (metres) from last-frame tokens."""
+        return ((self._flat(tokens) - self.mean) / self.scale) @ self.coef + self.intercept
+
+    def predict(self, tokens: np.ndarray) -> np.ndarray:
+        """Displacement (metres) from last-frame tokens (N, n_patches, dim) or (N, n_patches*dim)."""
+        return np.exp(self.predict_log(tokens))
+
+    def save(self, path: str | os.PathLike) -> None:
+        from imply.data.clips import write_npz_compressed
+
+        write_npz_compressed(
+            path,
+            compress=False,
+            format=np.asarray(RIDGE_FORMAT),
+            mean=self.mean,
+            scale=self.scale,
+            coef=self.coef,
+            intercept=np.float64(self.intercept),
+            alpha=np.float64(self.alpha),
+            shape=np.asarray([self.n_patches, self.dim], dtype=np.int64),
+        )
+
+
+def load_readout(path: str | os.PathLike) -> RidgeReadout:
+    """The fitted ridge readout written by ``imply readout fit`` (results/readout/ridge.npz)."""
+    path = Path(path)
+    with np.load(path) as z:
+        if "format" not in z or str(z["format"]) != RIDGE_FORMAT:
+            raise ValueError(f"{path}: not a ridge readout file")
+        p, k = (int(v) for v in z["shape"])
+        return RidgeReadout(z["mean"], z["scale"], z["coef"], float(z["intercept"]), float(z["alpha"]), p, k)
+
+
+def saliency(frames: np.ndarray) -> np.ndarray:
+    """Box saliency max(R - G, 0) of uint8 frames (..., H, W, 3) as float (..., H, W)."""
+    f = np.asarray(frames, dtype=np.float32)
+    return np.maximum(f[..., 0] - f[..., 1], 0.0)
+
+
+def frame_diff_shift(first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Shift (pixels, along image columns) of the box between two frames, from their difference.
+
+    first, last: uint8 (N, H, W, 3). Returns (N,): sum_x x * (S_last - S_first) / sum S_first.
+    """
+    s0 = saliency(first)
+    s1 = saliency(last)
+    cols = np.arange(s0.shape[-1], dtype=np.float64)
+    moment = ((s1 - s0).sum(axis=-2) * cols).sum(axis=-1)
+    mass = s0.sum(axis=(-2, -1))
+    return moment / np.maximum(mass, 1e-9)
+
+
+@dataclass
+class FrameDiffReadout:
+    """displacement (m) = slope * shift_px + intercept, shift from :func:`frame_diff_shift`."""
+
+    slope: float
+    intercept: float
+
+    @classmethod
+    def fit(cls, clips: np.ndarray, displacement: np.ndarray) -> FrameDiffReadout:
+        shift = frame_diff_shift(clips[:, 0], clips[:, -1])
+        a, b = np.polyfit(shift, np.asarray(displacement, dtype=float), 1)
+        return cls(float(a), float(b))
+
+    def predict(self, clips: np.ndarray) -> np.ndarray:
+        """Displacement (metres, floored at 1 mm) of clips (N, T, H, W, 3): last frame against first."""
+        shift = frame_diff_shift(clips[:, 0], clips[:, -1])
+        return np.maximum(self.slope * shift + self.intercept, FLOOR)
+
+
+def r2_log(true_d: np.ndarray, pred_d: np.ndarray) -> float:
+    """R^2 of predicted against true log displacement."""
+    return float(r2_score(np.log(np.asarray(true_d, dtype=float)), np.log(np.asarray(pred_d, dtype=float))))
+
+
+def r2_linear(true_d: np.ndarray, pred_d: np.ndarray) -> float:
+    """R^2 of predicted against true displacement in metres."""
+    return float(r2_score(np.asarray(true_d, dtype=float), np.asarray(pred_d, dtype=float)))

@@ -1,0 +1,85 @@
+"""Shared fixtures: a tiny table (seconds) and the full default table (built once per run)."""
+
+from __future__ import annotations
+
+import os
+
+# before mujoco is imported anywhere: offscreen rendering through EGL
+os.environ.setdefault("MUJOCO_GL", "egl")
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from imply.sim import SceneConfig
+from imply.table import PushTable, TableGrid, build_table
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    return ROOT
+
+
+@pytest.fixture(scope="session")
+def default_config() -> dict:
+    with open(ROOT / "config.yaml") as fh:
+        return yaml.safe_load(fh)
+
+
+@pytest.fixture(scope="session")
+def scene(default_config) -> SceneConfig:
+    return SceneConfig.from_dict(default_config["scene"])
+
+
+TINY_GRID = TableGrid(
+    speed_min=0.15, speed_max=1.05, n_speeds=7,
+    mass_min=0.2, mass_max=2.0, n_masses=6,
+    friction_min=0.1, friction_max=0.6, n_frictions=6,
+)  # fmt: skip
+
+
+@pytest.fixture(scope="session")
+def tiny_table(scene) -> PushTable:
+    """A 7 x 6 x 6 table of the real scene: enough to exercise code paths in a second."""
+    return build_table(scene, TINY_GRID, nthread=2)
+
+
+@pytest.fixture(scope="session")
+def tiny_table_path(tiny_table, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("tables") / "tiny.npz"
+    tiny_table.save(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def analytic_table() -> PushTable:
+    """A closed-form table, log d = 2 log v - log mu - 0.5 log m v: fast and exactly known."""
+    speeds = np.linspace(0.15, 1.05, 19)
+    masses = np.geomspace(0.2, 2.0, 25)
+    frictions = np.geomspace(0.1, 0.6, 21)
+    v, m, mu = np.meshgrid(speeds, masses, frictions, indexing="ij")
+    return PushTable(speeds, masses, frictions, analytic_log_d(v, m, mu))
+
+
+def analytic_log_d(v, m, mu):
+    return 2 * np.log(v) - np.log(mu) - 0.5 * np.log(m) * v - 3.0
+
+
+@pytest.fixture(scope="session")
+def full_table(scene, default_config, request, tmp_path_factory) -> PushTable:
+    """The default 19 x 25 x 21 table, cached across runs under pytest's cache dir."""
+    grid = TableGrid.from_dict(default_config["table"])
+    from imply.table import config_digest
+
+    key = config_digest({"scene": scene.to_dict(), "grid": grid.__dict__})
+    cache_api = getattr(request.config, "cache", None)  # absent with -p no:cacheprovider
+    folder = Path(cache_api.mkdir("imply-tables")) if cache_api else tmp_path_factory.mktemp("imply-tables")
+    cache = folder / f"table-{key}.npz"
+    if cache.exists():
+        return PushTable.load(cache)
+    table = build_table(scene, grid, nthread=2)
+    table.save(cache)
+    return table
