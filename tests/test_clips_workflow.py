@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -15,12 +14,12 @@ import yaml
 from imply.data.clips import load_split
 from imply.models.encoder import load_features
 from imply.readout import load_readout
+from workflow_helpers import copy_workflow
 
 
 @pytest.mark.slow
 def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):
-    shutil.copy(repo_root / "Snakefile", tmp_path / "Snakefile")
-    shutil.copytree(repo_root / "workflow", tmp_path / "workflow")
+    copy_workflow(tmp_path)
     cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
     cfg.update(yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))

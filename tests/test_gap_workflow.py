@@ -3,18 +3,17 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 
 import pytest
 
+from workflow_helpers import copy_workflow
+
 
 @pytest.mark.slow
 def test_gap_workflow_tiny(tmp_path, repo_root):
-    for name in ("Snakefile", "config.yaml"):
-        shutil.copy(repo_root / name, tmp_path / name)
-    shutil.copytree(repo_root / "workflow", tmp_path / "workflow")
+    copy_workflow(tmp_path)
     target = "results/paper/parts/gap.json"
     cmd = [sys.executable, "-m", "snakemake", target, "--cores", "2", "--directory", str(tmp_path),
            "--configfile", str(repo_root / "tests/config/gap_tiny.yaml")]  # fmt: skip

@@ -12,16 +12,13 @@ import time
 import pytest
 
 from test_model import synth_split
+from workflow_helpers import copy_workflow
 
 pytestmark = pytest.mark.slow
 
 
 def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
-    work = tmp_path / "wf"
-    work.mkdir()
-    shutil.copy(repo_root / "Snakefile", work)
-    shutil.copy(repo_root / "config.yaml", work)
-    shutil.copytree(repo_root / "workflow", work / "workflow")
+    work = copy_workflow(tmp_path / "wf")
     shutil.copy(repo_root / "tests/config/model_small.yaml", work / "small.yaml")
     # the upstream outputs this stage reads, planted oldest first so nothing upstream reruns
     (work / "results/table").mkdir(parents=True)

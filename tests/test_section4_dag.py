@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from workflow_helpers import copy_workflow
+
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
@@ -49,9 +51,7 @@ def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def dag_dir(tmp_path_factory, tiny_table_path) -> Path:
     work = tmp_path_factory.mktemp("s4dag")
-    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-    shutil.copytree(ROOT / "workflow", work / "workflow")
-    shutil.copy(ROOT / "config.yaml", work / "config.yaml")
+    copy_workflow(work)
     # the small config's table grid is the tiny fixture's: reuse it instead of rebuilding
     (work / "results" / "table").mkdir(parents=True)
     shutil.copy(tiny_table_path, work / "results" / "table" / "table.npz")

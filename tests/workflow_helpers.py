@@ -11,10 +11,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def copy_workflow(dest: Path) -> Path:
-    """Copy Snakefile, workflow/ and config.yaml into ``dest`` and return it."""
+    """Copy Snakefile, workflow/, envs/ and config.yaml into ``dest`` and return it.
+
+    envs/ is needed even without --use-conda: Snakemake records each rule's conda file.
+    """
+    dest.mkdir(parents=True, exist_ok=True)
     shutil.copy(ROOT / "Snakefile", dest / "Snakefile")
     shutil.copy(ROOT / "config.yaml", dest / "config.yaml")
     shutil.copytree(ROOT / "workflow", dest / "workflow")
+    shutil.copytree(ROOT / "envs", dest / "envs")
     return dest
 
 

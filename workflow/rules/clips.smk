@@ -22,6 +22,8 @@ wildcard_constraints:
 
 
 rule clips_render:
+    conda:
+        IMPLY_ENV
     output:
         npz="results/clips/{clip_split}.npz",
         csv="results/clips/{clip_split}.csv",
@@ -42,6 +44,8 @@ rule clips_render:
 
 
 rule encoder_pretrain:
+    conda:
+        IMPLY_ENV
     input:
         "results/clips/pretrain.npz",
     output:
@@ -67,6 +71,8 @@ def _encoder_weights(wildcards):
 
 
 rule encoder_encode:
+    conda:
+        IMPLY_ENV
     input:
         clips="results/clips/{feature_split}.npz",
         weights=_encoder_weights,
@@ -88,6 +94,8 @@ rule encoder_encode:
 
 
 rule readout_fit:
+    conda:
+        IMPLY_ENV
     input:
         clips=expand("results/clips/{s}.{ext}", s=FEATURE_SPLITS, ext=["npz", "csv"]),
         features=expand("results/features/{s}.npz", s=FEATURE_SPLITS),

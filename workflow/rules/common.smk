@@ -14,6 +14,9 @@ def as_json(obj):
     return shlex.quote(json.dumps(obj, sort_keys=True))
 
 
+# the software environment of every rule under `snakemake --use-conda` (pinned versions)
+IMPLY_ENV = "../../envs/imply.yaml"
+
 # final outputs of every stage; each rules file extends this list
 FINAL_TARGETS = []
 

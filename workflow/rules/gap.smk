@@ -14,6 +14,8 @@ GAP_EFFECTS = "--effects " + ",".join(config["gap"]["candidates"]) if config["ga
 
 
 rule gap_tables:
+    conda:
+        IMPLY_ENV
     input:
         table="results/table/table.npz",
     output:
@@ -34,6 +36,8 @@ rule gap_tables:
 
 
 rule gap_generate:
+    conda:
+        IMPLY_ENV
     input:
         table="results/table/table.npz",
     output:
@@ -64,6 +68,8 @@ def gap_shard_logs(wildcards):
 
 
 rule gap_diagnose:
+    conda:
+        IMPLY_ENV
     input:
         logs=gap_shard_logs,
         table="results/table/table.npz",
@@ -87,6 +93,8 @@ rule gap_diagnose:
 
 
 rule gap_benchmark:
+    conda:
+        IMPLY_ENV
     input:
         reports=expand(f"{GAP}/reports/shard{{shard}}", shard=GAP_SHARDS),
         sealed=f"{GAP}/sealed/labels.json",

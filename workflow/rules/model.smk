@@ -33,6 +33,8 @@ def _train_subset(variant):
 
 
 rule model_readout:
+    conda:
+        IMPLY_ENV
     input:
         features="results/features/train.npz",
         clips="results/clips/train.csv",
@@ -56,6 +58,8 @@ rule model_readout:
 
 
 rule model_train:
+    conda:
+        IMPLY_ENV
     input:
         features="results/features/train.npz",
         clips="results/clips/train.csv",
@@ -79,6 +83,8 @@ rule model_train:
 
 
 rule model_rollout:
+    conda:
+        IMPLY_ENV
     input:
         model="results/model/{variant}/seed{seed}/model.pt",
         features=lambda wc: f"results/features/{ROLLOUT_SPLIT[wc.variant]}.npz",

@@ -18,6 +18,8 @@ def _paper_parts(wildcards):
 
 
 rule paper_merge:
+    conda:
+        IMPLY_ENV
     input:
         values=str(_paper_values_path()),
         parts=_paper_parts,

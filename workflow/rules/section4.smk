@@ -10,6 +10,8 @@ S4_SPEEDS = {k: config["score"][k] for k in ("query_speeds", "calibration_speeds
 
 
 rule s4_objects:
+    conda:
+        IMPLY_ENV
     input:
         table="results/table/table.npz",
     output:
@@ -28,6 +30,8 @@ rule s4_objects:
 
 
 rule s4_truth:
+    conda:
+        IMPLY_ENV
     input:
         objects=f"{S4}/objects.csv",
     output:
@@ -47,6 +51,8 @@ rule s4_truth:
 
 
 rule s4_standins:
+    conda:
+        IMPLY_ENV
     input:
         objects=f"{S4}/objects.csv",
         truth=f"{S4}/truth.csv",
@@ -70,6 +76,8 @@ rule s4_standins:
 
 
 rule s4_scores:
+    conda:
+        IMPLY_ENV
     input:
         objects=f"{S4}/objects.csv",
         truth=f"{S4}/truth.csv",
@@ -90,6 +98,8 @@ rule s4_scores:
 
 
 rule s4_metrics:
+    conda:
+        IMPLY_ENV
     input:
         scores=f"{S4}/scores.csv",
         table="results/table/table.npz",
@@ -109,6 +119,8 @@ rule s4_metrics:
 
 
 rule s4_noise:
+    conda:
+        IMPLY_ENV
     input:
         truth=f"{S4}/truth.csv",
         rollouts=f"{S4}/rollouts.csv",
@@ -129,6 +141,8 @@ rule s4_noise:
 
 
 rule s4_selection:
+    conda:
+        IMPLY_ENV
     input:
         truth=f"{S4}/truth.csv",
         rollouts=f"{S4}/rollouts.csv",
@@ -151,6 +165,8 @@ rule s4_selection:
 
 
 rule s4_part:
+    conda:
+        IMPLY_ENV
     input:
         metrics=f"{S4}/metrics.json",
         noise=f"{S4}/noise.csv",
@@ -170,6 +186,8 @@ rule s4_part:
 
 
 rule s4_tables:
+    conda:
+        IMPLY_ENV
     input:
         part="results/paper/parts/section4.json",
     output:
@@ -185,6 +203,8 @@ rule s4_tables:
 
 
 rule s4_figure:
+    conda:
+        IMPLY_ENV
     input:
         scores=f"{S4}/scores.csv",
         noise=f"{S4}/noise.csv",

@@ -3,6 +3,8 @@
 
 
 rule section5:
+    conda:
+        IMPLY_ENV
     input:
         rollouts=expand("results/model/{variant}/seed{seed}/rollouts.csv", variant=MODEL_VARIANTS, seed=MODEL_SEEDS),
         table="results/table/table.npz",

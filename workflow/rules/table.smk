@@ -2,6 +2,8 @@
 
 
 rule table:
+    conda:
+        IMPLY_ENV
     output:
         "results/table/table.npz",
     params:
@@ -19,6 +21,8 @@ rule table:
 
 
 rule scene_xml:
+    conda:
+        IMPLY_ENV
     output:
         "results/table/scene.xml",
     params:

@@ -42,6 +42,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from imply.models.vision_transformer import init_weights
+
 
 @dataclass(frozen=True)
 class PredictorConfig:
@@ -206,7 +208,7 @@ class ACPredictor(nn.Module):
         self.blocks = nn.ModuleList([Block(w, cfg.heads, cfg.mlp_ratio, rope) for _ in range(cfg.depth)])
         self.norm = nn.LayerNorm(w)
         self.out = nn.Linear(w, cfg.embed_dim)
-        self.apply(_init_weights)
+        self.apply(init_weights)
         # residual branches start small in deep stacks, as in ViT-style predictors
         for i, blk in enumerate(self.blocks):
             blk.attn.proj.weight.data.div_(math.sqrt(2.0 * (i + 1)))
@@ -255,16 +257,6 @@ class ACPredictor(nn.Module):
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
-
-
-def _init_weights(m: nn.Module) -> None:
-    if isinstance(m, nn.Linear):
-        nn.init.trunc_normal_(m.weight, std=0.02)
-        if m.bias is not None:
-            nn.init.zeros_(m.bias)
-    elif isinstance(m, nn.LayerNorm):
-        nn.init.ones_(m.weight)
-        nn.init.zeros_(m.bias)
 
 
 def rollout(

@@ -15,7 +15,7 @@ import math
 import torch
 from torch import nn
 
-from imply.models.vision_transformer import Block, _init_weights, rope_tables
+from imply.models.vision_transformer import Block, init_weights, rope_tables
 
 
 class MaskedPredictor(nn.Module):
@@ -29,7 +29,7 @@ class MaskedPredictor(nn.Module):
         self.blocks = nn.ModuleList([Block(pred_dim, num_heads, mlp_ratio) for _ in range(depth)])
         self.norm = nn.LayerNorm(pred_dim, eps=1e-6)
         self.proj = nn.Linear(pred_dim, embed_dim)
-        self.apply(_init_weights)
+        self.apply(init_weights)
         nn.init.trunc_normal_(self.mask_token, std=0.02)
         for i, blk in enumerate(self.blocks):
             blk.attn.proj.weight.data.div_(math.sqrt(2.0 * (i + 1)))

@@ -171,7 +171,7 @@ class VisionTransformer(nn.Module):
             [Block(cfg.embed_dim, cfg.num_heads, cfg.mlp_ratio, cfg.qkv_bias) for _ in range(cfg.depth)]
         )
         self.norm = nn.LayerNorm(cfg.embed_dim, eps=1e-6)
-        self.apply(_init_weights)
+        self.apply(init_weights)
         for i, blk in enumerate(self.blocks):
             # deeper residual branches start smaller, as in V-JEPA 2
             blk.attn.proj.weight.data.div_(math.sqrt(2.0 * (i + 1)))
@@ -195,7 +195,8 @@ class VisionTransformer(nn.Module):
         return self.norm(tokens)
 
 
-def _init_weights(m: nn.Module) -> None:
+def init_weights(m: nn.Module) -> None:
+    """Truncated-normal linear and convolution weights, zero biases, unit layer norms."""
     if isinstance(m, (nn.Linear, nn.Conv3d)):
         nn.init.trunc_normal_(m.weight, std=0.02)
         if m.bias is not None:
