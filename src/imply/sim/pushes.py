@@ -108,7 +108,6 @@ def simulate_pushes(
     stroke = model_numeric(model, "stroke")
     settle_speed = model_numeric(model, "settle_speed", 1e-4)
     max_time = model_numeric(model, "max_time", 4.0)
-    dt = float(model.opt.timestep)
     box = model.body("box")
     box_jnt = int(box.jntadr[0])
     if model.jnt_type[box_jnt] != mujoco.mjtJoint.mjJNT_FREE:
@@ -146,23 +145,11 @@ def simulate_pushes(
 
     qpos = batch.bind("qpos")
     qvel = batch.bind("qvel")
-    ctrl = batch.bind("ctrl")
     now = batch.bind("time")
     start = qpos[:, bq : bq + 3].copy()
     stop_time = np.full(n, max_time)
 
-    pushing = np.arange(n)
-    ctrl[:, :] = 0.0
-    while pushing.size:
-        q = qpos[pushing, pq]
-        u = qvel[pushing, pv]
-        # substeps of travel left in the stroke at the current pusher speed
-        left = (stroke - q) / np.maximum(u * dt, 1e-12)
-        last = (left < 1.0) | (now[pushing] >= max_time)
-        ctrl[pushing, servo] = np.where(last, np.clip(left, 0.0, 1.0), 1.0) * speeds[pushing]
-        batch.step(ids=pushing, nstep=1)
-        ctrl[pushing[last], servo] = 0.0
-        pushing = pushing[~last]
+    drive_stroke(batch, speeds, stroke=stroke, max_time=max_time, push_qpos=pq, push_dof=pv, servo=servo)
 
     active = np.arange(n)
     bar = tqdm(total=n, desc="pushes settled", unit="push", disable=not progress, leave=False)
@@ -180,20 +167,61 @@ def simulate_pushes(
     final = qpos[:, bq : bq + 7]
     disp = final[:, 0] - start[:, 0]
     lateral = final[:, 1] - start[:, 1]
+    tilt, ok = push_checks(final, disp, lateral, stop_time, max_time)
+    if not ok.all():
+        log.warning("%d of %d pushes failed checks (unsettled, tipped, NaN or deflected)", int((~ok).sum()), n)
+    return PushResult(displacement=disp, lateral=lateral, stop_time=stop_time, tilt=tilt, ok=ok)
+
+
+def drive_stroke(
+    batch: mjbatch.Batch,
+    speeds: np.ndarray,
+    *,
+    stroke: float,
+    max_time: float,
+    push_qpos: int,
+    push_dof: int,
+    servo: int,
+    after_step=None,
+) -> None:
+    """The pushing phase: command each push's speed until its pusher reaches the stroke.
+
+    Simulations are stepped one substep at a time so that each stroke can end on the
+    substep where the pusher reaches it; that substep's command is scaled to the
+    fraction of it left, which keeps the displacement smooth in speed. The servo is
+    then commanded zero (it brakes). ``after_step(ids)``, if given, runs after every
+    substep with the simulations that took it (e.g. to record frames).
+    """
+    qpos, qvel, ctrl, now = batch.bind("qpos"), batch.bind("qvel"), batch.bind("ctrl"), batch.bind("time")
+    dt = float(batch.model.opt.timestep)
+    pushing = np.arange(batch.nsim)
+    ctrl[:, :] = 0.0
+    while pushing.size:
+        # substeps of travel left in the stroke at the current pusher speed
+        left = (stroke - qpos[pushing, push_qpos]) / np.maximum(qvel[pushing, push_dof] * dt, 1e-12)
+        last = (left < 1.0) | (now[pushing] >= max_time)
+        ctrl[pushing, servo] = np.where(last, np.clip(left, 0.0, 1.0), 1.0) * speeds[pushing]
+        batch.step(ids=pushing, nstep=1)
+        ctrl[pushing[last], servo] = 0.0
+        if after_step is not None:
+            after_step(pushing)
+        pushing = pushing[~last]
+
+
+def push_checks(
+    final_box_qpos: np.ndarray, disp: np.ndarray, lateral: np.ndarray, stop_time: np.ndarray, max_time: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tilt of each box at rest (radians) and whether its push passes :class:`PushResult`'s checks."""
     # angle of the box's z axis from vertical, from the quaternion (w, x, y, z)
-    w, x, y, _ = final[:, 3], final[:, 4], final[:, 5], final[:, 6]
-    cos_tilt = np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)
-    tilt = np.arccos(cos_tilt)
-    del w
+    x, y = final_box_qpos[:, 4], final_box_qpos[:, 5]
+    tilt = np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0))
     ok = (
         np.isfinite(disp)
         & (stop_time < max_time)
         & (tilt < 0.1)
         & (np.abs(lateral) < 0.1 * np.maximum(np.abs(disp), 1e-3) + 1e-3)
     )
-    if not ok.all():
-        log.warning("%d of %d pushes failed checks (unsettled, tipped, NaN or deflected)", int((~ok).sum()), n)
-    return PushResult(displacement=disp, lateral=lateral, stop_time=stop_time, tilt=tilt, ok=ok)
+    return tilt, ok
 
 
 def set_box_physics(model: mujoco.MjModel, mass: float | None, friction: float | None) -> None:

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import batch as mjbatch
 
-from imply.sim.pushes import set_box_physics
+from imply.sim.pushes import drive_stroke, push_checks, set_box_physics
 from imply.sim.scene import SceneConfig, build_model, model_numeric
 
 
@@ -173,7 +173,6 @@ def record_pushes(
 
     qpos = batch.bind("qpos")
     qvel = batch.bind("qvel")
-    ctrl = batch.bind("ctrl")
     now = batch.bind("time")
     start = qpos[:, bq : bq + 3].copy()
     pusher0 = qpos[:, pq].copy()
@@ -198,18 +197,9 @@ def record_pushes(
             ids = due
 
     record(np.arange(n))
-    pushing = np.arange(n)
-    ctrl[:, :] = 0.0
-    while pushing.size:
-        q = qpos[pushing, pq]
-        u = qvel[pushing, pv]
-        left = (stroke - q) / np.maximum(u * dt, 1e-12)
-        last = (left < 1.0) | (now[pushing] >= max_time)
-        ctrl[pushing, servo] = np.where(last, np.clip(left, 0.0, 1.0), 1.0) * speeds[pushing]
-        batch.step(ids=pushing, nstep=1)
-        ctrl[pushing[last], servo] = 0.0
-        record(pushing)
-        pushing = pushing[~last]
+    drive_stroke(
+        batch, speeds, stroke=stroke, max_time=max_time, push_qpos=pq, push_dof=pv, servo=servo, after_step=record
+    )
 
     active = np.arange(n)
     while active.size:
@@ -238,14 +228,7 @@ def record_pushes(
 
     disp = final_box[:, 0] - start[:, 0]
     lateral = final_box[:, 1] - start[:, 1]
-    x, y = final_box[:, 4], final_box[:, 5]
-    tilt = np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0))
-    ok = (
-        np.isfinite(disp)
-        & (stop_time < max_time)
-        & (tilt < 0.1)
-        & (np.abs(lateral) < 0.1 * np.maximum(np.abs(disp), 1e-3) + 1e-3)
-    )
+    _, ok = push_checks(final_box, disp, lateral, stop_time, max_time)
     return PushRecording(
         box_qpos=box_rec,
         pusher_q=pusher_rec,
