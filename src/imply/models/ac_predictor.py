@@ -43,6 +43,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from imply.models.vision_transformer import init_weights
+from imply.options import known_options
 
 
 @dataclass(frozen=True)
@@ -62,11 +63,7 @@ class PredictorConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> PredictorConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise ValueError(f"unknown predictor option(s): {sorted(unknown)}")
-        kw = dict(d)
+        kw = known_options(cls, d, "predictor")
         if "grid" in kw:
             kw["grid"] = tuple(int(g) for g in kw["grid"])
         return cls(**kw)

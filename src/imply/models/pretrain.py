@@ -18,7 +18,7 @@ import copy
 import logging
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,6 +29,7 @@ from tqdm.auto import tqdm
 from imply.models.encoder import preprocess
 from imply.models.jepa_predictor import MaskedPredictor
 from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, grid_positions
+from imply.options import known_options
 
 log = logging.getLogger("imply.encoder")
 
@@ -50,11 +51,7 @@ class PretrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None) -> PretrainConfig:
-        d = dict(d or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown encoder.pretrain option(s): {', '.join(unknown)}")
+        d = known_options(cls, d, "encoder.pretrain")
         for key in ("ema", "mask_cols"):
             if key in d:
                 d[key] = tuple(d[key])

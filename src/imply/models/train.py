@@ -40,6 +40,7 @@ from tqdm import tqdm
 from imply.io import atomic_path
 from imply.models.ac_predictor import ACPredictor, PredictorConfig
 from imply.models.sequences import Layout, Sequences
+from imply.options import known_options
 
 log = logging.getLogger("imply.models.train")
 
@@ -63,11 +64,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise ValueError(f"unknown training option(s): {sorted(unknown)}")
-        return cls(**d)
+        return cls(**known_options(cls, d, "training"))
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}

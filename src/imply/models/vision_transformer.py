@@ -25,12 +25,14 @@ Presets: ``tiny`` (the CPU default), and V-JEPA 2's ``vit_large``, ``vit_huge``,
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import torch
 import torch.nn.functional as F
 from torch import nn
+
+from imply.options import known_options
 
 
 @dataclass(frozen=True)
@@ -48,11 +50,7 @@ class ViTConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ViTConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown encoder architecture option(s): {', '.join(unknown)}")
-        return cls(**d)
+        return cls(**known_options(cls, d, "encoder architecture"))
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

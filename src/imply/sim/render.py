@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import batch as mjbatch
 
+from imply.options import known_options
 from imply.sim.pushes import drive_stroke, push_checks, set_box_physics
 from imply.sim.scene import SceneConfig, build_model, model_numeric
 
@@ -80,10 +81,7 @@ class CameraConfig:
 
     @classmethod
     def from_dict(cls, cfg: dict | None) -> CameraConfig:
-        cfg = dict(cfg or {})
-        unknown = sorted(set(cfg) - set(cls.__dataclass_fields__))
-        if unknown:
-            raise ValueError(f"unknown camera option(s): {', '.join(unknown)}")
+        cfg = known_options(cls, cfg, "camera")
         cam = cls(**cfg)
         if not cam.x_max > cam.x_min or cam.height < 8 or cam.width < 8 or cam.supersample < 1 or cam.multisample < 0:
             raise ValueError(

@@ -20,11 +20,13 @@ Names the simulator relies on: body and geom ``box``, joint ``push``, actuator `
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import mujoco
 import numpy as np
+
+from imply.options import known_options
 
 
 @dataclass(frozen=True)
@@ -47,11 +49,7 @@ class SceneConfig:
 
     @classmethod
     def from_dict(cls, cfg: dict[str, Any] | None) -> SceneConfig:
-        cfg = dict(cfg or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(cfg) - known)
-        if unknown:
-            raise ValueError(f"unknown scene option(s): {', '.join(unknown)}")
+        cfg = known_options(cls, cfg, "scene")
         if "box_half_extents" in cfg:
             cfg["box_half_extents"] = tuple(float(x) for x in cfg["box_half_extents"])
         return cls(**cfg)
