@@ -70,3 +70,57 @@ def test_null_log_raises_no_alarm(tmp_path, tiny_table, tiny_table_path, cache):
     assert s["verdict"]["verdict"] == "none"
     assert s["shrinkage"]["unexplained_rms_above_floor"] < 0.02
     assert np.isfinite(s["baseline"]["rms"])
+
+
+PUSHLOG = """object_id,speed,displacement,direction
+a,0.3,0.05,0
+a,0.5,0.09,1.57
+a,0.7,0.14,3.14
+b,0.3,0.04,0
+b,0.5,0.07,0
+b,0.7,0.10,0
+"""
+
+
+def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table_path, cache, monkeypatch, capsys):
+    """The user's files survive: a non-empty folder is refused, and --force replaces only the report."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "log.csv").write_text(PUSHLOG)
+    (tmp_path / "notes.txt").write_text("my notes\n")
+    args = ["diagnose", "log.csv", "--table", str(tiny_table_path), "--effects", "speed_gain", "--effect-grid-json",
+            GRID, "--cache-dir", str(cache), "--noise-sd", "0.05"]  # fmt: skip
+    assert main([*args, "-o", "."]) == 2
+    assert "-o . is not empty" in capsys.readouterr().err
+    assert main([*args, "-o", ".", "--force"]) == 0
+    assert (tmp_path / "notes.txt").read_text() == "my notes\n"
+    assert (tmp_path / "log.csv").read_text() == PUSHLOG
+    assert (tmp_path / "summary.json").is_file() and (tmp_path / ".imply-manifest.json").is_file()
+
+    report = tmp_path / "report"
+    assert main([*args, "-o", str(report)]) == 0
+    (report / "my_reading.md").write_text("keep me")
+    assert main([*args, "-o", str(report)]) == 2
+    assert main([*args, "-o", str(report), "--force"]) == 0
+    assert (report / "my_reading.md").read_text() == "keep me"
+    assert sorted(p.name for p in report.iterdir() if p.name != "my_reading.md") == sorted(
+        [".imply-manifest.json", "summary.json", "report.md", "residuals.csv", "residuals_vs_speed.png",
+         "before_after.png", "ranking.png"]
+    )  # fmt: skip
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".report")]  # no temporary folder left
+
+
+def test_ranking_colours_mark_only_the_verdict_green():
+    from imply.diagnose.report import ranking_colours
+
+    summary = {
+        "verdict": {"effect": "tilt_x"},
+        "ranking": [
+            {"effect": "tilt_x", "identifiable": True, "heldout_improvement": 0.6},
+            {"effect": "viscous", "identifiable": True, "heldout_improvement": 0.1},
+            {"effect": "height", "identifiable": False, "heldout_improvement": 0.05},
+            {"effect": "speed_gain", "identifiable": True, "heldout_improvement": -4.0},
+        ],
+    }
+    assert ranking_colours(summary) == ["C2", "C0", "0.75", "C3"]
+    summary["verdict"]["effect"] = None  # "none of the candidates": nothing is green
+    assert "C2" not in ranking_colours(summary)

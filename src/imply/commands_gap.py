@@ -24,11 +24,9 @@ import argparse
 import json
 import logging
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
-from imply.cli import UserError, json_arg
+from imply.cli import UserError, int_range, json_arg, load_push_table, output_dir, positive_float
 
 log = logging.getLogger("imply")
 
@@ -49,11 +47,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "PUSHLOG (CSV or parquet): object_id,speed,displacement (m/s, m) and optional direction (rad), "
             "stop_time, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed instead of "
-            "fitted). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots."
+            "fitted). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
+            "folder; with --force, into a folder holding an earlier report, whose files alone are replaced."
         ),
     )
     d.add_argument("pushlog")
-    d.add_argument("-o", "--output", required=True, help="report directory to write")
+    d.add_argument("-o", "--output", required=True, help="report folder to write (new or empty)")
+    d.add_argument("--force", action="store_true",
+                   help="write into a non-empty folder: replace the files an earlier report wrote there, keep the rest")  # fmt: skip
     d.add_argument("--table", default=DEFAULT_TABLE, help="baseline push table (default %(default)s)")
     d.add_argument("--cache-dir", help="effect-table cache (default $IMPLY_CACHE or ~/.cache/imply)")
     d.add_argument("--effects", help="comma-separated candidate effects (default: the whole library)")
@@ -61,10 +62,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--effect-grid-json", type=json_arg, help="coarse grid of the effect tables (config gap.effect_grid)"
     )
     d.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
-    d.add_argument("--noise-sd", type=float, help="log-displacement noise sd, used when the log has no replicates")
+    d.add_argument("--noise-sd", type=positive_float,
+                   help="log-displacement noise sd, used when the log has no replicates")  # fmt: skip
     d.add_argument("--ignore-measured", action="store_true",
                    help="fit mass and friction even where the log has measured values")  # fmt: skip
-    d.add_argument("--threads", type=int, default=0, help="simulation threads for building effect tables")
+    d.add_argument("--threads", type=int_range(0), default=0, help="simulation threads for building effect tables")
     d.set_defaults(func=cmd_diagnose)
 
     g = sub.add_parser("gap", help="the diagnostic's benchmark (workflow steps)")
@@ -75,6 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     dm.add_argument("pushlogs", nargs="+")
     dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
+    dm.add_argument("--force", action="store_true", help="as for 'imply diagnose', for each report folder")
     dm.add_argument("--table", default=DEFAULT_TABLE)
     dm.add_argument("--cache-dir")
     dm.add_argument("--effects")
@@ -112,12 +115,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load_table(path: str):
-    from imply.table import PushTable, TableError
-
-    try:
-        return PushTable.load(path)
-    except TableError as exc:
-        raise UserError(f"--table: {exc} (build it with 'snakemake --cores 2 results/table/table.npz')") from exc
+    hint = "build it with 'snakemake --cores 2 results/table/table.npz'" if path == DEFAULT_TABLE else ""
+    return load_push_table(path, "--table", hint)
 
 
 def _effects(arg: str | None):
@@ -129,21 +128,37 @@ def _effects(arg: str | None):
         raise UserError(f"--effects: {exc.args[0]}") from exc
 
 
+def _options(args: argparse.Namespace):
+    """Diagnostic options and effect-table grid from their JSON, checked before any work."""
+    from dataclasses import fields
+
+    from imply.config_check import ConfigError, unknown_keys
+    from imply.diagnose.analysis import Options
+    from imply.diagnose.tables import CoarseGrid
+
+    for flag, value, cls in (("--options-json", args.options_json, Options),
+                             ("--effect-grid-json", args.effect_grid_json, CoarseGrid)):  # fmt: skip
+        if value is not None and not isinstance(value, dict):
+            raise UserError(f"{flag}: expected a JSON object, not {type(value).__name__}")
+        try:
+            unknown_keys(value or {}, [f.name for f in fields(cls)], flag)
+        except ConfigError as exc:
+            raise UserError(str(exc)) from exc
+    try:
+        return Options.from_dict(args.options_json), CoarseGrid.from_dict(args.effect_grid_json)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"options: {exc}") from exc
+
+
 def _diagnosis_setup(args: argparse.Namespace):
     """Table, candidate effects, options and effect tables of a diagnose call."""
     from imply.diagnose.analysis import Options
-    from imply.diagnose.tables import CoarseGrid, load_or_build
+    from imply.diagnose.tables import load_or_build
 
     table = _load_table(args.table)
     effects = _effects(args.effects)
-    try:
-        opts = Options.from_dict(args.options_json)
-        grid = CoarseGrid.from_dict(args.effect_grid_json)
-    except TypeError as exc:
-        raise UserError(f"options: {exc}") from exc
+    opts, grid = _options(args)
     if getattr(args, "noise_sd", None) is not None:
-        if not args.noise_sd > 0:
-            raise UserError("--noise-sd must be positive")
         opts = Options.from_dict({**opts.__dict__, "noise_sd": args.noise_sd})
     if getattr(args, "ignore_measured", False):
         opts = Options.from_dict({**opts.__dict__, "use_measured": False})
@@ -153,33 +168,41 @@ def _diagnosis_setup(args: argparse.Namespace):
     return table, effects, opts, etables
 
 
-def diagnose_file(pushlog_path, output, table, effects, opts, etables) -> dict:
-    """Diagnose one push log into the report directory ``output``; returns the summary."""
+def check_report_folder(output, force: bool, inputs) -> Path:
+    """Refuse, before any work, a report folder whose writing would destroy files."""
+    from imply.diagnose.report import REPORT_FILES
+    from imply.io import OutputError, check_folder
+
+    out = output_dir(output)
+    try:
+        check_folder(out, REPORT_FILES, force, inputs)
+    except OutputError as exc:
+        raise UserError(f"-o {exc}") from exc
+    return out
+
+
+def diagnose_file(pushlog_path, output, table, effects, opts, etables, force: bool = False) -> dict:
+    """Diagnose one push log into the report folder ``output``; returns the summary.
+
+    The report is written into a temporary sibling folder and moved into place (see
+    :func:`imply.io.write_folder`): no half-written report, and nothing in ``output``
+    that an earlier report did not write is touched.
+    """
     from imply.diagnose.analysis import diagnose
     from imply.diagnose.fit import Problem
     from imply.diagnose.pushlog import read_pushlog
     from imply.diagnose.report import write_report
+    from imply.io import write_folder
     from imply.tabular import InputError
 
+    out = check_report_folder(output, force, [pushlog_path])
     try:
         pushlog = read_pushlog(pushlog_path, table.speed_range, mass_range=table.mass_range,
                                friction_range=table.friction_range)  # fmt: skip
     except InputError as exc:
         raise UserError(str(exc)) from exc
     diag = diagnose(Problem(pushlog, table, etables, grid=opts.grid, use_measured=opts.use_measured), effects, opts)
-    # write into a temporary sibling folder, then move it into place: no half-written report
-    out = Path(output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        write_report(diag, tmp)
-        tmp.chmod(0o755)
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp)
+    write_folder(out, lambda tmp: write_report(diag, tmp), force=force)
     v = diag.summary["verdict"]
     log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], out)
     return diag.summary
@@ -197,23 +220,34 @@ def _check_pushlog(path, table) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
+    check_report_folder(args.output, args.force, [args.pushlog, args.table])
     _check_pushlog(args.pushlog, _load_table(args.table))
+    _options(args)
+    _effects(args.effects)
     table, effects, opts, etables = _diagnosis_setup(args)
-    diagnose_file(args.pushlog, args.output, table, effects, opts, etables)
+    diagnose_file(args.pushlog, args.output, table, effects, opts, etables, force=args.force)
     return 0
 
 
 def cmd_diagnose_many(args: argparse.Namespace) -> int:
     from tqdm.auto import tqdm
 
+    out = output_dir(args.output)
+    stems: dict[str, str] = {}
+    for path in args.pushlogs:
+        stem = Path(path).stem
+        if stem in stems:
+            raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
+        stems[stem] = path
+        check_report_folder(out / stem, args.force, [path, args.table])
     table = _load_table(args.table)
     for path in args.pushlogs:
         _check_pushlog(path, table)
+    _options(args)
+    _effects(args.effects)
     table, effects, opts, etables = _diagnosis_setup(args)
-    out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
     for path in tqdm(args.pushlogs, desc="diagnoses", unit="log"):
-        diagnose_file(path, out / Path(path).stem, table, effects, opts, etables)
+        diagnose_file(path, out / Path(path).stem, table, effects, opts, etables, force=args.force)
     return 0
 
 

@@ -20,13 +20,15 @@ import functools
 import json
 import logging
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from imply.cli import UserError, existing_file, json_arg
 from imply.io import write_csv, write_json, write_text
-from imply.table import PushTable, TableError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from imply.table import PushTable
 
 log = logging.getLogger("imply.section4")
 
@@ -123,6 +125,10 @@ def _user_errors(func):
 
     @functools.wraps(func)
     def wrapper(args: argparse.Namespace) -> int:
+        import pandas as pd
+
+        from imply.table import TableError
+
         try:
             return func(args)
         except UserError:
@@ -135,6 +141,8 @@ def _user_errors(func):
 
 
 def _table(args) -> PushTable:
+    from imply.table import PushTable
+
     return PushTable.load(args.table)
 
 
@@ -145,6 +153,8 @@ def _scene(args):
 
 
 def _csv(path: Path) -> pd.DataFrame:
+    import pandas as pd
+
     return pd.read_csv(path, keep_default_na=True)
 
 

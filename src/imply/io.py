@@ -11,8 +11,9 @@ import io
 import json
 import logging
 import os
+import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,9 +24,13 @@ import numpy as np
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` on success."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     suffix = suffix if suffix is not None else "".join(path.suffixes)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+    except OSError as exc:
+        # name the output the user asked for, not the temporary file beside it
+        raise OSError(exc.errno, f"cannot write here: {exc.strerror}", str(path)) from exc
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -63,6 +68,27 @@ def write_csv(path: str | os.PathLike, frame) -> None:
         frame.to_csv(tmp, index=False, float_format="%.10g")
 
 
+def write_columns(path: str | os.PathLike, columns: dict[str, Any], float_format: str = "%.10g") -> None:
+    """Write equal-length columns as CSV atomically, byte for byte as :func:`write_csv` would.
+
+    For commands that should not pay for importing pandas: floats as ``float_format``
+    with NaN as an empty cell, integers as integers, text quoted where CSV needs it.
+    """
+    import csv
+
+    cells = []
+    for values in columns.values():
+        arr = np.asarray(values)
+        if arr.dtype.kind == "f":
+            cells.append(["" if x != x else float_format % x for x in arr.tolist()])
+        else:
+            cells.append([str(x) for x in values])
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(list(columns))
+        writer.writerows(zip(*cells, strict=True))
+
+
 def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.integer):
         return int(obj)
@@ -90,3 +116,92 @@ def setup_logging(log_file: str | os.PathLike | None = None, level: int = loggin
         handler.setFormatter(fmt)
         logger.addHandler(handler)
     return logger
+
+
+# -- report folders -------------------------------------------------------------------
+
+MANIFEST = ".imply-manifest.json"
+
+
+class OutputError(ValueError):
+    """An output folder that cannot be written without destroying what it holds."""
+
+
+def read_manifest(folder: str | os.PathLike) -> set[str]:
+    """Names of the files a previous :func:`write_folder` put in ``folder`` (empty if none).
+
+    Only plain file names are trusted: a manifest can never make us delete anything
+    outside the folder.
+    """
+    path = Path(folder) / MANIFEST
+    try:
+        names = json.loads(path.read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    return {n for n in names if isinstance(n, str) and n == Path(n).name and n not in ("", ".", "..", MANIFEST)}
+
+
+def check_folder(
+    folder: str | os.PathLike, names: Iterable[str], force: bool, inputs: Iterable[str | os.PathLike] = ()
+) -> None:
+    """Refuse to write files ``names`` into ``folder`` where that would destroy something.
+
+    A folder that does not exist or is empty is fine. A non-empty one needs ``force``,
+    and even then each name it already holds must be one that a previous run listed in
+    the folder's manifest, and no input may be among the files to be replaced.
+    """
+    folder = Path(folder)
+    if not folder.exists():
+        return
+    if not folder.is_dir():
+        raise OutputError(f"{folder} is a file, not a folder")
+    if not any(folder.iterdir()):
+        return
+    if not force:
+        raise OutputError(
+            f"{folder} is not empty; give a new folder, or --force to replace a report written there before "
+            "(other files are kept)"
+        )
+    ours = read_manifest(folder)
+    for name in [*names, MANIFEST]:
+        target = folder / name
+        if (target.exists() or target.is_symlink()) and name != MANIFEST and name not in ours:
+            raise OutputError(f"{target} exists and was not written by a previous report; move it first")
+        for src in inputs:
+            if src is not None and target.exists() and os.path.samefile(target, src):
+                raise OutputError(f"{target} is an input and would be replaced by the report")
+
+
+def write_folder(folder: str | os.PathLike, write: Callable[[Path], None], force: bool = False) -> list[str]:
+    """Run ``write(tmp)`` in a temporary sibling folder, then move its files into ``folder``.
+
+    A new or empty ``folder`` is replaced by the temporary one in one rename. Otherwise
+    (``force``, checked by :func:`check_folder`) each file is renamed into place and the
+    files the previous manifest lists but this run did not write are removed; nothing
+    else in the folder is touched. A manifest of the files written is kept in the folder.
+    Returns the names written.
+    """
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        write(tmp)
+        names = sorted(p.name for p in tmp.iterdir() if p.is_file())
+        (tmp / MANIFEST).write_text(json.dumps({"written_by": "imply", "files": names}, indent=2) + "\n")
+        umask = os.umask(0)
+        os.umask(umask)
+        tmp.chmod(0o777 & ~umask)
+        if not folder.exists() or (folder.is_dir() and not any(folder.iterdir())):
+            os.replace(tmp, folder)
+            return names
+        stale = read_manifest(folder) - set(names)
+        for name in names:
+            os.replace(tmp / name, folder / name)
+        for name in stale:
+            with contextlib.suppress(FileNotFoundError):
+                (folder / name).unlink()
+        os.replace(tmp / MANIFEST, folder / MANIFEST)
+        return names
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)

@@ -3,11 +3,6 @@
 # Formats: imply.data.clips, imply.models.encoder, imply.readout (module docstrings).
 
 
-validate(
-    {k: config[k] for k in ("clips", "encoder", "readout")},
-    schema="../schemas/clips.schema.yaml",
-)
-
 # torch rules run with OMP_WAIT_POLICY=PASSIVE: on a shared machine, spinning OpenMP
 # threads wait on each other and made the encoder several times slower (measured).
 CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain"]

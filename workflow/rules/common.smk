@@ -1,12 +1,16 @@
 # Shared wiring: config validation and helpers that pass config subsets to the CLI.
 import json
 import shlex
+from pathlib import Path
 
-from snakemake.utils import min_version, validate
+from snakemake.utils import min_version
+
+from imply.config_check import validate_workflow_config
 
 min_version("8.0")
 
-validate(config, schema="../schemas/config.schema.yaml")
+# the whole config, every stage's section, before any job runs (one line on error)
+validate_workflow_config(config, Path(workflow.current_basedir).parent / "schemas")
 
 
 def as_json(obj):

@@ -5,8 +5,6 @@
 
 from imply.diagnose.benchmark import case_list
 
-validate(config["gap"], schema="../schemas/gap.schema.yaml")
-
 GAP = "results/gap"
 GAP_CASES = [c["id"] for c in case_list(config["gap"]["benchmark"])]
 # --effects option for the candidate list (empty: the whole library)

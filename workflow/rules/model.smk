@@ -3,11 +3,7 @@
 # on the held-out objects and read out to displacement.
 
 
-validate(config["model"], schema="../schemas/model.schema.yaml")
-
 MODEL = config["model"]
-if MODEL["preset"] not in MODEL["presets"]:
-    raise ValueError(f"config model.preset: {MODEL['preset']!r} is not one of model.presets")
 MODEL_VARIANTS = ["nocalib", "calib"]
 MODEL_SEEDS = [int(s) for s in MODEL["seeds"]]
 MODEL_RES = MODEL["resources"]

@@ -5,9 +5,6 @@
 
 from imply.paper.values import default_path as _paper_values_path
 
-if "paper" in config:
-    validate(config["paper"], schema="../schemas/paper.schema.yaml")
-
 
 def _paper_parts(wildcards):
     """Every stage's part, or only those of the stages in config paper.stages (e.g. a test)."""

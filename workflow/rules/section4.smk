@@ -3,8 +3,6 @@
 # Each rule passes only the config keys it reads, so editing e.g. section4.selection
 # reruns only the selection, the part and what follows.
 
-validate(config["section4"], schema="../schemas/section4.schema.yaml")
-
 S4 = "results/section4"
 S4_SPEEDS = {k: config["score"][k] for k in ("query_speeds", "calibration_speeds")}
 

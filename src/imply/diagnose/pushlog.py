@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from imply.tabular import InputError, read_table, row_error
+from imply.tabular import InputError, read_table_lines, row_error
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
@@ -64,21 +64,16 @@ def read_pushlog(
     friction_range: tuple[float, float] | None = None,
 ) -> PushLog:
     """Read and check a push log; the ranges are the table's (values outside them are errors)."""
-    frame = read_table(path, REQUIRED, ["speed", "displacement"], OPTIONAL_NUMERIC)
-    ids = frame["object_id"].astype(str).str.strip()
+    frame, lines = read_table_lines(path, REQUIRED, ["speed", "displacement"], OPTIONAL_NUMERIC)
+    # read_table strips text cells, as it does for `imply score`: "a " and "a" are one object
+    ids = frame["object_id"]
     if (ids == "").any():
-        raise row_error(
-            path,
-            int(np.flatnonzero((ids == "").to_numpy())[0]),
-            "object_id",
-            "is empty",
-        )
-    frame["object_id"] = ids
+        raise row_error(path, int(np.flatnonzero((ids == "").to_numpy())[0]), "object_id", "is empty", lines)
 
     def first_bad(mask: np.ndarray, col: str, message) -> None:
         if mask.any():
             i = int(np.flatnonzero(mask)[0])
-            raise row_error(path, i, col, message(frame[col].iloc[i]))
+            raise row_error(path, i, col, message(frame[col].iloc[i]), lines)
 
     d = frame["displacement"].to_numpy()
     first_bad(d < 0, "displacement", lambda x: f"{x:g} is negative")
@@ -138,7 +133,7 @@ def read_pushlog(
             raise row_error(
                 path, int(rows[0]), "object_id",
                 f"object {o!r} has {rows.size} push(es) at {np.unique(v[rows]).size} speed(s); at least "
-                f"{min_pushes} pushes at 2 or more speeds are needed to fit its mass and friction",
+                f"{min_pushes} pushes at 2 or more speeds are needed to fit its mass and friction", lines,
             )  # fmt: skip
     measured: dict[str, np.ndarray | None] = {"mass": None, "friction": None}
     for col, rng in (("mass", mass_range), ("friction", friction_range)):
@@ -151,7 +146,7 @@ def read_pushlog(
             if np.ptp(vals[rows]) > 1e-9 * abs(vals[rows[0]]):
                 bad = rows[np.flatnonzero(vals[rows] != vals[rows[0]])[0]]
                 raise row_error(path, int(bad), col, f"differs from the object's first row ({vals[rows[0]]:g}); "
-                                "a measured value must be the same on every push of an object")  # fmt: skip
+                                "a measured value must be the same on every push of an object", lines)  # fmt: skip
             per_obj[i] = vals[rows[0]]
         if rng is not None:
             lo, hi = rng

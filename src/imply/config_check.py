@@ -1,0 +1,320 @@
+"""Checking the study's configuration in full before any job runs, and CLI settings.
+
+The workflow calls :func:`validate_workflow_config` (:func:`check_config`, ending
+Snakemake with one line on error) once, when Snakemake reads the Snakefile, so
+``snakemake -n`` refuses a bad config with one line naming the key at fault instead of
+a rule failing minutes into the run. Two layers:
+
+* the JSON schemas of ``workflow/schemas`` (types, bounds, and no unknown key at any
+  level), each error turned into one line with a suggestion for a misspelt key;
+* rules across fields that a schema cannot state: ranges ordered, speeds inside the
+  table, the selection's query speed among the query speeds, candidate effects known,
+  the preset named in ``model.presets``, and the scene compiled once by MuJoCo.
+
+:func:`check_scene` and :func:`table_grid` check the ``scene`` and ``table`` settings
+that ``imply table build`` and ``imply sim`` take as JSON, without the schemas.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+# which part of the config each schema file describes: a section name, a list of
+# sections checked together, or None for the whole config
+SCHEMAS: dict[str, str | tuple[str, ...] | None] = {
+    "config.schema.yaml": None,
+    "section4.schema.yaml": "section4",
+    "gap.schema.yaml": "gap",
+    "clips.schema.yaml": ("clips", "encoder", "readout"),
+    "model.schema.yaml": "model",
+    "paper.schema.yaml": "paper",
+}
+
+# stages whose result parts the paper merge knows (config paper.stages)
+PAPER_STAGES = ("section4", "gap", "clips", "section5")
+
+# relative slack for "inside the table": config speeds are written in decimal
+TOL = 1e-9
+
+
+class ConfigError(ValueError):
+    """A config value or combination the study cannot run with; the message names the key."""
+
+
+def _suggest(key: str, known: list[str]) -> str:
+    close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def unknown_keys(values: dict[str, Any], known: list[str], where: str) -> None:
+    """Refuse keys of ``values`` outside ``known``, naming each and the nearest known key."""
+    unknown = [k for k in values if k not in known]
+    if unknown:
+        parts = [f"{k!r}{_suggest(str(k), known)}" for k in unknown]
+        what = f"key{'s' if len(unknown) > 1 else ''} {', '.join(parts)}"
+        raise ConfigError(f"{where}: unknown {what}" if where else f"unknown top-level {what}")
+
+
+# -- the JSON schemas --------------------------------------------------------------
+
+
+def _path(prefix: str, parts) -> str:
+    out = prefix
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _describe(error, prefix: str) -> str:
+    """One line for a jsonschema error, naming the key at fault."""
+    from jsonschema.exceptions import best_match
+
+    if error.validator in ("anyOf", "oneOf") and error.context:
+        # the branch that fits the value's kind says more than "is not of type" or "not one of"
+        telling = [e for e in error.context if e.validator not in ("type", "enum")]
+        return _describe(best_match(telling or error.context), prefix)
+    where = _path(prefix, error.absolute_path)
+    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
+        known = list(error.schema.get("properties", {}))
+        try:
+            unknown_keys(error.instance, known, where)
+        except ConfigError as exc:
+            return str(exc)
+    if error.validator == "required":
+        missing = error.message.split("'")[1] if "'" in error.message else error.message
+        return f"{where}: missing key {missing!r}" if where else f"missing section {missing!r}"
+    message = error.message
+    if len(message) > 160:
+        message = message[:157] + "..."
+    return f"{where or 'config'}: {message}"
+
+
+# a misspelt key is both unknown and (the right one) missing: name the misspelling first
+_FIRST = {"additionalProperties": 0, "required": 1}
+
+
+def _first(errors: list) -> Any:
+    return min(errors, key=lambda e: (len(e.absolute_path), _FIRST.get(e.validator, 2)))
+
+
+def check_schemas(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:
+    """Validate ``config`` against every schema of ``schema_dir``; the first error as one line."""
+    import jsonschema
+    import yaml
+
+    schema_dir = Path(schema_dir)
+    if not (schema_dir / "config.schema.yaml").is_file():
+        raise ConfigError(f"no config.schema.yaml in {schema_dir}: cannot check the config")
+    for name, part in SCHEMAS.items():
+        path = schema_dir / name
+        if not path.is_file():
+            continue
+        if part is None:
+            instance, prefix = config, ""
+        elif isinstance(part, str):
+            if part not in config:
+                continue
+            instance, prefix = config[part], part
+        else:
+            instance, prefix = {k: config[k] for k in part if k in config}, ""
+        with open(path) as fh:
+            schema = yaml.safe_load(fh)
+        validator = jsonschema.validators.validator_for(schema)(schema)
+        errors = list(validator.iter_errors(instance))
+        if errors:
+            more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+            raise ConfigError(_describe(_first(errors), prefix) + more)
+
+
+# -- rules across fields --------------------------------------------------------
+
+
+def _ordered(rng: dict[str, Any] | list, where: str, strict: bool = True) -> tuple[float, float]:
+    lo, hi = (rng["min"], rng["max"]) if isinstance(rng, dict) else (rng[0], rng[1])
+    if lo > hi or (strict and lo == hi):
+        raise ConfigError(f"{where}: min {lo:g} is {'greater than' if lo > hi else 'equal to'} max {hi:g}")
+    return float(lo), float(hi)
+
+
+def _inside(values, lo: float, hi: float, where: str, what: str) -> None:
+    for v in values if isinstance(values, list | tuple) else [values]:
+        if not lo * (1 - TOL) <= v <= hi * (1 + TOL):
+            raise ConfigError(f"{where}: {v:g} is outside the table's {what} range [{lo:g}, {hi:g}] (config table)")
+
+
+def check_rules(config: dict[str, Any]) -> None:
+    """Rules across fields; assumes the config passed :func:`check_schemas`."""
+    table = config["table"]
+    speeds = _ordered(table["speeds"], "table.speeds")
+    masses = _ordered(table["masses"], "table.masses")
+    frictions = _ordered(table["frictions"], "table.frictions")
+
+    score = config["score"]
+    for key in ("query_speeds", "calibration_speeds"):
+        _inside(score[key], *speeds, f"score.{key}", "speed")
+    if len(score["calibration_speeds"]) != 2:
+        raise ConfigError(
+            f"score.calibration_speeds: {len(score['calibration_speeds'])} speeds given; the study's anchored "
+            "score and clips use exactly 2 calibration pushes"
+        )
+
+    s4 = config.get("section4")
+    if s4 is not None:
+        _inside(list(_ordered(s4["objects"]["mass"], "section4.objects.mass")), *masses, "section4.objects.mass",
+                "mass")  # fmt: skip
+        _inside(list(_ordered(s4["objects"]["friction"], "section4.objects.friction")), *frictions,
+                "section4.objects.friction", "friction")  # fmt: skip
+        sel = s4["selection"]
+        if not any(math.isclose(sel["query_speed"], q, rel_tol=TOL) for q in score["query_speeds"]):
+            listed = ", ".join(f"{q:g}" for q in score["query_speeds"])
+            raise ConfigError(
+                f"section4.selection.query_speed: {sel['query_speed']:g} is not one of score.query_speeds ({listed})"
+            )
+        if s4["standins"]["jitter_draws"] < sel["k"] - 1:
+            raise ConfigError(
+                f"section4.selection.k: {sel['k']} candidates need section4.standins.jitter_draws >= {sel['k'] - 1}, "
+                f"not {s4['standins']['jitter_draws']}"
+            )
+
+    gap = config.get("gap")
+    if gap is not None:
+        from imply.diagnose.benchmark import OUTSIDE
+        from imply.sim.effects import EFFECTS
+
+        known = list(EFFECTS)
+        for where, names in (("gap.candidates", gap.get("candidates") or []),
+                             ("gap.benchmark.effects", gap["benchmark"]["effects"])):  # fmt: skip
+            for name in names:
+                if name not in EFFECTS:
+                    raise ConfigError(
+                        f"{where}: unknown effect {name!r}{_suggest(name, known)}; known: {', '.join(known)}"
+                    )
+        unknown_keys(gap["benchmark"]["outside"], list(OUTSIDE), "gap.benchmark.outside")
+        bench = gap["benchmark"]
+        _inside(bench["speeds"], *speeds, "gap.benchmark.speeds", "speed")
+        _inside(list(_ordered(bench["masses"], "gap.benchmark.masses", strict=False)), *masses,
+                "gap.benchmark.masses", "mass")  # fmt: skip
+        _inside(list(_ordered(bench["frictions"], "gap.benchmark.frictions", strict=False)), *frictions,
+                "gap.benchmark.frictions", "friction")  # fmt: skip
+
+    clips = config.get("clips")
+    if clips is not None:
+        for key in ("train_speed", "masses", "frictions", "size_scale"):
+            if key in clips:
+                _ordered(clips[key], f"clips.{key}", strict=False)
+        if "train_speed" in clips:
+            _inside([clips["train_speed"]["min"], clips["train_speed"]["max"]], *speeds, "clips.train_speed", "speed")
+        times = clips["frame_times"]
+        if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+            raise ConfigError("clips.frame_times: times must increase")
+        cam = clips["camera"]
+        if "x_min" in cam and "x_max" in cam and cam["x_min"] >= cam["x_max"]:
+            raise ConfigError(f"clips.camera: x_min {cam['x_min']:g} is not below x_max {cam['x_max']:g}")
+    enc = config.get("encoder")
+    if enc is not None and enc["kind"] != "cpu" and not enc.get("weights"):
+        raise ConfigError(f"encoder.weights: encoder.kind {enc['kind']!r} needs a local path to the weights")
+    readout = config.get("readout")
+    if readout is not None and "log10_alpha_min" in readout and "log10_alpha_max" in readout:
+        if readout["log10_alpha_min"] > readout["log10_alpha_max"]:
+            raise ConfigError("readout: log10_alpha_min is greater than log10_alpha_max")
+
+    model = config.get("model")
+    if model is not None and model["preset"] not in model["presets"]:
+        raise ConfigError(
+            f"model.preset: {model['preset']!r} is not one of model.presets ({', '.join(model['presets'])})"
+            f"{_suggest(model['preset'], list(model['presets']))}"
+        )
+    paper = config.get("paper")
+    if paper is not None:
+        for stage in paper.get("stages", []):
+            if stage not in PAPER_STAGES:
+                raise ConfigError(
+                    f"paper.stages: unknown stage {stage!r}{_suggest(stage, list(PAPER_STAGES))}; "
+                    f"known: {', '.join(PAPER_STAGES)}"
+                )
+    check_scene(config["scene"], compile_model=True, where="scene")
+
+
+def check_config(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:
+    """The whole study config: schemas, then the rules across fields. Raises :class:`ConfigError`."""
+    if not isinstance(config, dict):
+        raise ConfigError("config: expected a mapping of sections")
+    check_schemas(config, schema_dir)
+    check_rules(config)
+
+
+def validate_workflow_config(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:
+    """:func:`check_config` for the Snakefile: a bad config ends Snakemake with one line."""
+    try:
+        check_config(config, schema_dir)
+    except ConfigError as exc:
+        raise SystemExit(f"config error: {exc}") from None
+
+
+# -- CLI settings -------------------------------------------------------------------
+
+
+def check_scene(cfg: Any, compile_model: bool = False, where: str = "--scene-json"):
+    """A :class:`imply.sim.SceneConfig` from settings, refused with one line if any is bad.
+
+    The dataclass checks its own values; this adds the names of unknown keys with a
+    suggestion, and refuses a timestep that is not a positive number up front (a zero
+    or negative one makes a push that never ends). ``compile_model`` also builds the
+    scene once, which catches ``option`` attributes MuJoCo does not know.
+    """
+    from dataclasses import fields
+
+    from imply.sim.scene import SceneConfig, build_model
+
+    if cfg is None:
+        cfg = {}
+    if not isinstance(cfg, dict):
+        raise ConfigError(f"{where}: expected a JSON object of scene settings, not {type(cfg).__name__}")
+    unknown_keys(cfg, [f.name for f in fields(SceneConfig)], where)
+    if "timestep" in cfg and not (_number(cfg["timestep"]) and cfg["timestep"] > 0):
+        raise ConfigError(f"{where}: timestep must be a positive number of seconds, not {cfg['timestep']!r}")
+    try:
+        scene = SceneConfig.from_dict(cfg)
+        if compile_model:
+            build_model(scene)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: {' '.join(str(exc).split())}") from exc
+    return scene
+
+
+def _number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _positive(x: Any) -> bool:
+    return _number(x) and x > 0
+
+
+def table_grid(cfg: Any, where: str = "--grid-json"):
+    """A :class:`imply.table.TableGrid` from the ``table`` settings, refused with one line if bad."""
+    from imply.table import TableGrid
+
+    if not isinstance(cfg, dict):
+        raise ConfigError(f"{where}: expected a JSON object with speeds, masses and frictions")
+    axes = ("speeds", "masses", "frictions")
+    unknown_keys(cfg, list(axes), where)
+    for axis in axes:
+        if axis not in cfg:
+            raise ConfigError(f'{where}: missing axis {axis!r} ({{"min": ..., "max": ..., "n": ...}})')
+        spec = cfg[axis]
+        if not isinstance(spec, dict):
+            raise ConfigError(f"{where}: {axis} must be an object with min, max and n")
+        unknown_keys(spec, ["min", "max", "n"], f"{where}: {axis}")
+        for key in ("min", "max", "n"):
+            if key not in spec:
+                raise ConfigError(f"{where}: {axis} is missing {key!r}")
+        if not (_positive(spec["min"]) and _positive(spec["max"])):
+            raise ConfigError(f"{where}: {axis} min and max must be positive numbers")
+        _ordered(spec, f"{where}: {axis}")
+        if not (isinstance(spec["n"], int) and not isinstance(spec["n"], bool) and spec["n"] >= 4):
+            raise ConfigError(f"{where}: {axis}.n must be an integer of at least 4, not {spec['n']!r}")
+    return TableGrid.from_dict(cfg)

@@ -1,0 +1,82 @@
+"""Report folders: written whole or not at all, and never at the cost of files already there."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from imply.io import MANIFEST, OutputError, check_folder, read_manifest, write_columns, write_csv, write_folder
+
+NAMES = ("summary.json", "report.md")
+
+
+def _writer(text: str):
+    def write(folder):
+        for name in NAMES:
+            (folder / name).write_text(f"{name} {text}")
+
+    return write
+
+
+def test_new_folder_gets_the_files_and_a_manifest(tmp_path):
+    out = tmp_path / "report"
+    check_folder(out, NAMES, force=False)
+    assert write_folder(out, _writer("one")) == sorted(NAMES)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*NAMES, MANIFEST])
+    assert read_manifest(out) == set(NAMES)
+    assert [p.name for p in tmp_path.iterdir()] == ["report"]  # no temporary folder left
+
+
+def test_non_empty_folder_needs_force_and_keeps_what_it_did_not_write(tmp_path):
+    out = tmp_path / "report"
+    write_folder(out, _writer("one"))
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match="is not empty"):
+        check_folder(out, NAMES, force=False)
+    check_folder(out, NAMES, force=True)
+    write_folder(out, _writer("two"), force=True)
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "summary.json").read_text() == "summary.json two"
+
+
+def test_force_removes_only_stale_files_of_its_own_manifest(tmp_path):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "old_plot.png").write_text("ours")
+    (out / "notes.txt").write_text("mine")
+    (out / MANIFEST).write_text(json.dumps({"files": ["old_plot.png", "../../escape", "/etc/passwd"]}))
+    write_folder(out, _writer("x"), force=True)
+    assert not (out / "old_plot.png").exists()
+    assert (out / "notes.txt").read_text() == "mine"
+    assert read_manifest(out) == set(NAMES)
+
+
+def test_force_refuses_to_replace_a_file_it_did_not_write(tmp_path):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "summary.json").write_text("a file of the user's")
+    with pytest.raises(OutputError, match="was not written by a previous report"):
+        check_folder(out, NAMES, force=True)
+
+
+def test_a_failing_writer_leaves_nothing(tmp_path):
+    out = tmp_path / "report"
+
+    def broken(folder):
+        (folder / "summary.json").write_text("half")
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        write_folder(out, broken)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_columns_writes_what_write_csv_writes(tmp_path):
+    cols = {"object_id": ["a", "b,c", 'q"x'], "n": np.array([3, 2, 5]),
+            "x": np.array([0.1, np.nan, 1e-20]), "y": np.array([1 / 3, 2.0, -5.5])}  # fmt: skip
+    write_csv(tmp_path / "pandas.csv", pd.DataFrame(cols))
+    write_columns(tmp_path / "plain.csv", cols)
+    assert (tmp_path / "pandas.csv").read_bytes() == (tmp_path / "plain.csv").read_bytes()
