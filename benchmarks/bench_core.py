@@ -1,11 +1,15 @@
-"""Benchmark of the core: table build and scoring, each against a plain baseline in the same process.
+"""Benchmark of the core: table build, its convergence, and scoring, each against a baseline in the same process.
 
-Run: python benchmarks/bench_core.py [--config config.yaml] [--sample 300]
+Run: python benchmarks/bench_core.py [--config config.yaml] [--sample 300] [--check-cells 200]
 
 Prints seconds, throughput and peak memory, and the ratio to the baseline:
-- table: the batched build of every table cell (mujoco.batch on all cores) against a
-  bare Python loop of mj_step on one MjData (one core) running the same pushes with
-  the same stroke and settle logic, timed on a sample of cells and scaled to the table;
+- table: the full table build (mujoco.batch on --threads threads): seconds, MuJoCo
+  steps taken, and steps per second against bare ``mujoco.rollout`` of the same scene
+  on the same threads (fixed-length rollouts, no stroke or settle logic: the most a
+  stepping loop can reach here);
+- convergence: the table's log d at --check-cells grid nodes against a uniform-step
+  reference 64 times finer (imply.table.check_table), beside the same nodes simulated
+  the old way (1 ms throughout, implicitfast) against the same reference;
 - scoring: 10,000 sets of K=5 rollouts plus 2 calibration pushes through Scorer
   against scipy.optimize.least_squares per set (sample, scaled);
 - rendering: one 64x64 offscreen frame (set MUJOCO_GL=egl before running).
@@ -18,44 +22,35 @@ import argparse
 import os
 import resource
 import time
+from dataclasses import replace
 
 import mujoco
 import numpy as np
 import yaml
+from mujoco import rollout
 from scipy.optimize import least_squares
 
 from imply.score import Scorer
 from imply.sim import SceneConfig, build_model, simulate_pushes
-from imply.sim.scene import model_numeric
-from imply.table import TableGrid, build_table
+from imply.table import CheckSettings, TableGrid, build_table, error_against, reference_at_nodes
 
 
-def bare_push(model: mujoco.MjModel, data: mujoco.MjData, speed: float) -> tuple[float, int]:
-    """One push with a plain mj_step loop (the baseline); returns displacement and steps."""
-    mujoco.mj_resetData(model, data)
-    stroke = model_numeric(model, "stroke")
-    settle = model_numeric(model, "settle_speed")
-    max_time = model_numeric(model, "max_time")
-    dt = model.opt.timestep
-    pq = model.jnt_qposadr[model.joint("push").id]
-    pv = model.jnt_dofadr[model.joint("push").id]
-    x0 = data.qpos[0]
-    steps = 0
-    while data.time < max_time:
-        left = (stroke - data.qpos[pq]) / max(data.qvel[pv] * dt, 1e-12)
-        last = left < 1.0
-        data.ctrl[0] = min(max(left, 0.0), 1.0) * speed if last else speed
-        mujoco.mj_step(model, data)
-        steps += 1
-        if last:
-            break
-    data.ctrl[0] = 0.0
-    while data.time < max_time:
-        mujoco.mj_step(model, data, nstep=25)
-        steps += 25
-        if np.abs(data.qvel[:3]).max() < settle:
-            break
-    return data.qpos[0] - x0, steps
+def bare_rollout_steps_per_second(scene: SceneConfig, speeds: np.ndarray, threads: int, nstep: int = 400) -> float:
+    """Steps per second of plain ``mujoco.rollout`` of the push scene at its fine step, commanded ``speeds``."""
+    model = build_model(scene)
+    model.opt.timestep = scene.timestep / scene.push_substeps
+    n = speeds.size
+    datas = [mujoco.MjData(model) for _ in range(max(threads, 1))]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.zeros((n, mujoco.mj_stateSize(model, spec)))
+    mujoco.mj_getState(model, datas[0], state[0], spec)
+    state[:] = state[0]
+    control = np.repeat(speeds[:, None, None], nstep, axis=1)
+    with rollout.Rollout(nthread=threads) as ro:
+        ro.rollout(model, datas, state[:10], control[:10, :10], nstep=10)  # warm the thread pool
+        t0 = time.perf_counter()
+        ro.rollout(model, datas, state, control, nstep=nstep)
+        return n * nstep / (time.perf_counter() - t0)
 
 
 def peak_rss_mb() -> float:
@@ -65,7 +60,8 @@ def peak_rss_mb() -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="config.yaml")
-    parser.add_argument("--sample", type=int, default=300, help="cells / sets timed for the baselines")
+    parser.add_argument("--sample", type=int, default=300, help="sets timed for the scoring baseline")
+    parser.add_argument("--check-cells", type=int, default=200, help="grid nodes of the convergence check")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
     with open(args.config) as fh:
@@ -77,22 +73,29 @@ def main() -> None:
     table = build_table(scene, grid, nthread=args.threads)
     batched_s = time.perf_counter() - t0
     n_cells = table.log_d.size
-
-    rng = np.random.default_rng(0)
+    steps = table.meta["stepping"]["substeps_total"]
     speeds, masses, frictions = grid.axes()
-    cells = rng.integers(0, [speeds.size, masses.size, frictions.size], size=(args.sample, 3))
+    rng = np.random.default_rng(0)
+    bare = bare_rollout_steps_per_second(scene, rng.choice(speeds, 2000), args.threads)
+    print(f"table: {n_cells} pushes on {args.threads} threads in {batched_s:.1f} s, {steps / 1e6:.2f} M MuJoCo "
+          f"steps ({steps / n_cells:.0f} a push), {steps / batched_s / 1e3:.0f} k steps/s; bare mujoco.rollout "
+          f"on {args.threads} threads: {bare / 1e3:.0f} k steps/s; ratio {steps / batched_s / bare:.2f}")  # fmt: skip
+
+    settings = CheckSettings(cells=args.check_cells)
     t0 = time.perf_counter()
-    bare = []
-    for i, j, k in cells:
-        model = build_model(scene, mass=masses[j], friction=frictions[k])
-        data = mujoco.MjData(model)
-        bare.append(bare_push(model, data, speeds[i])[0])
-    bare_s = (time.perf_counter() - t0) / args.sample * n_cells
-    check = simulate_pushes(speeds[cells[:, 0]], masses[cells[:, 1]], frictions[cells[:, 2]], scene=scene).displacement
-    print(f"table: {n_cells} simulations batched on {args.threads} threads in {batched_s:.1f} s "
-          f"({n_cells / batched_s:.0f} sims/s); bare mj_step loop, 1 core: {bare_s:.1f} s scaled from "
-          f"{args.sample} cells; ratio {bare_s / batched_s:.2f}x; max |batched - bare| displacement "
-          f"{np.abs(check - np.array(bare)).max():.2e} m")  # fmt: skip
+    nodes, ref = reference_at_nodes(table, settings, nthread=args.threads)
+    ref_s = time.perf_counter() - t0
+    now = error_against(table, table.log_d[nodes], nodes, ref, settings.seed)
+    old_scene = replace(scene, push_substeps=1, release_window=0.0, slide_steps=0, slow_push_speed=0.0,
+                        option={**scene.option, "integrator": "implicitfast"})  # fmt: skip
+    i, j, k = nodes
+    old = simulate_pushes(speeds[i], masses[j], frictions[k], scene=old_scene, nthread=args.threads)
+    before = error_against(table, np.log(old.displacement), nodes, ref, settings.seed)
+    for name, e in (("this table", now), ("old stepping (1 ms, implicitfast)", before)):
+        print(f"convergence, {name}: max |delta log d| {e['max_abs_log_d']:.4f}, RMS {e['rms_log_d']:.4f} "
+              f"over {e['cells']} grid nodes")  # fmt: skip
+    print(f"  reference: uniform {ref.step * 1e6:.4g} us step ({ref_s:.0f} s); its own error estimate max "
+          f"{now['reference_error_max']:.4f}, RMS {now['reference_error_rms']:.4f}")  # fmt: skip
 
     query = np.array(cfg["score"]["query_speeds"])
     calib = np.array(cfg["score"]["calibration_speeds"])

@@ -6,11 +6,10 @@ displacement (metres), shape (speeds, masses, frictions). Interpolation is a
 tensor-product cubic spline in (v, log m, log mu); queries outside the table's range
 raise :class:`OutOfRangeError` instead of extrapolating.
 
-The simulator's contact solver leaves sub-millimetre jitter in cells where d barely
-changes with v or mu. The saved ``log_d`` is the raw table projected onto tables that
-increase with speed and decrease with friction (alternating isotonic regressions);
-``log_d_raw`` keeps the simulator's values and the metadata records how far the
-projection moved any cell.
+``log_d`` is the simulator's converged answer as it is (no smoothing); the metadata
+records the simulator's stepping, the table's numerical error as measured by
+:func:`check_table` against a much finer reference, and the few cells where the
+physics itself is not monotone.
 """
 
 from __future__ import annotations
@@ -19,6 +18,7 @@ import hashlib
 import json
 import logging
 import os
+import time
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -27,10 +27,11 @@ from typing import Any
 import mujoco
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
-from scipy.optimize import isotonic_regression
 
 from imply.io import write_npz
+from imply.options import known_options
 from imply.sim.pushes import simulate_pushes
+from imply.sim.reference import ReferencePushes, reference_log_d
 from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.table")
@@ -84,7 +85,6 @@ class PushTable:
     frictions: np.ndarray
     log_d: np.ndarray
     meta: dict[str, Any] = field(default_factory=dict)
-    log_d_raw: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         shape = (self.speeds.size, self.masses.size, self.frictions.size)
@@ -167,8 +167,6 @@ class PushTable:
             speeds=self.speeds, masses=self.masses, frictions=self.frictions, log_d=self.log_d,
             meta=np.array(json.dumps(self.meta, sort_keys=True)),
         )  # fmt: skip
-        if self.log_d_raw is not None:
-            arrays["log_d_raw"] = self.log_d_raw
         write_npz(path, **arrays)
 
     @classmethod
@@ -182,36 +180,15 @@ class PushTable:
                 if missing:
                     raise TableError(f"{path} is not a push table: missing array(s) {', '.join(missing)}")
                 meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
-                raw = z["log_d_raw"] if "log_d_raw" in z.files else None
                 return cls(
                     speeds=z["speeds"].astype(float), masses=z["masses"].astype(float),
                     frictions=z["frictions"].astype(float), log_d=z["log_d"].astype(float),
-                    meta=meta, log_d_raw=raw,
+                    meta=meta,
                 )  # fmt: skip
         except TableError:
             raise
         except Exception as exc:  # zip, pickle or JSON errors: all mean "not a table"
             raise TableError(f"cannot read table {path}: {exc}") from exc
-
-
-def monotone_projection(log_d: np.ndarray, max_passes: int = 100) -> tuple[np.ndarray, int]:
-    """Project log_d onto tables non-decreasing in speed and non-increasing in friction.
-
-    Alternates isotonic regressions along the two axes until neither changes anything.
-    Returns the projected table and the number of passes used.
-    """
-    out = np.array(log_d, dtype=float)
-    for passes in range(1, max_passes + 1):
-        before = out.copy()
-        for j in range(out.shape[1]):
-            for k in range(out.shape[2]):
-                out[:, j, k] = isotonic_regression(out[:, j, k], increasing=True).x
-        for i in range(out.shape[0]):
-            for j in range(out.shape[1]):
-                out[i, j, :] = isotonic_regression(out[i, j, :], increasing=False).x
-        if np.array_equal(before, out):
-            return out, passes
-    return out, max_passes
 
 
 def config_digest(obj: Any) -> str:
@@ -220,7 +197,13 @@ def config_digest(obj: Any) -> str:
 
 
 def build_table(scene: SceneConfig, grid: TableGrid, *, nthread: int = 0, progress: bool = False) -> PushTable:
-    """Simulate every (speed, mass, friction) cell with the canonical box and tabulate log d."""
+    """Simulate every (speed, mass, friction) cell with the canonical box and tabulate log d.
+
+    The metadata records the simulator's stepping, the MuJoCo steps taken and the cells
+    where log d does not increase with speed or decrease with friction (the converged
+    scene has a few such cells: light, rough boxes at low speed; :func:`check_table`
+    confirms them against the reference).
+    """
     speeds, masses, frictions = grid.axes()
     v, m, mu = np.meshgrid(speeds, masses, frictions, indexing="ij")
     log.info("simulating %d table cells", v.size)
@@ -231,21 +214,131 @@ def build_table(scene: SceneConfig, grid: TableGrid, *, nthread: int = 0, progre
             f"{int((~result.ok).sum())} table cells failed (first: v={v.ravel()[bad]:g}, "
             f"m={m.ravel()[bad]:g}, mu={mu.ravel()[bad]:g}); adjust the scene or the ranges"
         )
-    raw = np.log(result.displacement.reshape(v.shape))
-    raw_violations = int((np.diff(raw, axis=0) <= 0).sum() + (np.diff(raw, axis=2) >= 0).sum())
-    projected, passes = monotone_projection(raw)
+    log_d = np.log(result.displacement.reshape(v.shape))
+    drop_speed = np.diff(log_d, axis=0)
+    rise_friction = np.diff(log_d, axis=2)
     meta = {
         "scene": scene.to_dict(),
         "grid": grid.__dict__,
         "mujoco_version": mujoco.__version__,
         "config_digest": config_digest({"scene": scene.to_dict(), "grid": grid.__dict__}),
-        "monotone_projection": {
-            "raw_violations": raw_violations,
-            "passes": passes,
-            "max_abs_change": float(np.abs(projected - raw).max()),
-            "rms_change": float(np.sqrt(np.mean((projected - raw) ** 2))),
+        "stepping": {
+            "push_step_s": scene.timestep / scene.push_substeps,
+            "slide_step_s": scene.timestep,
+            "release_window_s": scene.release_window,
+            "slide_steps": scene.slide_steps,
+            "slow_push_speed": scene.slow_push_speed,
+            "integrator": "Euler",
+            "substeps_total": int(result.substeps.sum()),
         },
-        "displacement_range_m": [float(np.exp(raw.min())), float(np.exp(raw.max()))],
+        "monotonicity": {
+            "cells_decreasing_in_speed": int((drop_speed <= 0).sum()),
+            "largest_decrease_in_speed": float(max(0.0, -drop_speed.min())),
+            "cells_increasing_in_friction": int((rise_friction >= 0).sum()),
+            "largest_increase_in_friction": float(max(0.0, rise_friction.max())),
+        },
+        "displacement_range_m": [float(np.exp(log_d.min())), float(np.exp(log_d.max()))],
+        "numerical_error": None,
     }
-    log.info("table built: %s", meta["monotone_projection"])
-    return PushTable(speeds, masses, frictions, projected, meta=meta, log_d_raw=raw)
+    log.info("table built: %s", meta["monotonicity"])
+    return PushTable(speeds, masses, frictions, log_d, meta=meta)
+
+
+@dataclass(frozen=True)
+class CheckSettings:
+    """How :func:`check_table` measures a table's numerical error (config key ``table_check``).
+
+    cells: grid nodes compared (the 8 corners of the range, then distinct random nodes);
+      0 skips the check.
+    seed: which random nodes.
+    reference_substeps: the reference's uniform step is the table's timestep divided by this.
+    """
+
+    cells: int = 200
+    seed: int = 0
+    reference_substeps: int = 64
+
+    @classmethod
+    def from_dict(cls, cfg: dict[str, Any] | None) -> CheckSettings:
+        settings = cls(**known_options(cls, cfg, "table_check"))
+        if settings.cells < 0 or settings.reference_substeps < 2:
+            raise ValueError("table_check needs cells >= 0 and reference_substeps >= 2")
+        return settings
+
+
+def check_nodes(shape: tuple[int, int, int], cells: int, seed: int) -> np.ndarray:
+    """Flat indices of ``cells`` distinct grid nodes: the corners first, then random ones."""
+    total = int(np.prod(shape))
+    corners = np.ravel_multi_index(
+        np.array(np.meshgrid(*[[0, n - 1] for n in shape], indexing="ij")).reshape(3, -1), shape
+    )
+    corners = np.unique(corners)[: min(cells, total)]
+    rest = np.setdiff1d(np.arange(total), corners)
+    rng = np.random.default_rng(seed)
+    extra = rng.choice(rest, size=min(max(cells - corners.size, 0), rest.size), replace=False)
+    return np.concatenate([corners, np.sort(extra)])
+
+
+def reference_at_nodes(
+    table: PushTable, settings: CheckSettings, *, nthread: int = 0, progress: bool = False
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ReferencePushes]:
+    """The sampled nodes' indices (i, j, k) and the reference log d at them."""
+    scene = SceneConfig.from_dict(table.meta.get("scene"))
+    nodes = check_nodes(table.log_d.shape, settings.cells, settings.seed)
+    i, j, k = np.unravel_index(nodes, table.log_d.shape)
+    step = scene.timestep / settings.reference_substeps
+    ref = reference_log_d(
+        table.speeds[i], table.masses[j], table.frictions[k], scene=scene, step=step, nthread=nthread,
+        progress=progress,
+    )  # fmt: skip
+    return (i, j, k), ref
+
+
+def error_against(
+    table: PushTable, values: np.ndarray, nodes: tuple[np.ndarray, ...], ref: ReferencePushes, seed: int
+) -> dict[str, Any]:
+    """Summary of ``values`` (log d at ``nodes``) against the reference: max, RMS, worst node, method."""
+    i, j, k = nodes
+    diff = values - ref.log_d
+    worst = int(np.argmax(np.abs(diff)))
+    return {
+        "max_abs_log_d": float(np.abs(diff).max()),
+        "rms_log_d": float(np.sqrt(np.mean(diff**2))),
+        "mean_log_d": float(diff.mean()),
+        "cells": int(diff.size),
+        "worst_cell": {"speed": float(table.speeds[i[worst]]), "mass": float(table.masses[j[worst]]),
+                       "friction": float(table.frictions[k[worst]]), "difference": float(diff[worst])},
+        "reference_step_s": ref.step,
+        "reference_error_max": float(ref.error_estimate.max()),
+        "reference_error_rms": float(np.sqrt(np.mean(ref.error_estimate**2))),
+        "method": (
+            f"{diff.size} grid nodes (8 corners + random, seed {seed}) against the same scene stepped uniformly "
+            f"at {ref.step * 1e6:.4g} us from start to rest (imply.sim.reference); the reference's own error is "
+            f"estimated as its difference from a run at twice that step"
+        ),
+    }  # fmt: skip
+
+
+def check_table(
+    table: PushTable, settings: CheckSettings | None = None, *, nthread: int = 0, progress: bool = False
+) -> dict[str, Any]:
+    """Numerical error of a table: its log d at sampled nodes against a much finer reference.
+
+    The reference (:func:`imply.sim.reference.reference_log_d`) steps the same scene
+    uniformly at ``timestep / reference_substeps`` on its own code path, and estimates its
+    own error from a second run at twice that step. Returns max and RMS of
+    |table - reference| over the nodes, the reference's own error estimate, the worst node,
+    and how it was measured.
+    """
+    settings = settings or CheckSettings()
+    t0 = time.perf_counter()
+    nodes, ref = reference_at_nodes(table, settings, nthread=nthread, progress=progress)
+    error = error_against(table, table.log_d[nodes], nodes, ref, settings.seed)
+    return {**error, "seconds": round(time.perf_counter() - t0, 1)}
+
+
+def with_numerical_error(table: PushTable, error: dict[str, Any]) -> PushTable:
+    """The same table with its measured numerical error recorded in the metadata."""
+    return PushTable(
+        table.speeds, table.masses, table.frictions, table.log_d, meta={**table.meta, "numerical_error": error}
+    )

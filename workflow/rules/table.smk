@@ -9,15 +9,16 @@ rule table:
     params:
         scene=as_json(config["scene"]),
         grid=as_json(config["table"]),
+        check=as_json(config.get("table_check", {})),
     threads: config["threads"]
     resources:
         mem_mb=2000,
-        runtime=10,
+        runtime=15,
     log:
         "results/logs/table.log",
     shell:
         "imply table build --scene-json {params.scene} --grid-json {params.grid}"
-        " --threads {threads} -o {output} > {log} 2>&1"
+        " --check-json {params.check} --threads {threads} -o {output} > {log} 2>&1"
 
 
 rule scene_xml:

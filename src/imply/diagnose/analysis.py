@@ -424,6 +424,8 @@ def diagnose(prob: Problem, effects: list[Effect], opts: Options) -> Diagnosis:
         "verdict": verdict,
         "shrinkage": shrink,
         "options": opts.__dict__,
+        # the floor's parts: interpolation, and the simulator's error measured when the table was built
+        "model_floor": prob.etables.meta.get("model_floor") if prob.etables is not None else None,
     }  # fmt: skip
     resid = {"speed": prob.v, "direction": prob.phi, "log_d": prob.y, "resid_before": resid0,
              "resid_after": None if after_pred is None else prob.y - after_pred}  # fmt: skip

@@ -23,6 +23,11 @@ import pandas as pd
 from imply.diagnose.analysis import Diagnosis
 from imply.io import atomic_path, write_csv, write_json, write_text
 
+# every file write_report puts in the report folder
+REPORT_FILES = (
+    "summary.json", "residuals.csv", "residuals_vs_speed.png", "before_after.png", "ranking.png", "report.md",
+)  # fmt: skip
+
 
 def _fmt(x, spec: str = ".4g") -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
@@ -87,22 +92,67 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     _save(fig, out / "before_after.png")
     plt.close(fig)
 
+    _ranking_plot(plt, s, out / "ranking.png")
+
+
+def ranking_colours(summary: dict) -> list[str]:
+    """Bar colour per ranked candidate: green only for the verdict's effect.
+
+    Blue: identifiable and improves the held-out fit; red: makes it worse; grey: not
+    identifiable from these pushes. Green must never mark a candidate that hurts.
+    """
+    chosen = summary["verdict"].get("effect")
+    out = []
+    for r in summary["ranking"]:
+        if not r["identifiable"]:
+            out.append("0.75")
+        elif r["effect"] == chosen:
+            out.append("C2")
+        elif (r["heldout_improvement"] or 0.0) > 0:
+            out.append("C0")
+        else:
+            out.append("C3")
+    return out
+
+
+def _ranking_plot(plt, s: dict, path: Path) -> None:
     rank = s["ranking"]
-    fig, ax = plt.subplots(figsize=(6, 0.3 * len(rank) + 1.2))
+    fig, ax = plt.subplots(figsize=(6, 0.3 * len(rank) + 1.4))
     names = [x["effect"] for x in rank][::-1]
-    vals = [x["heldout_improvement"] for x in rank][::-1]
-    colors = ["C2" if x["identifiable"] else "0.7" for x in rank][::-1]
-    ax.barh(names, vals, color=colors)
+    vals = np.array([x["heldout_improvement"] if x["heldout_improvement"] is not None else np.nan for x in rank])
+    vals = np.nan_to_num(vals[::-1])
+    colors = ranking_colours(s)[::-1]
+    # a candidate that wrecks the held-out fit would dwarf the ones that help: clip the
+    # negative side at the largest gain and print the clipped values
+    span = max(float(np.max(vals, initial=0.0)), 0.05)
+    left = -span
+    shown = np.maximum(vals, left)
+    ax.barh(names, shown, color=colors)
+    for i, (v, w) in enumerate(zip(vals, shown, strict=True)):
+        if v < w:
+            ax.text(w, i, f" {v:+.2g} (bar cut)", va="center", ha="left", fontsize=7)
+    ax.set_xlim(left * 1.05, max(span * 1.15, 0.05))
     ax.axvline(0, color="k", lw=0.5)
-    ax.set_xlabel("held-out improvement (share of baseline SSE; grey: not identifiable)")
+    ax.set_xlabel("held-out improvement (share of baseline SSE)")
+    ax.set_title("green: verdict; blue: helps; red: hurts; grey: not identifiable", fontsize=8)
     fig.tight_layout()
-    _save(fig, out / "ranking.png")
+    _save(fig, path)
     plt.close(fig)
 
 
 def _save(fig, path: Path) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
+
+
+def _floor_parts(parts: dict | None) -> str:
+    if not parts:
+        return ""
+    numerical = parts.get("numerical_rms")
+    return (
+        f" (interpolation {_fmt(parts.get('interpolation_rms'))} and the simulator's measured numerical error "
+        f"{_fmt(numerical) if numerical is not None else 'not recorded in the table'}, combined)"
+    )
 
 
 def markdown(s: dict) -> str:
@@ -114,7 +164,7 @@ def markdown(s: dict) -> str:
         f"{', with directions' if s['has_direction'] else ', no directions'}"
         f"{''.join(f', measured {k} held fixed' for k, on in s.get('measured', {}).items() if on)}).",
         f"Noise: sd {_fmt(noise['sd'])} in log d ({noise['source']}). Table model floor: "
-        f"{_fmt(s['options'].get('model_floor'))} RMS log d.",
+        f"{_fmt(s['options'].get('model_floor'))} RMS log d{_floor_parts(s.get('model_floor'))}.",
         "",
         "## Verdict",
         "",

@@ -12,8 +12,9 @@ smooth, so a coarse grid carries it: 7 x 6 x 6 cells per level cost about a seco
 Tables are cached per effect key as ``effects-<key>-<digest>.npz`` in a cache folder,
 the digest covering the scene, the coarse grid, the key's levels, MuJoCo's version and
 the baseline table's own digest; a changed setting builds a new file. The build also measures the
-baseline table's own accuracy (:func:`model_floor`), which the diagnostic uses as the
-smallest gap it will attribute to an effect.
+baseline table's own accuracy (:func:`model_floor`: its interpolation error combined with
+the simulator's numerical error that the table file records), which the diagnostic uses
+as the smallest gap it will attribute to an effect.
 """
 
 from __future__ import annotations
@@ -103,11 +104,17 @@ class EffectTables:
         return out.reshape(v.shape)
 
 
-def model_floor(table: PushTable, scene: SceneConfig, n: int = 200, seed: int = 0, nthread: int = 0) -> float:
-    """The table's own accuracy: RMS of simulated minus interpolated log d at random off-grid pushes.
+def model_floor(table: PushTable, scene: SceneConfig, n: int = 200, seed: int = 0, nthread: int = 0) -> dict:
+    """The table's own accuracy as a model of real pushes, RMS log d, and its two parts.
 
-    An effect that changes log d by less than this cannot be told from the table's
-    interpolation error, so the diagnostic does not attribute gaps that small.
+    interpolation_rms: simulated minus interpolated log d at random off-grid pushes (the
+      same simulator, so this is the interpolation's error alone);
+    numerical_rms: the simulator's own error against a much finer reference, as measured
+      when the table was built (``meta['numerical_error']``, see
+      :func:`imply.table.check_table`); 0 with a warning if the table has none;
+    rms: the two combined in quadrature. An effect that changes log d by less than this
+      cannot be told from the table's error, so the diagnostic does not attribute gaps
+      that small.
     """
     rng = np.random.default_rng(seed)
     (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range
@@ -117,7 +124,13 @@ def model_floor(table: PushTable, scene: SceneConfig, n: int = 200, seed: int = 
     res = simulate_pushes(v, m, mu, scene=scene, nthread=nthread)
     ok = res.ok & (res.displacement > 0)
     err = np.log(res.displacement[ok]) - table.log_displacement(v[ok], m[ok], mu[ok])
-    return float(np.sqrt(np.mean(err**2)))
+    interpolation = float(np.sqrt(np.mean(err**2)))
+    measured = table.meta.get("numerical_error") or {}
+    numerical = measured.get("rms_log_d")
+    if numerical is None:
+        log.warning("the table records no measured numerical error; the model floor counts interpolation only")
+    combined = float(np.hypot(interpolation, numerical or 0.0))
+    return {"rms": combined, "interpolation_rms": interpolation, "numerical_rms": numerical}
 
 
 def _digest(table: PushTable, grid: CoarseGrid, extra: dict) -> tuple[str, dict]:
@@ -188,14 +201,19 @@ def load_or_build(
             if path is not None:
                 write_npz(path, delta=deltas[key], meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)))
         bar.close()
-    digest, fmeta = _digest(table, CoarseGrid(), {"model_floor": {"n": 200, "seed": 0}})
+    digest, fmeta = _digest(
+        table,
+        CoarseGrid(),
+        {"model_floor": {"n": 200, "seed": 0}, "numerical_error": table.meta.get("numerical_error")},
+    )
     fpath = cache / f"floor-{digest}.json" if cache else None
     if fpath is not None and fpath.is_file():
         with open(fpath) as fh:
-            floor = float(json.load(fh)["model_floor_rms"])
+            floor = json.load(fh)["model_floor"]
     else:
         floor = model_floor(table, scene, nthread=nthread)
         if fpath is not None:
-            write_json(fpath, {**fmeta, "model_floor_rms": floor})
-    meta["model_floor_rms"] = floor
+            write_json(fpath, {**fmeta, "model_floor": floor})
+    meta["model_floor_rms"] = floor["rms"]
+    meta["model_floor"] = floor
     return EffectTables(axes=axes, levels={k: np.array(v) for k, v in levels.items()}, deltas=deltas, meta=meta)

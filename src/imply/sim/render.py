@@ -3,9 +3,9 @@
 Two steps, kept apart so the expensive one is batched:
 
 1. :func:`record_pushes` simulates many pushes at once on ``mujoco.batch`` exactly as
-   :func:`imply.sim.pushes.simulate_pushes` does (same two phases: servo-driven stroke,
-   then braking while the box slides to rest), and stores the box's and the pusher's
-   positions at the requested frame times plus once more when the box has settled.
+   :func:`imply.sim.pushes.simulate_pushes` does (the same stepping, the same code), and
+   stores the box's and the pusher's positions at the requested frame times plus once
+   more when the box has settled.
    The last frame is therefore always the box at rest, and its travel is the true
    displacement of the push.
 2. :class:`ClipRenderer` draws those states with ``mujoco.Renderer`` (EGL; set
@@ -28,11 +28,10 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from mujoco import batch as mjbatch
 
 from imply.options import known_options
-from imply.sim.pushes import drive_stroke, push_checks, set_box_physics
-from imply.sim.scene import SceneConfig, build_model, model_numeric
+from imply.sim.pushes import batch_with_geometry, run_pushes
+from imply.sim.scene import SceneConfig, build_model
 
 
 def _use_egl() -> None:
@@ -123,9 +122,13 @@ def record_pushes(
     *,
     scene: SceneConfig | None = None,
     nthread: int = 1,
-    chunk: int = 25,
+    chunk: int = 10,
 ) -> PushRecording:
     """Simulate n pushes in one batch and record states at ``frame_times`` and at rest.
+
+    The pushes are stepped exactly as :func:`imply.sim.pushes.simulate_pushes` steps
+    them (:func:`imply.sim.pushes.run_pushes`), so a clip's last frame shows the same
+    displacement the table holds for that push.
 
     Args:
       speeds, masses, frictions: (n,) push speed (m/s), box mass (kg), sliding friction.
@@ -133,9 +136,8 @@ def record_pushes(
       frame_times: increasing times (s) of the frames before the final, at-rest one.
         A push that settles before a frame time shows its rest state in that frame.
       nthread: batch threads; results do not depend on it (each push is independent).
-      chunk: substeps per call while sliding, as in ``simulate_pushes``.
+      chunk: substeps between checks for settled boxes while sliding.
     """
-    scene = scene or SceneConfig()
     speeds = np.asarray(speeds, dtype=float).ravel()
     n = speeds.size
     masses = np.broadcast_to(np.asarray(masses, dtype=float), (n,))
@@ -144,104 +146,18 @@ def record_pushes(
     ft = np.asarray(frame_times, dtype=float)
     if ft.ndim != 1 or ft.size < 1 or np.any(np.diff(ft) <= 0) or ft[0] < 0:
         raise ValueError("frame_times must be increasing and non-negative")
-    n_frames = ft.size + 1
 
-    uniq, inverse = np.unique(he, axis=0, return_inverse=True)
-    built = [build_model(scene, half_extents=tuple(row)) for row in uniq]
-    model = built[0]
-    stroke = model_numeric(model, "stroke")
-    settle_speed = model_numeric(model, "settle_speed", 1e-4)
-    max_time = model_numeric(model, "max_time", 4.0)
-    dt = float(model.opt.timestep)
-    bq = int(model.jnt_qposadr[model.joint("box").id])
-    bv = int(model.jnt_dofadr[model.joint("box").id])
-    pq = int(model.jnt_qposadr[model.joint("push").id])
-    pv = int(model.jnt_dofadr[model.joint("push").id])
-    servo = model.actuator("servo").id
-
-    batch = mjbatch.Batch(model, n, nthread=nthread)
-    per_sim = []
-    for i, k in enumerate(inverse.ravel()):
-        # set_models keeps no expanded fields, so each push carries its own physics
-        mi = _copy_model(built[k])
-        set_box_physics(mi, float(masses[i]), float(frictions[i]))
-        per_sim.append(mi)
-    batch.set_models(per_sim)
-    batch.reset()
-
-    qpos = batch.bind("qpos")
-    qvel = batch.bind("qvel")
-    now = batch.bind("time")
-    start = qpos[:, bq : bq + 3].copy()
-    pusher0 = qpos[:, pq].copy()
-
-    box_rec = np.zeros((n, n_frames, 7))
-    pusher_rec = np.zeros((n, n_frames))
-    time_rec = np.zeros((n, n_frames))
-    next_frame = np.zeros(n, dtype=int)  # index of the next timed frame to record
-    stop_time = np.full(n, max_time)
-
-    def record(ids: np.ndarray) -> None:
-        # a frame is due once simulation time reaches it (within half a step)
-        while ids.size:
-            due = ids[(next_frame[ids] < ft.size) & (now[ids] >= ft[np.minimum(next_frame[ids], ft.size - 1)] - dt / 2)]
-            if not due.size:
-                return
-            k = next_frame[due]
-            box_rec[due, k] = qpos[due, bq : bq + 7]
-            pusher_rec[due, k] = qpos[due, pq] - pusher0[due]
-            time_rec[due, k] = now[due]
-            next_frame[due] += 1
-            ids = due
-
-    record(np.arange(n))
-    drive_stroke(
-        batch, speeds, stroke=stroke, max_time=max_time, push_qpos=pq, push_dof=pv, servo=servo, after_step=record
-    )
-
-    active = np.arange(n)
-    while active.size:
-        # step to the next due frame or a chunk, whichever comes first, so frames land on time
-        due_t = np.where(next_frame[active] < ft.size, ft[np.minimum(next_frame[active], ft.size - 1)], np.inf)
-        steps = np.clip(np.ceil((due_t - now[active]) / dt - 0.5), 1, chunk)
-        nstep = int(steps.min())
-        batch.step(ids=active, nstep=nstep)
-        record(active)
-        speed = np.abs(qvel[active, bv : bv + 3]).max(axis=1)
-        settled = (speed < settle_speed) | ~np.isfinite(speed)
-        timed_out = now[active] >= max_time
-        stop_time[active[settled]] = now[active[settled]]
-        done = settled | timed_out
-        active = active[~done]
-
-    # frames due after a box settled show it at rest; the last frame is the rest state
-    final_box = qpos[:, bq : bq + 7].copy()
-    final_pusher = qpos[:, pq] - pusher0
-    for k in range(n_frames):
-        missing = next_frame <= k if k < ft.size else np.ones(n, dtype=bool)
-        box_rec[missing, k] = final_box[missing]
-        pusher_rec[missing, k] = final_pusher[missing]
-        time_rec[missing, k] = ft[k] if k < ft.size else now[missing]
-    time_rec[:, -1] = now
-
-    disp = final_box[:, 0] - start[:, 0]
-    lateral = final_box[:, 1] - start[:, 1]
-    _, ok = push_checks(final_box, disp, lateral, stop_time, max_time)
+    batch, per_sim = batch_with_geometry(n, he, masses, frictions, scene=scene, nthread=nthread)
+    run = run_pushes(batch, per_sim[0], speeds, models=per_sim, frame_times=ft, chunk=chunk)
     return PushRecording(
-        box_qpos=box_rec,
-        pusher_q=pusher_rec,
-        times=time_rec,
-        displacement=disp,
-        stop_time=stop_time,
-        ok=ok,
+        box_qpos=np.concatenate([run.frames_box_qpos, run.final_box_qpos[:, None]], axis=1),
+        pusher_q=np.concatenate([run.frames_pusher, run.final_pusher[:, None]], axis=1),
+        times=np.concatenate([run.frames_time, run.result.stop_time[:, None]], axis=1),
+        displacement=run.result.displacement,
+        stop_time=run.result.stop_time,
+        ok=run.result.ok,
         half_extents=he,
     )
-
-
-def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    import copy
-
-    return copy.copy(model)
 
 
 class ClipRenderer:

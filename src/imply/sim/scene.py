@@ -8,18 +8,23 @@ command by about mu m g / kv and approaches it with time constant (m + m_p) / kv
 so mass shapes the release speed in a speed-dependent way, while friction sets the
 slide after release. Mass and friction therefore act differently across speeds.
 
-Stability choices (all measured on the full table range): elliptic friction cones and
-the implicitfast integrator; a contact margin on the box so its corner contacts do
-not flicker while sliding; the pusher strikes at the box's centre height so the box
-slides rather than tips; inertia scales with mass (MJCF ``mass=`` on the geom).
+Numerical choices (measured on the full table range): elliptic friction cones; the
+semi-implicit ``Euler`` integrator with a fine step while pushing (see
+:mod:`imply.sim.pushes` for why, and ``imply table check`` for the measured error); a
+contact margin on the box so its corner contacts do not flicker while sliding; the
+pusher strikes at the box's centre height so the box slides rather than tips; inertia
+scales with mass (MJCF ``mass=`` on the geom).
 
 The MJCF carries everything a push needs (``<custom>`` numerics ``stroke``,
-``settle_speed`` and ``max_time``), so a user-edited file can be simulated as is.
+``settle_speed``, ``max_time``, ``push_substeps``, ``release_window``, ``slide_steps``
+and ``slow_push_speed``), so a
+user-edited file is simulated exactly as the built-in scene is.
 Names the simulator relies on: body and geom ``box``, joint ``push``, actuator ``servo``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -33,7 +38,11 @@ from imply.options import known_options
 class SceneConfig:
     """Physical and numerical settings of the push scene (config key ``scene``)."""
 
-    timestep: float = 0.001
+    timestep: float = 0.001  # s, while the box slides; pushing uses timestep / push_substeps
+    push_substeps: int = 8
+    release_window: float = 0.005  # s after the stroke still at the fine step
+    slide_steps: int = 100  # a slide shorter than slide_steps x timestep uses a finer step (0: never)
+    slow_push_speed: float = 0.35  # m/s; slower pushes take twice the push substeps
     box_half_extents: tuple[float, float, float] = (0.05, 0.05, 0.03)
     mass: float = 0.5
     friction: float = 0.3
@@ -47,11 +56,49 @@ class SceneConfig:
     # extra MJCF option attributes, e.g. {"gravity": "0 0 -9.81"}; used by effects
     option: dict[str, str] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        positive = (
+            "timestep", "mass", "friction", "pusher_mass", "pusher_kv", "pusher_force_limit", "stroke",
+            "settle_speed", "max_time",
+        )  # fmt: skip
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+                    and value > 0):  # fmt: skip
+                raise ValueError(f"scene option {name} must be a positive number, not {value!r}")
+        for name in ("contact_margin", "release_window", "slow_push_speed"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+                    and value >= 0):  # fmt: skip
+                raise ValueError(f"scene option {name} must be a number >= 0, not {value!r}")
+        for name, least in (("push_substeps", 1), ("slide_steps", 0)):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= least):
+                raise ValueError(f"scene option {name} must be an integer >= {least}, not {value!r}")
+        he = self.box_half_extents
+        if len(he) != 3 or not all(isinstance(x, int | float) and math.isfinite(x) and x > 0 for x in he):
+            raise ValueError(f"scene option box_half_extents must be three positive numbers, not {list(he)!r}")
+        fine = self.timestep / self.push_substeps
+        if self.max_time / fine > 1e7:
+            raise ValueError(
+                f"scene timestep {self.timestep!r} with push_substeps {self.push_substeps} would take "
+                f"{self.max_time / fine:.3g} substeps per push (max_time {self.max_time:g} s); at most 1e7 are allowed"
+            )
+
     @classmethod
     def from_dict(cls, cfg: dict[str, Any] | None) -> SceneConfig:
         cfg = known_options(cls, cfg, "scene")
         if "box_half_extents" in cfg:
-            cfg["box_half_extents"] = tuple(float(x) for x in cfg["box_half_extents"])
+            he = cfg["box_half_extents"]
+            if not isinstance(he, list | tuple) or not all(
+                isinstance(x, int | float) and not isinstance(x, bool) for x in he
+            ):
+                raise ValueError(f"scene option box_half_extents must be three positive numbers, not {he!r}")
+            cfg["box_half_extents"] = tuple(float(x) for x in he)
+        if "option" in cfg and not isinstance(cfg["option"], dict):
+            raise ValueError(
+                f"scene option 'option' must be a mapping of MJCF option attributes, not {cfg['option']!r}"
+            )
         return cls(**cfg)
 
     def to_dict(self) -> dict[str, Any]:
@@ -74,15 +121,21 @@ def build_xml(
     # the pusher face starts 0.1 mm behind the box, at the box's centre height
     pusher_half = 0.01
     pusher_x = -hx - pusher_half - 1e-4
-    opt = " ".join(f'{k}="{v}"' for k, v in sorted(s.option.items()))
+    # Euler unless the scene's extra options name another integrator (see imply.sim.pushes)
+    option = {"integrator": "Euler", **s.option}
+    opt = " ".join(f'{k}="{v}"' for k, v in sorted(option.items()))
     return f"""<mujoco model="imply_push">
   <compiler angle="radian"/>
-  <option timestep="{s.timestep!r}" cone="elliptic" integrator="implicitfast" {opt}/>
+  <option timestep="{s.timestep!r}" cone="elliptic" {opt}/>
   <visual><quality shadowsize="0" offsamples="0"/><global offwidth="640" offheight="480"/></visual>
   <custom>
     <numeric name="stroke" data="{s.stroke!r}"/>
     <numeric name="settle_speed" data="{s.settle_speed!r}"/>
     <numeric name="max_time" data="{s.max_time!r}"/>
+    <numeric name="push_substeps" data="{s.push_substeps!r}"/>
+    <numeric name="release_window" data="{s.release_window!r}"/>
+    <numeric name="slide_steps" data="{s.slide_steps!r}"/>
+    <numeric name="slow_push_speed" data="{s.slow_push_speed!r}"/>
   </custom>
   <asset>
     <texture name="grid" type="2d" builtin="checker" rgb1="0.55 0.55 0.55" rgb2="0.45 0.45 0.45" width="64" height="64"/>
