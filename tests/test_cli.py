@@ -11,16 +11,9 @@ import pytest
 
 from imply.cli import main
 from imply.commands_core import SCORE_COLUMNS
+from sample_inputs import ROLLOUTS_CSV
 
-GOOD = """object_id,role,speed,displacement
-a,calibration,0.3,0.035
-a,calibration,0.8,0.16
-a,rollout,0.25,0.03
-a,rollout,0.55,0.08
-a,rollout,0.85,0.18
-b,rollout,0.4,0.05
-b,rollout,0.7,0.11
-"""
+GOOD = ROLLOUTS_CSV
 
 
 def run_cli(*args: str) -> int:

@@ -17,25 +17,11 @@ import pandas as pd
 import pytest
 
 from imply.cli import main
+from sample_inputs import PUSHLOG_CSV, ROLLOUTS_CSV
 
-ROLLOUTS = """object_id,role,speed,displacement
-a,calibration,0.3,0.035
-a,calibration,0.8,0.16
-a,rollout,0.25,0.03
-a,rollout,0.55,0.08
-a,rollout,0.85,0.18
-b,rollout,0.4,0.05
-b,rollout,0.7,0.11
-"""
+ROLLOUTS = ROLLOUTS_CSV
 
-PUSHLOG = """object_id,speed,displacement,direction
-a,0.3,0.05,0
-a,0.5,0.09,1.57
-a,0.7,0.14,3.14
-b,0.3,0.04,0
-b,0.5,0.07,0
-b,0.7,0.10,0
-"""
+PUSHLOG = PUSHLOG_CSV
 
 PUSHES = "object_id,speed\nx,0.3\nx,0.6\n"
 GRID = '{"speeds": {"min": 0.15, "max": 1.05, "n": 4}, "masses": {"min": 0.2, "max": 2.0, "n": 4}, ' \
@@ -197,7 +183,7 @@ CASES = [
      "--config bad.yaml: scene: timestep must be a positive"),
     ("build-output-folder", ["table", "build", "-o", "sub"], {}, "-o sub is a folder"),
     ("build-threads", [*BUILD, "--threads", "-2"], {}, "argument --threads: -2 is out of range"),
-    ("check-table-text", ["table", "check", "notes.txt"], {}, "--table: notes.txt is not a push table"),
+    ("check-table-text", ["table", "check", "notes.txt"], {}, "TABLE: notes.txt is not a push table"),
     ("check-output-is-table", ["table", "check", "table.npz", "-o", "table.npz"], {}, "-o table.npz is also an input"),
     ("check-cells", ["table", "check", "table.npz", "--cells", "0"], {}, "argument --cells: 0 is out of range"),
     # -- imply gap diagnose-many (the workflow's batch of diagnoses) ------------------------

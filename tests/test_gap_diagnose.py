@@ -15,6 +15,7 @@ from imply.cli import main
 from imply.diagnose.benchmark import Design, simulate_case
 from imply.io import write_csv
 from imply.sim import SceneConfig
+from sample_inputs import PUSHLOG_CSV
 
 EFFECTS = "tilt_x,speed_gain,viscous"
 GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4}'
@@ -72,14 +73,7 @@ def test_null_log_raises_no_alarm(tmp_path, tiny_table, tiny_table_path, cache):
     assert np.isfinite(s["baseline"]["rms"])
 
 
-PUSHLOG = """object_id,speed,displacement,direction
-a,0.3,0.05,0
-a,0.5,0.09,1.57
-a,0.7,0.14,3.14
-b,0.3,0.04,0
-b,0.5,0.07,0
-b,0.7,0.10,0
-"""
+PUSHLOG = PUSHLOG_CSV
 
 
 def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table_path, cache, monkeypatch, capsys):

@@ -7,15 +7,9 @@ import pytest
 from imply.cli import main
 from imply.diagnose.pushlog import read_pushlog
 from imply.tabular import InputError
+from sample_inputs import PUSHLOG_CSV
 
-GOOD = """object_id,speed,displacement,direction
-a,0.3,0.05,0
-a,0.5,0.09,1.57
-a,0.7,0.14,3.14
-b,0.3,0.04,0
-b,0.5,0.07,0
-b,0.7,0.10,0
-"""
+GOOD = PUSHLOG_CSV
 
 
 def _write(tmp_path, text: str, name: str = "log.csv"):

@@ -89,3 +89,38 @@ def test_offscreen_frame_renders(scene):
         pytest.skip(f"offscreen rendering unavailable: {exc}")
     assert frame.shape == (64, 64, 3) and frame.dtype == np.uint8
     assert frame.std() > 1.0
+
+
+def test_a_push_that_cannot_finish_ends_at_max_time(scene):
+    """A pusher too weak to move the box never reaches the stroke: the push stops, flagged."""
+    from dataclasses import replace
+
+    weak = replace(scene, pusher_force_limit=0.01, max_time=0.5)
+    res = simulate_pushes([0.5], 1.0, 0.5, scene=weak, nthread=1)
+    assert not res.ok[0]
+    assert res.stop_time[0] == pytest.approx(0.5)
+
+
+def test_models_that_cannot_be_stepped_are_refused(scene):
+    model = build_model(scene)
+    model.opt.timestep = 0.0
+    with pytest.raises(ValueError, match="timestep must be positive"):
+        simulate_pushes([0.5], model=model)
+    with pytest.raises(ValueError, match="no joint named 'push'"):
+        simulate_pushes([0.5], model=mujoco.MjModel.from_xml_string(build_xml(scene).replace('"push"', '"slide"')))
+    with pytest.raises(ValueError, match="timestep"):
+        SceneConfig.from_dict({"timestep": -1.0})
+    with pytest.raises(ValueError, match="substeps per push"):
+        SceneConfig.from_dict({"timestep": 1e-9})
+
+
+def test_clip_frames_show_the_travel_the_push_reports(scene):
+    """The last frame's box position is the reported displacement (same stepping, same correction)."""
+    from imply.sim.render import record_pushes
+
+    he = [[0.05, 0.05, 0.03]] * 3
+    rec = record_pushes([0.25, 0.6, 0.95], [0.4, 1.0, 1.7], [0.2, 0.4, 0.15], he, [0.0, 0.05, 0.1], scene=scene)
+    plain = simulate_pushes([0.25, 0.6, 0.95], [0.4, 1.0, 1.7], [0.2, 0.4, 0.15], half_extents=he, scene=scene)
+    np.testing.assert_allclose(rec.displacement, plain.displacement, rtol=1e-12)
+    np.testing.assert_allclose(rec.box_qpos[:, -1, 0] - rec.box_qpos[:, 0, 0], rec.displacement, atol=1e-12)
+    assert np.all(np.diff(rec.box_qpos[:, :, 0], axis=1) >= -1e-6)  # the box never moves backwards

@@ -305,7 +305,7 @@ def _sliding_friction(batch: mjbatch.Batch, model: mujoco.MjModel, models: list[
 class _Timesteps:
     """Per-simulation timesteps of a batch, on expanded fields or on caller models."""
 
-    def __init__(self, batch: mjbatch.Batch, models: list[mujoco.MjModel] | None, value: float) -> None:
+    def __init__(self, batch: mjbatch.Batch, models: list[mujoco.MjModel] | None, value: np.ndarray) -> None:
         self._batch = batch
         self._models = models
         if models is None:
