@@ -36,7 +36,8 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
     clips, feats, enc = work / "results/clips", work / "results/features", work / "results/encoder"
     for d in (clips, feats, enc):
         d.mkdir()
-    _, csv = synth_split(feats, "train", 40, False, seed=3)
+    # enough objects that an epoch outlasts the poll and the signal (a tiny model trains fast)
+    _, csv = synth_split(feats, "train", 240, False, seed=3)
     shutil.move(csv, clips / "train.csv")
     for name in ("train.npz", "pretrain.npz"):
         (clips / name).write_bytes(b"planted")
