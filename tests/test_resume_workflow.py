@@ -63,10 +63,18 @@ def _epoch(checkpoint: Path) -> int:
         return 0  # not there yet
 
 
+def _default_sigint() -> None:
+    # a shell starts background jobs with SIGINT ignored, and exec keeps it ignored; a
+    # terminal's Ctrl-C reaches a foreground run, so give the run the default handling
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _run_until(work: Path, checkpoint: Path, past_epoch: int, sig: int, log: Path) -> int:
     """Start the workflow in its own process group; signal the group once the checkpoint passes an epoch."""
     with open(log, "w") as out:
-        proc = subprocess.Popen(_command(work), stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+        proc = subprocess.Popen(
+            _command(work), stdout=out, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_default_sigint
+        )
         deadline = time.monotonic() + 240
         try:
             while _epoch(checkpoint) <= past_epoch:
