@@ -106,6 +106,9 @@ def test_models_that_cannot_be_stepped_are_refused(scene):
     model.opt.timestep = 0.0
     with pytest.raises(ValueError, match="timestep must be positive"):
         simulate_pushes([0.5], model=model)
+    no_box = build_xml(scene).replace('name="box"', 'name="crate"')
+    with pytest.raises(ValueError, match="no body named 'box'"):
+        simulate_pushes([0.5], 0.5, 0.3, model=mujoco.MjModel.from_xml_string(no_box))
     with pytest.raises(ValueError, match="no joint named 'push'"):
         simulate_pushes([0.5], model=mujoco.MjModel.from_xml_string(build_xml(scene).replace('"push"', '"slide"')))
     with pytest.raises(ValueError, match="timestep"):

@@ -219,6 +219,9 @@ def simulate_pushes(
         model = per_sim[0]
     else:
         model = model if model is not None else build_model(scene or SceneConfig())
+        # a user's model is checked before anything reads it
+        PushJoints.of(model)
+        PushStepping.of(model)
         per_sim = None
         batch = mjbatch.Batch(model, n, nthread=nthread)
         _set_batch_physics(batch, model, masses, frictions)
