@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 
 from imply.score import Scorer
 from imply.sim import SceneConfig, build_model, simulate_pushes
-from imply.table import CheckSettings, TableGrid, build_table, error_against, reference_at_nodes
+from imply.table import TableCheckConfig, TableGrid, build_table, error_against, reference_at_nodes
 
 
 def bare_rollout_steps_per_second(scene: SceneConfig, speeds: np.ndarray, threads: int, nstep: int = 400) -> float:
@@ -81,7 +81,7 @@ def main() -> None:
           f"steps ({steps / n_cells:.0f} a push), {steps / batched_s / 1e3:.0f} k steps/s; bare mujoco.rollout "
           f"on {args.threads} threads: {bare / 1e3:.0f} k steps/s; ratio {steps / batched_s / bare:.2f}")  # fmt: skip
 
-    settings = CheckSettings(cells=args.check_cells)
+    settings = TableCheckConfig(cells=args.check_cells)
     t0 = time.perf_counter()
     nodes, ref = reference_at_nodes(table, settings, nthread=args.threads)
     ref_s = time.perf_counter() - t0

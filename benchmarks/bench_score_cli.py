@@ -10,7 +10,7 @@ from the table with log-normal noise. Then, in this process:
   (pandas, one groupby and Python loop per object), around the scorer as it was
   (one matrix of every set against every grid point, the table's 3-D spline per
   term), kept here as the reference;
-- new path: :func:`imply.commands_core.read_rollouts`, :func:`score_rows` and the
+- new path: :func:`imply.score_file.read_rollouts`, :func:`score_rows` and the
   current :class:`imply.score.Scorer`, as the command runs them.
 
 Both include reading the CSV and writing the scores; it prints seconds, rows per second,
@@ -36,11 +36,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imply.commands_core import SCORE_COLUMNS, read_rollouts, score_rows
+from imply.input_files import read_table, row_error
 from imply.io import write_columns, write_csv
 from imply.score import Scorer
+from imply.score_file import SCORE_COLUMNS, read_rollouts, score_rows
 from imply.table import PushTable
-from imply.tabular import read_table, row_error
 
 QUERY = [0.25, 0.4, 0.55, 0.7, 0.85]
 CALIB = [0.3, 0.8]
@@ -221,10 +221,11 @@ def best_of(repeats: int, func) -> float:
     return min(times)
 
 
-STARTUP_OLD = "import imply.cli, pandas, mujoco, yaml, imply.score, imply.table, imply.sim, imply.commands_gap"
+# what the old command imported before any work (every command group eagerly), in today's module names
+STARTUP_OLD = "import imply.cli, pandas, mujoco, yaml, imply.score, imply.table, imply.sim, imply.cli.gap"
 STARTUP_NEW = (
     "from imply.cli import build_parser; build_parser(); "
-    "import imply.commands_core, imply.score, imply.table, imply.tabular, imply.io, pyarrow.csv, pyarrow.compute"
+    "import imply.score_file, imply.score, imply.table, imply.input_files, imply.io, pyarrow.csv, pyarrow.compute"
 )
 
 

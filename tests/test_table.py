@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imply.table import CheckSettings, OutOfRangeError, PushTable, TableError, check_nodes, check_table
+from imply.table import OutOfRangeError, PushTable, TableCheckConfig, TableError, check_nodes, check_table
 
 
 def test_tiny_table_shape_and_metadata(tiny_table):
@@ -51,7 +51,7 @@ def test_table_converges_to_a_much_finer_reference(tiny_table):
     while pushed and the stepping is most tested. The reference's own error (about its
     difference from a run at twice its step) is small beside the tolerance.
     """
-    error = check_table(tiny_table, CheckSettings(cells=12, seed=1, reference_substeps=32), nthread=2)
+    error = check_table(tiny_table, TableCheckConfig(cells=12, seed=1, reference_substeps=32), nthread=2)
     assert error["cells"] == 12
     assert error["reference_error_max"] < 0.003
     assert error["max_abs_log_d"] <= 0.005
@@ -67,7 +67,9 @@ def test_the_check_fails_a_table_stepped_too_coarsely(scene):
     coarse = replace(scene, push_substeps=1, slow_push_speed=0.0, release_window=0.0, slide_steps=0)
     grid = TableGrid(speed_min=0.3, speed_max=1.05, n_speeds=4, mass_min=0.2, mass_max=2.0, n_masses=4,
                      friction_min=0.1, friction_max=0.6, n_frictions=4)  # fmt: skip
-    error = check_table(build_table(coarse, grid, nthread=2), CheckSettings(cells=8, reference_substeps=32), nthread=2)
+    error = check_table(
+        build_table(coarse, grid, nthread=2), TableCheckConfig(cells=8, reference_substeps=32), nthread=2
+    )
     assert error["max_abs_log_d"] > 0.01
 
 

@@ -30,14 +30,36 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from sklearn.linear_model import RidgeCV
 from sklearn.metrics import r2_score
 
+from imply.options import Config
+
 ALPHAS = np.logspace(-2, 5, 29)
 FLOOR = 1e-3  # metres; the frame-difference map can go below zero for tiny slides
 RIDGE_FORMAT = "imply-ridge-readout-v1"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReadoutConfig(Config):
+    """Config section ``readout``: the ridge's alpha grid (log10, inclusive) and the claims' R^2 threshold."""
+
+    config_key: ClassVar[str] = "readout"
+
+    log10_alpha_min: float = -2.0
+    log10_alpha_max: float = 5.0
+    n_alphas: int = 29
+    r2_threshold: float = 0.95
+
+    def __post_init__(self) -> None:
+        if self.log10_alpha_min > self.log10_alpha_max or self.n_alphas < 1:
+            raise ValueError("need log10_alpha_min <= log10_alpha_max and n_alphas >= 1")
+
+    def alphas(self) -> np.ndarray:
+        return np.logspace(self.log10_alpha_min, self.log10_alpha_max, self.n_alphas)
 
 
 def last_frame_features(tokens: np.ndarray) -> np.ndarray:

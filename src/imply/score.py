@@ -27,15 +27,44 @@ import contextlib
 import functools
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
+
+from imply.options import Config
 
 if TYPE_CHECKING:
     from imply.table import PushTable
 
 DEFAULT_FLOOR = 1e-4
 DEFAULT_GRID = 101
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScoreConfig(Config):
+    """Config section ``score``: the search grid, the readout floor (m), and the study's push speeds (m/s).
+
+    A rule passes only the keys it reads; the others keep these defaults.
+    """
+
+    config_key: ClassVar[str] = "score"
+
+    grid: int = DEFAULT_GRID
+    readout_floor: float = DEFAULT_FLOOR
+    query_speeds: tuple[float, ...] = (0.25, 0.4, 0.55, 0.7, 0.85)
+    calibration_speeds: tuple[float, ...] = (0.3, 0.8)
+
+    def __post_init__(self) -> None:
+        if self.grid < 2:
+            raise ValueError(f"grid must have at least 2 points per axis, not {self.grid}")
+        if not self.readout_floor > 0:
+            raise ValueError("readout_floor must be positive")
+        if len(self.query_speeds) < 2 or len(self.calibration_speeds) != 2:
+            raise ValueError("need at least 2 query speeds and exactly 2 calibration speeds")
+
+    def scorer(self, table: PushTable) -> Scorer:
+        """A :class:`Scorer` of ``table`` with this grid and readout floor."""
+        return Scorer(table, grid=self.grid, floor=self.readout_floor)
 
 
 @functools.cache
@@ -87,6 +116,7 @@ class Scorer:
     def __init__(
         self,
         table: PushTable,
+        *,
         grid: int = DEFAULT_GRID,
         floor: float = DEFAULT_FLOOR,
         chunk: int = 1024,

@@ -22,14 +22,14 @@ import time
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from imply.io import write_npz
-from imply.options import known_options
+from imply.options import Config
 from imply.sim.pushes import simulate_pushes
 from imply.sim.reference import ReferencePushes, reference_log_d
 from imply.sim.scene import SceneConfig
@@ -244,8 +244,8 @@ def build_table(scene: SceneConfig, grid: TableGrid, *, nthread: int = 0, progre
     return PushTable(speeds, masses, frictions, log_d, meta=meta)
 
 
-@dataclass(frozen=True)
-class CheckSettings:
+@dataclass(frozen=True, kw_only=True)
+class TableCheckConfig(Config):
     """How :func:`check_table` measures a table's numerical error (config key ``table_check``).
 
     cells: grid nodes compared (the 8 corners of the range, then distinct random nodes);
@@ -254,16 +254,15 @@ class CheckSettings:
     reference_substeps: the reference's uniform step is the table's timestep divided by this.
     """
 
+    config_key: ClassVar[str] = "table_check"
+
     cells: int = 200
     seed: int = 0
     reference_substeps: int = 64
 
-    @classmethod
-    def from_dict(cls, cfg: dict[str, Any] | None) -> CheckSettings:
-        settings = cls(**known_options(cls, cfg, "table_check"))
-        if settings.cells < 0 or settings.reference_substeps < 2:
+    def __post_init__(self) -> None:
+        if self.cells < 0 or self.reference_substeps < 2:
             raise ValueError("table_check needs cells >= 0 and reference_substeps >= 2")
-        return settings
 
 
 def check_nodes(shape: tuple[int, int, int], cells: int, seed: int) -> np.ndarray:
@@ -280,7 +279,7 @@ def check_nodes(shape: tuple[int, int, int], cells: int, seed: int) -> np.ndarra
 
 
 def reference_at_nodes(
-    table: PushTable, settings: CheckSettings, *, nthread: int = 0, progress: bool = False
+    table: PushTable, settings: TableCheckConfig, *, nthread: int = 0, progress: bool = False
 ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ReferencePushes]:
     """The sampled nodes' indices (i, j, k) and the reference log d at them."""
     scene = SceneConfig.from_dict(table.meta.get("scene"))
@@ -320,7 +319,7 @@ def error_against(
 
 
 def check_table(
-    table: PushTable, settings: CheckSettings | None = None, *, nthread: int = 0, progress: bool = False
+    table: PushTable, settings: TableCheckConfig | None = None, *, nthread: int = 0, progress: bool = False
 ) -> dict[str, Any]:
     """Numerical error of a table: its log d at sampled nodes against a much finer reference.
 
@@ -330,7 +329,7 @@ def check_table(
     |table - reference| over the nodes, the reference's own error estimate, the worst node,
     and how it was measured.
     """
-    settings = settings or CheckSettings()
+    settings = settings or TableCheckConfig()
     t0 = time.perf_counter()
     nodes, ref = reference_at_nodes(table, settings, nthread=nthread, progress=progress)
     error = error_against(table, table.log_d[nodes], nodes, ref, settings.seed)

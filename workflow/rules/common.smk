@@ -1,4 +1,5 @@
-# Shared wiring: config validation and helpers that pass config subsets to the CLI.
+# Shared wiring: the config check, and the getters that tell the rules their inputs,
+# parameters and the DAG's final outputs (rules files hold rules only).
 import json
 import shlex
 from pathlib import Path
@@ -6,11 +7,35 @@ from pathlib import Path
 from snakemake.utils import min_version
 
 from imply.config_check import validate_workflow_config
+from imply.diagnose.benchmark import BenchmarkConfig, case_list
 
 min_version("8.0")
 
 # the whole config, every stage's section, before any job runs (one line on error)
 validate_workflow_config(config, Path(workflow.current_basedir).parent / "schemas")
+
+# the software environment of every rule under `snakemake --use-conda` (pinned versions)
+IMPLY_ENV = "../../envs/imply.yaml"
+
+CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain"]
+FEATURE_SPLITS = ["train", "heldout_calib", "heldout_nocalib"]
+HELDOUT_SPLITS = ["heldout_calib", "heldout_nocalib"]
+MODEL_VARIANTS = ["nocalib", "calib"]
+MODEL_SEEDS = [int(s) for s in config["model"]["seeds"]]
+# which held-out split and contexts each variant is rolled out on
+ROLLOUT_SPLIT = {"calib": "heldout_calib", "nocalib": "heldout_nocalib"}
+ROLLOUT_CONTEXTS = {"calib": "own,swap,none", "nocalib": "none"}
+GAP_CASES = [c["id"] for c in case_list(BenchmarkConfig.from_dict(config["gap"]["benchmark"], "gap.benchmark"))]
+# the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
+GAP_SHARDS = list(range(config["threads"]))
+PAPER_STAGES = ["section4", "clips", "section5", "gap"]
+# each stage's result documents, from which its part reads the registered numbers
+STAGE_RESULTS = {
+    "section4": ["results/section4/metrics.json", "results/section4/noise.json", "results/section4/selection.json"],
+    "clips": ["results/readout/metrics.json"],
+    "section5": ["results/section5/metrics.json"],
+    "gap": ["results/gap/benchmark.json"],
+}
 
 
 def as_json(obj):
@@ -18,11 +43,103 @@ def as_json(obj):
     return shlex.quote(json.dumps(obj, sort_keys=True))
 
 
-# the software environment of every rule under `snakemake --use-conda` (pinned versions)
-IMPLY_ENV = "../../envs/imply.yaml"
+def score_subset(*keys):
+    """Only the ``score`` keys a rule reads."""
+    return as_json({k: config["score"][k] for k in keys})
 
-# final outputs of every stage; each rules file extends this list
-FINAL_TARGETS = []
 
-# result parts (results/paper/parts/<stage>.json) that the paper rule merges; each stage extends it
-PAPER_PARTS = []
+# -- clips and encoder --------------------------------------------------------------
+
+
+def encoder_weights(wildcards):
+    """The CPU default encoder is built by the workflow; released weights are a local file given in config."""
+    return ["results/encoder/encoder.pt"] if config["encoder"]["kind"] == "cpu" else []
+
+
+def encode_weights_option(wildcards, input):
+    return f"--weights {input.weights}" if input.weights else ""
+
+
+def split_files(split):
+    """A clip split's frames, metadata and encoder features, in the order `imply readout fit` takes them."""
+    return [f"results/clips/{split}.npz", f"results/clips/{split}.csv", f"results/features/{split}.npz"]
+
+
+# -- the predictor ------------------------------------------------------------------
+
+
+def preset_json(wildcards):
+    model = config["model"]
+    return as_json(model["presets"][model["preset"]])
+
+
+def variant_json(wildcards):
+    return as_json(config["model"]["variants"][wildcards.variant])
+
+
+def rollout_features(wildcards):
+    return f"results/features/{ROLLOUT_SPLIT[wildcards.variant]}.npz"
+
+
+def rollout_clips(wildcards):
+    return f"results/clips/{ROLLOUT_SPLIT[wildcards.variant]}.csv"
+
+
+def model_rollouts():
+    return expand("results/model/{variant}/seed{seed}/rollouts.csv", variant=MODEL_VARIANTS, seed=MODEL_SEEDS)
+
+
+def rollouts_options(wildcards, input):
+    """`imply section5 --rollouts MODEL:SEED:PATH` for each rollout table (paths from the rule's input)."""
+    return " ".join(
+        f"--rollouts {variant}:{seed}:{path}"
+        for (variant, seed), path in zip(
+            [(v, s) for v in MODEL_VARIANTS for s in MODEL_SEEDS], input.rollouts, strict=True
+        )
+    )
+
+
+# -- the gap benchmark ----------------------------------------------------------------
+
+
+def gap_effects_option():
+    """--effects for the candidate list (empty: the whole library)."""
+    candidates = config["gap"].get("candidates")
+    return "--effects " + ",".join(candidates) if candidates else ""
+
+
+def gap_shard_logs(wildcards):
+    k = int(wildcards.shard)
+    return [f"results/gap/logs/{c}.csv" for i, c in enumerate(GAP_CASES) if i % len(GAP_SHARDS) == k]
+
+
+def folder_of(files):
+    """The folder holding a list of files (how a rule names a folder of its declared outputs)."""
+    return str(Path(files[0]).parent)
+
+
+# -- the paper ------------------------------------------------------------------------
+
+
+def paper_parts(wildcards=None):
+    """Every stage's part, or only those of the stages in config paper.stages (e.g. a test)."""
+    stages = config.get("paper", {}).get("stages", PAPER_STAGES)
+    return [f"results/paper/parts/{stage}.json" for stage in PAPER_STAGES if stage in stages]
+
+
+def final_outputs():
+    """What `snakemake` builds by default: every stage's outputs and the merged paper outputs."""
+    stages = config.get("paper", {}).get("stages", PAPER_STAGES)
+    out = ["results/table/table.npz", "results/table/scene.xml"]
+    if "section4" in stages:
+        out += expand("results/paper/tables/table{n}.tex", n=[1, 2])
+        out += expand("results/paper/figures/figure1.{ext}", ext=["pdf", "png"])
+    if "clips" in stages:
+        out += ["results/readout/ridge.npz", "results/readout/metrics.json"]
+    if "section5" in stages:
+        out += ["results/paper/tables/table3.tex", *expand("results/paper/figures/figure2.{ext}", ext=["pdf", "png"])]
+    if "gap" in stages:
+        out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
+    out += paper_parts()
+    out += [f"results/paper/{name}" for name in ("macros.tex", "numbers.json", "reproduction.md", "reproduction.csv")]
+    return out

@@ -1,14 +1,7 @@
-# The sim-to-real gap diagnostic and its benchmark: effect tables -> synthetic push logs
-# (labels sealed in a file the diagnose rules never read) -> the diagnosis of every log
-# (`imply gap diagnose-many`, sharded over the threads) -> scoring against the sealed
-# labels -> results/paper/parts/gap.json.
-
-from imply.diagnose.benchmark import case_list
-
-GAP = "results/gap"
-GAP_CASES = [c["id"] for c in case_list(config["gap"]["benchmark"])]
-# --effects option for the candidate list (empty: the whole library)
-GAP_EFFECTS = "--effects " + ",".join(config["gap"]["candidates"]) if config["gap"].get("candidates") else ""
+# The sim-to-real gap diagnostic's benchmark: effect tables -> synthetic push logs (labels
+# sealed in a file the diagnose rules never read) -> the diagnosis of every log (`imply gap
+# diagnose-many`, sharded over the threads) -> scoring against the sealed labels (a result
+# document). The stage's part: paper.smk.
 
 
 rule gap_tables:
@@ -17,11 +10,10 @@ rule gap_tables:
     input:
         table="results/table/table.npz",
     output:
-        f"{GAP}/effect_tables.json",
+        directory("results/gap/effect_tables"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
-        cache=f"{GAP}/cache",
-        effects=GAP_EFFECTS,
+        effects=gap_effects_option(),
     threads: config["threads"]
     resources:
         mem_mb=2000,
@@ -29,7 +21,7 @@ rule gap_tables:
     log:
         "results/logs/gap_tables.log",
     shell:
-        "imply gap tables --table {input.table} --effect-grid-json {params.grid} --cache-dir {params.cache} {params.effects}"
+        "imply gap tables --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --threads {threads} -o {output} > {log} 2>&1"
 
 
@@ -39,11 +31,11 @@ rule gap_generate:
     input:
         table="results/table/table.npz",
     output:
-        logs=expand(f"{GAP}/logs/{{case}}.csv", case=GAP_CASES),
-        sealed=f"{GAP}/sealed/labels.json",
+        logs=expand("results/gap/logs/{case}.csv", case=GAP_CASES),
+        sealed="results/gap/sealed/labels.json",
     params:
         bench=as_json(config["gap"]["benchmark"]),
-        logs=f"{GAP}/logs",
+        folder=lambda wildcards, output: folder_of(output.logs),
     threads: config["threads"]
     resources:
         mem_mb=2000,
@@ -51,18 +43,8 @@ rule gap_generate:
     log:
         "results/logs/gap_generate.log",
     shell:
-        "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.logs}"
+        "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.folder}"
         " --sealed {output.sealed} --threads {threads} > {log} 2>&1"
-
-
-# the benchmark's diagnoses run in one process per shard (imports and tables loaded once),
-# each log exactly as `imply diagnose` would; the sealed labels are not an input
-GAP_SHARDS = list(range(config["threads"]))
-
-
-def gap_shard_logs(wildcards):
-    k = int(wildcards.shard)
-    return [f"{GAP}/logs/{c}.csv" for i, c in enumerate(GAP_CASES) if i % len(GAP_SHARDS) == k]
 
 
 rule gap_diagnose:
@@ -71,14 +53,13 @@ rule gap_diagnose:
     input:
         logs=gap_shard_logs,
         table="results/table/table.npz",
-        tables=f"{GAP}/effect_tables.json",
+        tables="results/gap/effect_tables",
     output:
-        directory(f"{GAP}/reports/shard{{shard}}"),
+        directory("results/gap/reports/shard{shard}"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(config["gap"]["diagnose"]),
-        cache=f"{GAP}/cache",
-        effects=GAP_EFFECTS,
+        effects=gap_effects_option(),
     threads: 1
     resources:
         mem_mb=1500,
@@ -87,20 +68,19 @@ rule gap_diagnose:
         "results/logs/gap_diagnose_shard{shard}.log",
     shell:
         "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {params.cache} --threads 1 -o {output} > {log} 2>&1"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
 
 
 rule gap_benchmark:
     conda:
         IMPLY_ENV
     input:
-        reports=expand(f"{GAP}/reports/shard{{shard}}", shard=GAP_SHARDS),
-        sealed=f"{GAP}/sealed/labels.json",
+        reports=expand("results/gap/reports/shard{shard}", shard=GAP_SHARDS),
+        sealed="results/gap/sealed/labels.json",
         table="results/table/table.npz",
     output:
-        result=f"{GAP}/benchmark.json",
-        markdown=f"{GAP}/benchmark.md",
-        part="results/paper/parts/gap.json",
+        result="results/gap/benchmark.json",
+        markdown="results/gap/benchmark.md",
     params:
         bench=as_json(config["gap"]["benchmark"]),
     resources:
@@ -110,9 +90,4 @@ rule gap_benchmark:
         "results/logs/gap_benchmark.log",
     shell:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
-        " --reports {input.reports} -o {output.result} --markdown {output.markdown} --part {output.part}"
-        " > {log} 2>&1"
-
-
-FINAL_TARGETS.extend([f"{GAP}/benchmark.json", f"{GAP}/benchmark.md", "results/paper/parts/gap.json"])
-PAPER_PARTS.append("results/paper/parts/gap.json")
+        " --reports {input.reports} -o {output.result} --markdown {output.markdown} > {log} 2>&1"

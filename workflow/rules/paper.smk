@@ -1,25 +1,99 @@
-# The paper outputs: every stage's result part (PAPER_PARTS, filled by the stages' rules
-# files, which are included before this one) merged into macros, numbers and the
-# reproduction report. The merge picks up whatever parts exist in PAPER_PARTS; the
-# optional config key paper.stages (a list of stage names) restricts it to those stages.
-
-from imply.paper.values import default_path as _paper_values_path
+# The paper outputs: each stage's part (its registered numbers, read from its result
+# documents, and its claims), Tables 1-3 and Figures 1-2, then every part merged into the
+# macros, the numbers and the reproduction report. The optional config key paper.stages
+# restricts the merge to some stages (common.smk's paper_parts).
 
 
-def _paper_parts(wildcards):
-    """Every stage's part, or only those of the stages in config paper.stages (e.g. a test)."""
-    stages = config.get("paper", {}).get("stages")
-    if stages is None:
-        return sorted(PAPER_PARTS)
-    return sorted(p for p in PAPER_PARTS if p.rsplit("/", 1)[-1].removesuffix(".json") in stages)
+rule paper_part:
+    conda:
+        IMPLY_ENV
+    input:
+        lambda wildcards: STAGE_RESULTS[wildcards.stage],
+    output:
+        "results/paper/parts/{stage}.json",
+    resources:
+        mem_mb=500,
+        runtime=2,
+    log:
+        "results/logs/paper_part_{stage}.log",
+    shell:
+        "imply paper part {wildcards.stage} {input} -o {output} > {log} 2>&1"
+
+
+rule paper_tables_section4:
+    conda:
+        IMPLY_ENV
+    input:
+        part="results/paper/parts/section4.json",
+    output:
+        table1="results/paper/tables/table1.tex",
+        table2="results/paper/tables/table2.tex",
+    resources:
+        mem_mb=500,
+        runtime=1,
+    log:
+        "results/logs/paper_tables_section4.log",
+    shell:
+        "imply paper tables --part {input.part} --table1 {output.table1} --table2 {output.table2} > {log} 2>&1"
+
+
+rule paper_table3:
+    conda:
+        IMPLY_ENV
+    input:
+        part="results/paper/parts/section5.json",
+    output:
+        "results/paper/tables/table3.tex",
+    resources:
+        mem_mb=500,
+        runtime=1,
+    log:
+        "results/logs/paper_table3.log",
+    shell:
+        "imply paper tables --part {input.part} --table3 {output} > {log} 2>&1"
+
+
+rule paper_figure1:
+    conda:
+        IMPLY_ENV
+    input:
+        scores="results/section4/scores.csv",
+        noise="results/section4/noise.json",
+    output:
+        pdf="results/paper/figures/figure1.pdf",
+        png="results/paper/figures/figure1.png",
+    resources:
+        mem_mb=1000,
+        runtime=2,
+    log:
+        "results/logs/paper_figure1.log",
+    shell:
+        "imply paper figure1 --scores {input.scores} --noise {input.noise} --pdf {output.pdf} --png {output.png}"
+        " > {log} 2>&1"
+
+
+rule paper_figure2:
+    conda:
+        IMPLY_ENV
+    input:
+        per_object="results/section5/per_object.csv",
+    output:
+        pdf="results/paper/figures/figure2.pdf",
+        png="results/paper/figures/figure2.png",
+    resources:
+        mem_mb=1000,
+        runtime=2,
+    log:
+        "results/logs/paper_figure2.log",
+    shell:
+        "imply paper figure2 --per-object {input.per_object} --pdf {output.pdf} --png {output.png} > {log} 2>&1"
 
 
 rule paper_merge:
     conda:
         IMPLY_ENV
     input:
-        values=str(_paper_values_path()),
-        parts=_paper_parts,
+        paper_parts,
     output:
         macros="results/paper/macros.tex",
         numbers="results/paper/numbers.json",
@@ -31,16 +105,5 @@ rule paper_merge:
     log:
         "results/logs/paper_merge.log",
     shell:
-        "imply paper merge {input.parts} --values {input.values} --macros {output.macros}"
-        " --numbers {output.numbers} --report-md {output.report_md} --report-csv {output.report_csv}"
-        " > {log} 2>&1"
-
-
-FINAL_TARGETS.extend(
-    [
-        "results/paper/macros.tex",
-        "results/paper/numbers.json",
-        "results/paper/reproduction.md",
-        "results/paper/reproduction.csv",
-    ]
-)
+        "imply paper merge {input} --macros {output.macros} --numbers {output.numbers}"
+        " --report-md {output.report_md} --report-csv {output.report_csv} > {log} 2>&1"

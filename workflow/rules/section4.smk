@@ -1,10 +1,7 @@
 # The controlled validation (paper Section 4): objects -> true pushes -> stand-in rollouts
-# -> scores -> Table 1 metrics, noise sweep, selection -> result part, tables, figure.
-# Each rule passes only the config keys it reads, so editing e.g. section4.selection
-# reruns only the selection, the part and what follows.
-
-S4 = "results/section4"
-S4_SPEEDS = {k: config["score"][k] for k in ("query_speeds", "calibration_speeds")}
+# -> scores -> Table 1 metrics, noise sweep, selection (result documents). Each rule passes
+# only the config keys it reads, so editing e.g. section4.selection reruns only the
+# selection and what follows it. The stage's part, tables and figure: paper.smk.
 
 
 rule s4_objects:
@@ -13,9 +10,10 @@ rule s4_objects:
     input:
         table="results/table/table.npz",
     output:
-        f"{S4}/objects.csv",
+        "results/section4/objects.csv",
     params:
-        s4=as_json({k: config["section4"][k] for k in ("seed", "objects")}),
+        seed=config["section4"]["seed"],
+        objects=as_json(config["section4"]["objects"]),
         scene=as_json(config["scene"]),
     resources:
         mem_mb=500,
@@ -23,19 +21,19 @@ rule s4_objects:
     log:
         "results/logs/s4_objects.log",
     shell:
-        "imply section4 objects --table {input.table} --section4-json {params.s4} --scene-json {params.scene}"
-        " -o {output} > {log} 2>&1"
+        "imply section4 objects --table {input.table} --seed {params.seed} --objects-json {params.objects}"
+        " --scene-json {params.scene} -o {output} > {log} 2>&1"
 
 
 rule s4_truth:
     conda:
         IMPLY_ENV
     input:
-        objects=f"{S4}/objects.csv",
+        objects="results/section4/objects.csv",
     output:
-        f"{S4}/truth.csv",
+        "results/section4/truth.csv",
     params:
-        score=as_json(S4_SPEEDS),
+        score=score_subset("query_speeds", "calibration_speeds"),
         scene=as_json(config["scene"]),
     threads: config["threads"]
     resources:
@@ -52,14 +50,15 @@ rule s4_standins:
     conda:
         IMPLY_ENV
     input:
-        objects=f"{S4}/objects.csv",
-        truth=f"{S4}/truth.csv",
+        objects="results/section4/objects.csv",
+        truth="results/section4/truth.csv",
         table="results/table/table.npz",
     output:
-        f"{S4}/rollouts.csv",
+        "results/section4/rollouts.csv",
     params:
-        s4=as_json({k: config["section4"][k] for k in ("seed", "standins")}),
-        score=as_json({**S4_SPEEDS, "readout_floor": config["score"]["readout_floor"]}),
+        seed=config["section4"]["seed"],
+        standins=as_json(config["section4"]["standins"]),
+        score=score_subset("query_speeds", "calibration_speeds", "readout_floor"),
         scene=as_json(config["scene"]),
     threads: config["threads"]
     resources:
@@ -69,20 +68,20 @@ rule s4_standins:
         "results/logs/s4_standins.log",
     shell:
         "imply section4 standins --objects {input.objects} --truth {input.truth} --table {input.table}"
-        " --section4-json {params.s4} --score-json {params.score} --scene-json {params.scene}"
-        " --threads {threads} -o {output} > {log} 2>&1"
+        " --seed {params.seed} --standins-json {params.standins} --score-json {params.score}"
+        " --scene-json {params.scene} --threads {threads} -o {output} > {log} 2>&1"
 
 
 rule s4_scores:
     conda:
         IMPLY_ENV
     input:
-        objects=f"{S4}/objects.csv",
-        truth=f"{S4}/truth.csv",
-        rollouts=f"{S4}/rollouts.csv",
+        objects="results/section4/objects.csv",
+        truth="results/section4/truth.csv",
+        rollouts="results/section4/rollouts.csv",
         table="results/table/table.npz",
     output:
-        f"{S4}/scores.csv",
+        "results/section4/scores.csv",
     params:
         score=as_json(config["score"]),
     resources:
@@ -99,20 +98,20 @@ rule s4_metrics:
     conda:
         IMPLY_ENV
     input:
-        scores=f"{S4}/scores.csv",
+        scores="results/section4/scores.csv",
         table="results/table/table.npz",
     output:
-        f"{S4}/metrics.json",
+        "results/section4/metrics.json",
     params:
-        s4=as_json({"standins": {"jitter_sd": config["section4"]["standins"]["jitter_sd"]}}),
-        score=as_json({"query_speeds": config["score"]["query_speeds"]}),
+        standins=as_json({"jitter_sd": config["section4"]["standins"]["jitter_sd"]}),
+        score=score_subset("query_speeds"),
     resources:
         mem_mb=500,
         runtime=2,
     log:
         "results/logs/s4_metrics.log",
     shell:
-        "imply section4 metrics --scores {input.scores} --table {input.table} --section4-json {params.s4}"
+        "imply section4 metrics --scores {input.scores} --table {input.table} --standins-json {params.standins}"
         " --score-json {params.score} -o {output} > {log} 2>&1"
 
 
@@ -120,13 +119,14 @@ rule s4_noise:
     conda:
         IMPLY_ENV
     input:
-        truth=f"{S4}/truth.csv",
-        rollouts=f"{S4}/rollouts.csv",
+        truth="results/section4/truth.csv",
+        rollouts="results/section4/rollouts.csv",
         table="results/table/table.npz",
     output:
-        f"{S4}/noise.csv",
+        "results/section4/noise.json",
     params:
-        s4=as_json({k: config["section4"][k] for k in ("seed", "noise")}),
+        seed=config["section4"]["seed"],
+        noise=as_json(config["section4"]["noise"]),
         score=as_json(config["score"]),
     resources:
         mem_mb=2000,
@@ -135,21 +135,22 @@ rule s4_noise:
         "results/logs/s4_noise.log",
     shell:
         "imply section4 noise --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
-        " --section4-json {params.s4} --score-json {params.score} -o {output} > {log} 2>&1"
+        " --seed {params.seed} --noise-json {params.noise} --score-json {params.score} -o {output} > {log} 2>&1"
 
 
 rule s4_selection:
     conda:
         IMPLY_ENV
     input:
-        truth=f"{S4}/truth.csv",
-        rollouts=f"{S4}/rollouts.csv",
+        truth="results/section4/truth.csv",
+        rollouts="results/section4/rollouts.csv",
         table="results/table/table.npz",
     output:
-        summary=f"{S4}/selection.csv",
-        choices=f"{S4}/selection_choices.csv",
+        summary="results/section4/selection.json",
+        choices="results/section4/selection_choices.csv",
     params:
-        s4=as_json({k: config["section4"][k] for k in ("seed", "selection")}),
+        seed=config["section4"]["seed"],
+        selection=as_json(config["section4"]["selection"]),
         score=as_json(config["score"]),
     resources:
         mem_mb=2000,
@@ -158,73 +159,5 @@ rule s4_selection:
         "results/logs/s4_selection.log",
     shell:
         "imply section4 selection --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
-        " --section4-json {params.s4} --score-json {params.score} -o {output.summary}"
-        " --choices {output.choices} > {log} 2>&1"
-
-
-rule s4_part:
-    conda:
-        IMPLY_ENV
-    input:
-        metrics=f"{S4}/metrics.json",
-        noise=f"{S4}/noise.csv",
-        selection=f"{S4}/selection.csv",
-    output:
-        "results/paper/parts/section4.json",
-    params:
-        s4=as_json({"selection": config["section4"]["selection"]}),
-    resources:
-        mem_mb=500,
-        runtime=2,
-    log:
-        "results/logs/s4_part.log",
-    shell:
-        "imply section4 part --metrics {input.metrics} --noise {input.noise} --selection {input.selection}"
-        " --section4-json {params.s4} -o {output} > {log} 2>&1"
-
-
-rule s4_tables:
-    conda:
-        IMPLY_ENV
-    input:
-        part="results/paper/parts/section4.json",
-    output:
-        table1="results/paper/tables/table1.tex",
-        table2="results/paper/tables/table2.tex",
-    resources:
-        mem_mb=500,
-        runtime=1,
-    log:
-        "results/logs/s4_tables.log",
-    shell:
-        "imply section4 tables --part {input.part} --table1 {output.table1} --table2 {output.table2} > {log} 2>&1"
-
-
-rule s4_figure:
-    conda:
-        IMPLY_ENV
-    input:
-        scores=f"{S4}/scores.csv",
-        noise=f"{S4}/noise.csv",
-    output:
-        pdf="results/paper/figures/figure1.pdf",
-        png="results/paper/figures/figure1.png",
-    resources:
-        mem_mb=1000,
-        runtime=2,
-    log:
-        "results/logs/s4_figure.log",
-    shell:
-        "imply section4 figure --scores {input.scores} --noise {input.noise} --pdf {output.pdf}"
-        " --png {output.png} > {log} 2>&1"
-
-
-FINAL_TARGETS.extend(
-    [
-        "results/paper/tables/table1.tex",
-        "results/paper/tables/table2.tex",
-        "results/paper/figures/figure1.pdf",
-        "results/paper/figures/figure1.png",
-    ]
-)
-PAPER_PARTS.append("results/paper/parts/section4.json")
+        " --seed {params.seed} --selection-json {params.selection} --score-json {params.score}"
+        " -o {output.summary} --choices {output.choices} > {log} 2>&1"

@@ -1,4 +1,4 @@
-# The push table f(v, m, mu) -> log d and the scene's MJCF.
+# The push table f(v, m, mu) -> log d (with its measured numerical error) and the scene's MJCF.
 
 
 rule table:
@@ -35,6 +35,3 @@ rule scene_xml:
         "results/logs/scene_xml.log",
     shell:
         "imply sim export-xml --scene-json {params.scene} -o {output} > {log} 2>&1"
-
-
-FINAL_TARGETS.extend(["results/table/table.npz", "results/table/scene.xml"])

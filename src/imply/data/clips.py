@@ -47,7 +47,7 @@ Storage, per split ``S`` under the output folder (``results/clips/``):
                   rest is shown at rest), t7 is the rest state (= stop_time)
 
 Within an object, clips are ordered calibration_0, calibration_1, then the query
-clip(s) in speed order. Read a split with :func:`load_split` (frames, metadata).
+clip(s) in speed order. Read a split with :func:`load_clips` (frames, metadata).
 """
 
 from __future__ import annotations
@@ -56,15 +56,17 @@ import io
 import logging
 import time
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.io import atomic_path, write_csv
+from imply.options import Config, Range
+from imply.score import ScoreConfig
 from imply.sim.render import CameraConfig, ClipRenderer, record_pushes
 from imply.sim.scene import SceneConfig
 
@@ -74,53 +76,24 @@ SPLITS = ("train", "heldout_calib", "heldout_nocalib", "pretrain")
 ROLES = ("calibration_0", "calibration_1", "query")
 
 
-@dataclass(frozen=True)
-class ClipsConfig:
-    """Config key ``clips`` (plus the score speeds it renders at)."""
+@dataclass(frozen=True, kw_only=True)
+class ClipsConfig(Config):
+    """Config section ``clips`` (the speeds it renders at come from section ``score``)."""
+
+    config_key: ClassVar[str] = "clips"
 
     seed: int = 5
     n_train_episodes: int = 1500
     n_heldout_calib: int = 300
     n_heldout_nocalib: int = 500
     n_pretrain_episodes: int = 600
-    train_speed: tuple[float, float] = (0.15, 1.05)
-    masses: tuple[float, float] = (0.2, 2.0)
-    frictions: tuple[float, float] = (0.1, 0.6)
-    size_scale: tuple[float, float] = (0.85, 1.15)
+    train_speed: Range = Range(min=0.15, max=1.05)
+    masses: Range = Range(min=0.2, max=2.0)
+    frictions: Range = Range(min=0.1, max=0.6)
+    size_scale: Range = Range(min=0.85, max=1.15)
     frame_times: tuple[float, ...] = (0.0, 0.03, 0.06, 0.1, 0.15, 0.25, 0.4)
-    camera: CameraConfig = field(default_factory=CameraConfig)
+    camera: CameraConfig = CameraConfig()
     batch: int = 500
-    calibration_speeds: tuple[float, ...] = (0.3, 0.8)
-    query_speeds: tuple[float, ...] = (0.25, 0.4, 0.55, 0.7, 0.85)
-
-    @classmethod
-    def from_dict(cls, clips: dict[str, Any], score: dict[str, Any] | None = None) -> ClipsConfig:
-        """From config sections ``clips`` and ``score`` (its calibration/query speeds)."""
-        c = dict(clips)
-        out: dict[str, Any] = {}
-        for key in ("seed", "n_train_episodes", "n_heldout_calib", "n_heldout_nocalib", "n_pretrain_episodes", "batch"):
-            if key in c:
-                out[key] = int(c.pop(key))
-        for key in ("train_speed", "masses", "frictions", "size_scale"):
-            if key in c:
-                rng = c.pop(key)
-                lo, hi = (float(rng["min"]), float(rng["max"])) if isinstance(rng, dict) else map(float, rng)
-                if not 0 < lo <= hi:
-                    raise ValueError(f"clips.{key}: need 0 < min <= max")
-                out[key] = (lo, hi)
-        if "frame_times" in c:
-            out["frame_times"] = tuple(float(t) for t in c.pop("frame_times"))
-        if "camera" in c:
-            out["camera"] = CameraConfig.from_dict(c.pop("camera"))
-        if c:
-            raise ValueError(f"unknown clips option(s): {', '.join(sorted(c))}")
-        if score:
-            out["calibration_speeds"] = tuple(float(v) for v in score["calibration_speeds"])
-            out["query_speeds"] = tuple(float(v) for v in score["query_speeds"])
-        cfg = cls(**out)
-        if len(cfg.calibration_speeds) != 2:
-            raise ValueError("clips need exactly 2 calibration speeds (score.calibration_speeds)")
-        return cfg
 
     def n_objects(self, split: str) -> int:
         return {
@@ -138,11 +111,11 @@ def sample_objects(cfg: ClipsConfig, split: str, scene: SceneConfig) -> pd.DataF
     n = cfg.n_objects(split)
     # one stream per split from (seed, split index): splits never share draws
     rng = np.random.default_rng([cfg.seed, SPLITS.index(split)])
-    mass = np.exp(rng.uniform(*np.log(cfg.masses), n))
-    friction = np.exp(rng.uniform(*np.log(cfg.frictions), n))
-    scale = rng.uniform(*cfg.size_scale, (n, 3))
+    mass = np.exp(rng.uniform(*np.log(cfg.masses.as_tuple()), n))
+    friction = np.exp(rng.uniform(*np.log(cfg.frictions.as_tuple()), n))
+    scale = rng.uniform(*cfg.size_scale.as_tuple(), (n, 3))
     he = np.asarray(scene.box_half_extents, dtype=float)[None, :] * scale
-    query = rng.uniform(*cfg.train_speed, n)
+    query = rng.uniform(*cfg.train_speed.as_tuple(), n)
     return pd.DataFrame(
         {
             "object_id": [f"{split}-{i:05d}" for i in range(n)],
@@ -157,15 +130,20 @@ def sample_objects(cfg: ClipsConfig, split: str, scene: SceneConfig) -> pd.DataF
     )
 
 
-def plan_clips(cfg: ClipsConfig, split: str, scene: SceneConfig) -> pd.DataFrame:
-    """One row per clip of the split (before simulation): ids, role, speed, object physics."""
+def plan_clips(cfg: ClipsConfig, split: str, *, scene: SceneConfig, speeds: ScoreConfig) -> pd.DataFrame:
+    """One row per clip of the split (before simulation): ids, role, speed, object physics.
+
+    Calibration pushes are at ``speeds.calibration_speeds``, held-out queries at every
+    ``speeds.query_speeds``.
+    """
     objects = sample_objects(cfg, split, scene)
     heldout = split.startswith("heldout")
     rows = []
     for obj in objects.itertuples(index=False):
-        pushes = [("calibration_0", -1, cfg.calibration_speeds[0]), ("calibration_1", -1, cfg.calibration_speeds[1])]
+        calib = speeds.calibration_speeds
+        pushes = [("calibration_0", -1, calib[0]), ("calibration_1", -1, calib[1])]
         if heldout:
-            pushes += [("query", k, v) for k, v in enumerate(cfg.query_speeds)]
+            pushes += [("query", k, v) for k, v in enumerate(speeds.query_speeds)]
         else:
             pushes.append(("query", -1, float(obj.train_query_speed)))
         for role, k, v in pushes:
@@ -190,10 +168,16 @@ def plan_clips(cfg: ClipsConfig, split: str, scene: SceneConfig) -> pd.DataFrame
 
 
 def render_split(
-    cfg: ClipsConfig, split: str, scene: SceneConfig, *, nthread: int = 1, progress: bool = True
+    cfg: ClipsConfig,
+    split: str,
+    *,
+    scene: SceneConfig,
+    speeds: ScoreConfig,
+    nthread: int = 1,
+    progress: bool = True,
 ) -> tuple[np.ndarray, pd.DataFrame]:
     """Simulate and render every clip of a split: (frames, metadata) as stored."""
-    plan = plan_clips(cfg, split, scene)
+    plan = plan_clips(cfg, split, scene=scene, speeds=speeds)
     n = len(plan)
     cam = cfg.camera
     n_frames = len(cfg.frame_times) + 1
@@ -283,7 +267,7 @@ def load_meta(csv_path: str | Path) -> pd.DataFrame:
     return meta
 
 
-def load_split(npz_path: str | Path, csv_path: str | Path | None = None) -> tuple[np.ndarray, pd.DataFrame]:
+def load_clips(npz_path: str | Path, csv_path: str | Path | None = None) -> tuple[np.ndarray, pd.DataFrame]:
     """(frames uint8 (n_clips, T, H, W, 3), metadata) of a split written by :func:`save_split`."""
     npz_path = Path(npz_path)
     csv_path = Path(csv_path) if csv_path is not None else npz_path.with_suffix(".csv")

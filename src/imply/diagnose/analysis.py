@@ -42,12 +42,14 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from scipy import stats
 from scipy.interpolate import PchipInterpolator
 
 from imply.diagnose.fit import ObjectFit, Problem
+from imply.options import Config
 from imply.sim.effects import SPEED, Effect
 
 log = logging.getLogger("imply.diagnose")
@@ -55,9 +57,11 @@ log = logging.getLogger("imply.diagnose")
 NONE = "none"
 
 
-@dataclass(frozen=True)
-class Options:
+@dataclass(frozen=True, kw_only=True)
+class Options(Config):
     """Settings of the diagnostic (config ``gap.diagnose``)."""
+
+    config_key: ClassVar[str] = "gap.diagnose"
 
     grid: int = 101
     n_profile: int = 11
@@ -70,10 +74,6 @@ class Options:
     min_share: float = 0.5
     use_measured: bool = True
     fine: int = 401
-
-    @classmethod
-    def from_dict(cls, cfg: dict | None) -> Options:
-        return cls(**(cfg or {}))
 
 
 @dataclass
@@ -423,7 +423,7 @@ def diagnose(prob: Problem, effects: list[Effect], opts: Options) -> Diagnosis:
         "ranking": public_rank,
         "verdict": verdict,
         "shrinkage": shrink,
-        "options": opts.__dict__,
+        "options": opts.to_dict(),
         # the floor's parts: interpolation, and the simulator's error measured when the table was built
         "model_floor": prob.etables.meta.get("model_floor") if prob.etables is not None else None,
     }  # fmt: skip

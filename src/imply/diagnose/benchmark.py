@@ -18,13 +18,18 @@ direction, displacement (with multiplicative log-normal noise), box size and, wi
 
 from __future__ import annotations
 
+import json
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 import pandas as pd
 
+from imply.io import write_csv, write_json
+from imply.options import Config
 from imply.sim.effects import EFFECTS, FRICTION, MODEL, SPEC_EDITS, SPEED
 from imply.sim.pushes import simulate_pushes
 from imply.sim.scene import SceneConfig, build_xml
@@ -34,10 +39,19 @@ log = logging.getLogger("imply.diagnose")
 OUTSIDE = ("friction_patch", "force_limit")
 
 
-@dataclass(frozen=True)
-class Design:
-    """What a synthetic log holds (config ``gap.benchmark``)."""
+@dataclass(frozen=True, kw_only=True)
+class BenchmarkConfig(Config):
+    """The benchmark (config ``gap.benchmark``): which cases, and what a synthetic log holds."""
 
+    config_key: ClassVar[str] = "gap.benchmark"
+
+    seed: int = 4242
+    null_logs: int = 20
+    magnitude_fractions: tuple[float, ...] = (0.3, 0.6, 1.0)
+    effects: tuple[str, ...] = ()
+    outside: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    min_size_sd: float = 2.0
+    targets: dict[str, float] = field(default_factory=lambda: {"top1": 0.9, "false_alarm": 0.05, "shrinkage": 0.8})
     n_objects: int = 20
     speeds: tuple[float, ...] = (0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85)
     directions: tuple[float, ...] = (
@@ -54,11 +68,11 @@ class Design:
     measured_mass: bool = False  # write each object's mass (weighed: exact to the gram) into the log
 
 
-def case_list(cfg: dict) -> list[dict]:
+def case_list(cfg: BenchmarkConfig) -> list[dict]:
     """All benchmark cases (id, effect, magnitude, seed) from config ``gap.benchmark``."""
     cases = []
-    seed = int(cfg["seed"])
-    for k in range(int(cfg["null_logs"])):
+    seed = cfg.seed
+    for k in range(cfg.null_logs):
         cases.append(
             {
                 "id": f"null-{k:02d}",
@@ -67,8 +81,8 @@ def case_list(cfg: dict) -> list[dict]:
                 "seed": seed + k,
             }
         )
-    fracs = cfg["magnitude_fractions"]
-    for e in cfg["effects"]:
+    fracs = cfg.magnitude_fractions
+    for e in cfg.effects:
         lo, hi = EFFECTS[e].bounds
         for j, fr in enumerate(fracs):
             # signed effects alternate sign across levels so both sides are tested
@@ -82,7 +96,7 @@ def case_list(cfg: dict) -> list[dict]:
                     "seed": seed + 1000 + 10 * len(cases),
                 }
             )
-    for e, vals in cfg["outside"].items():
+    for e, vals in cfg.outside.items():
         for j, val in enumerate(vals):
             cases.append(
                 {
@@ -95,7 +109,7 @@ def case_list(cfg: dict) -> list[dict]:
     return cases
 
 
-def _objects(design: Design, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _objects(design: BenchmarkConfig, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     m = np.exp(rng.uniform(*np.log(design.masses), design.n_objects))
     mu = np.exp(rng.uniform(*np.log(design.frictions), design.n_objects))
     return m, mu
@@ -113,7 +127,9 @@ def _tilted_gravity(g: float, angle: float, axis: str, phi: float) -> list[float
     ]
 
 
-def simulate_case(case: dict, base_scene: SceneConfig, design: Design, nthread: int = 0) -> tuple[pd.DataFrame, dict]:
+def simulate_case(
+    case: dict, base_scene: SceneConfig, design: BenchmarkConfig, nthread: int = 0
+) -> tuple[pd.DataFrame, dict]:
     """The push log of one case (noise added) and its sealed label with the truth per object."""
     rng = np.random.default_rng(case["seed"])
     scene = SceneConfig.from_dict({**base_scene.to_dict(), "timestep": design.timestep})
@@ -205,6 +221,33 @@ def simulate_case(case: dict, base_scene: SceneConfig, design: Design, nthread: 
     return frame.reset_index(drop=True), label
 
 
+def generate_logs(
+    config: BenchmarkConfig, scene: SceneConfig, logs: Path, sealed: Path, *, nthread: int = 0, progress: bool = True
+) -> int:
+    """Simulate every case of :func:`case_list` into ``logs/<case>.csv``; labels to ``sealed``. Returns the count."""
+    from tqdm.auto import tqdm
+
+    labels = {}
+    for case in tqdm(case_list(config), desc="synthetic logs", unit="log", disable=not progress):
+        frame, label = simulate_case(case, scene, config, nthread=nthread)
+        write_csv(logs / f"{case['id']}.csv", frame)
+        labels[case["id"]] = label
+    write_json(sealed, labels)
+    return len(labels)
+
+
+def find_summaries(labels: dict[str, dict], report_dirs: list[Path]) -> dict[str, dict]:
+    """Each case's diagnosis summary, from the folder of report folders that holds it."""
+    summaries = {}
+    for cid in labels:
+        found = [r / cid / "summary.json" for r in report_dirs if (r / cid / "summary.json").is_file()]
+        if not found:
+            raise FileNotFoundError(f"no diagnosis for case {cid} in {', '.join(map(str, report_dirs))}")
+        with open(found[0]) as fh:
+            summaries[cid] = json.load(fh)
+    return summaries
+
+
 def _patch_model(scene: SceneConfig, mu: float, frac: float, start: float = 0.03) -> mujoco.MjModel:
     """Table whose friction is mu (1 + frac) beyond ``start`` metres ahead of the box's front face."""
     spec = mujoco.MjSpec.from_string(build_xml(scene))
@@ -263,9 +306,16 @@ def score_cases(
     labels: dict[str, dict],
     summaries: dict[str, dict],
     sizes: dict[str, float],
-    min_size_sd: float = 2.0,
+    *,
+    config: BenchmarkConfig,
 ) -> dict:
-    """Benchmark metrics from sealed labels, diagnose summaries and visible sizes."""
+    """Benchmark metrics from sealed labels, diagnose summaries and visible sizes.
+
+    The result holds every case's row (``cases``), the confusion matrix, the rates the
+    gap stage reports (``top1_big``, ``false_alarm``, ``none_recall_outside``, ...), and
+    the settings they were judged by (``noise_sd``, ``min_size_sd``, ``targets``).
+    """
+    min_size_sd = config.min_size_sd
     from imply.diagnose.analysis import Options, decide
 
     rows = []
@@ -341,4 +391,8 @@ def score_cases(
         "anchored_shrinkage_median": float(np.nanmedian(anch)) if anch.notna().any() else float("nan"),
         "null_visible_rms_median": float(frame.loc[null, "visible_rms"].median()) if null.any() else float("nan"),
         "min_size_sd": min_size_sd,
+        "noise_sd": config.noise_sd,
+        "timestep": config.timestep,
+        "measured_mass": config.measured_mass,
+        "targets": dict(config.targets),
     }  # fmt: skip

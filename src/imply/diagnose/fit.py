@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imply.diagnose.effect_tables import EffectTables
 from imply.diagnose.pushlog import PushLog
-from imply.diagnose.tables import EffectTables
 from imply.score import Scorer
 from imply.sim.effects import (
     FRICTION,

@@ -12,7 +12,7 @@ table's range; the diagnostic then holds them fixed instead of fitting them (see
 :class:`imply.diagnose.fit.Problem`), which removes the aliasing of effects with the
 (m, mu) fit.
 
-Nothing is dropped: a bad cell raises :class:`imply.tabular.InputError` naming its
+Nothing is dropped: a bad cell raises :class:`imply.input_files.InputError` naming its
 row and column, including a push whose ``ok`` is false and an object with too few
 pushes to fit its mass and friction (at least 3 pushes at 2 or more speeds).
 """
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from imply.tabular import InputError, read_table_lines, row_error
+from imply.input_files import InputError, read_table_lines, row_error
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]

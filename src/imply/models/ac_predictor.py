@@ -10,10 +10,10 @@ the predictor width; actions and states have their own linear encoders.
   <= t and none of later steps (:func:`block_causal_mask`). So the output at the
   patch tokens of step t can only depend on frames, actions and states up to t, and
   it is read as the prediction of the next step's frame tokens.
-* Positions are 3D rotary embeddings (:class:`Rope3D`): each head's channels are
-  split into a time, a height and a width part, each rotated by its coordinate.
-  Action and state tokens sit at their step's time but have no place on the image,
-  so they are rotated in time only (their height/width channels pass unrotated).
+* Positions are 3D rotary embeddings, the encoder's own (:func:`imply.models.modules.rope_tables`):
+  each head's channels have a time, a height and a width part, each rotated by its
+  coordinate. Action and state tokens sit at their step's time but have no place on the
+  image, so they are rotated in time only.
 * Outputs at patch tokens are normalised and projected back to ``embed_dim``; the
   targets are the encoder tokens passed through a parameter-free layer norm
   (:func:`normalise_tokens`), and the inputs are normalised the same way, so a
@@ -35,19 +35,19 @@ of the paper's predictor) live in config (``model.presets``).
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
-from imply.models.vision_transformer import init_weights
-from imply.options import known_options
+from imply.models.modules import Block, KeyValue, init_weights, rope_tables, shrink_residual_branches
+from imply.options import Config
 
 
-@dataclass(frozen=True)
-class PredictorConfig:
+@dataclass(frozen=True, kw_only=True)
+class PredictorConfig(Config):
     """Shape of a predictor. ``embed_dim``/``grid`` come from the encoder features."""
 
     embed_dim: int
@@ -61,17 +61,9 @@ class PredictorConfig:
     max_steps: int = 32
     rope_theta: float = 10000.0
 
-    @classmethod
-    def from_dict(cls, d: dict) -> PredictorConfig:
-        kw = known_options(cls, d, "predictor")
-        if "grid" in kw:
-            kw["grid"] = tuple(int(g) for g in kw["grid"])
-        return cls(**kw)
-
-    def to_dict(self) -> dict:
-        out = {f.name: getattr(self, f.name) for f in fields(self)}
-        out["grid"] = list(self.grid)
-        return out
+    def __post_init__(self) -> None:
+        if self.width % self.heads:
+            raise ValueError(f"width {self.width} is not divisible by {self.heads} heads")
 
     @property
     def n_patches(self) -> int:
@@ -81,6 +73,23 @@ class PredictorConfig:
     def tokens_per_step(self) -> int:
         # one action token, one state token, then the patches
         return 2 + self.n_patches
+
+
+@dataclass(frozen=True, kw_only=True)
+class PredictorPreset(Config):
+    """A predictor size (config ``model.presets.<name>``): everything but what the features fix."""
+
+    config_key: ClassVar[str] = "model.presets"
+
+    width: int = 96
+    depth: int = 3
+    heads: int = 4
+    mlp_ratio: float = 4.0
+    rope_theta: float = 10000.0
+
+    def predictor(self, *, embed_dim: int, grid: tuple[int, int], max_steps: int) -> PredictorConfig:
+        """The full :class:`PredictorConfig` for features of width ``embed_dim`` on a ``grid`` of patches."""
+        return PredictorConfig(embed_dim=embed_dim, grid=grid, max_steps=max_steps, **self.to_dict())
 
 
 def normalise_tokens(x: torch.Tensor) -> torch.Tensor:
@@ -99,10 +108,10 @@ def block_causal_mask(n_steps: int, tokens_per_step: int, device=None) -> torch.
 
 
 def token_positions(n_steps: int, grid: tuple[int, int], device=None) -> tuple[torch.Tensor, torch.Tensor]:
-    """Per-token (time, height, width) coordinates and a flag for spatial rotation.
+    """Per-token (time, row, column) coordinates and a flag for spatial rotation.
 
-    Returns ``pos`` (L, 3) float and ``spatial`` (L,) bool; action and state tokens
-    have spatial=False (rotated in time only).
+    Returns ``pos`` (1, 3, L) float, as :func:`imply.models.modules.rope_tables` takes
+    it, and ``spatial`` (L,) bool: False for action and state tokens (rotated in time only).
     """
     gh, gw = grid
     hh, ww = torch.meshgrid(torch.arange(gh), torch.arange(gw), indexing="ij")
@@ -111,84 +120,7 @@ def token_positions(n_steps: int, grid: tuple[int, int], device=None) -> tuple[t
     spatial_step = torch.cat([torch.zeros(2, dtype=torch.bool), torch.ones(gh * gw, dtype=torch.bool)])
     t = torch.arange(n_steps).float().repeat_interleave(per_step.shape[0])[:, None]
     pos = torch.cat([t, per_step.repeat(n_steps, 1)], dim=1)
-    return pos.to(device), spatial_step.repeat(n_steps).to(device)
-
-
-class Rope3D(nn.Module):
-    """Rotary embedding over (time, height, width) on a head's channels.
-
-    The head dimension is split into three equal even-sized parts (any remainder is
-    left unrotated); part a is rotated by coordinate a. Tokens without a place on the
-    image (spatial=False) get the time rotation only.
-    """
-
-    def __init__(self, head_dim: int, theta: float = 10000.0):
-        super().__init__()
-        part = 2 * ((head_dim // 3) // 2)
-        if part == 0:
-            raise ValueError(f"head dimension {head_dim} is too small for 3D rotary embeddings")
-        self.part = part
-        inv = 1.0 / (theta ** (torch.arange(0, part, 2).float() / part))
-        self.register_buffer("inv_freq", inv, persistent=False)
-
-    def angles(self, pos: torch.Tensor, spatial: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """cos, sin of shape (L, 3 * part // 2) for the given token coordinates."""
-        ang = pos[:, :, None] * self.inv_freq[None, None, :]  # (L, 3, part/2)
-        ang[:, 1:, :] = ang[:, 1:, :] * spatial[:, None, None].to(ang.dtype)
-        ang = ang.reshape(pos.shape[0], -1)
-        return ang.cos(), ang.sin()
-
-    def rotate(self, x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
-        """Rotate x (B, H, L, head_dim): channel pairs (2i, 2i+1) of the rotated span."""
-        n = 3 * self.part
-        xr, rest = x[..., :n], x[..., n:]
-        x1, x2 = xr[..., 0::2], xr[..., 1::2]
-        r1 = x1 * cos - x2 * sin
-        r2 = x1 * sin + x2 * cos
-        out = torch.stack([r1, r2], dim=-1).flatten(-2)
-        return torch.cat([out, rest], dim=-1)
-
-
-class Attention(nn.Module):
-    def __init__(self, width: int, heads: int, rope: Rope3D):
-        super().__init__()
-        if width % heads:
-            raise ValueError(f"width {width} is not divisible by {heads} heads")
-        self.heads = heads
-        self.qkv = nn.Linear(width, 3 * width)
-        self.proj = nn.Linear(width, width)
-        self.rope = rope
-
-    def forward(self, x, mask, cos, sin, past=None):
-        """Attention of x's tokens to ``past`` keys/values (rotated, cached) and their own.
-
-        Returns (output, (k, v)) with k, v covering past and present tokens.
-        """
-        b, n, w = x.shape
-        qkv = self.qkv(x).reshape(b, n, 3, self.heads, w // self.heads).permute(2, 0, 3, 1, 4)
-        q, k, v = qkv[0], qkv[1], qkv[2]
-        q = self.rope.rotate(q, cos, sin)
-        k = self.rope.rotate(k, cos, sin)
-        if past is not None:
-            k = torch.cat([past[0], k], dim=2)
-            v = torch.cat([past[1], v], dim=2)
-        out = F.scaled_dot_product_attention(q, k, v, attn_mask=mask)
-        return self.proj(out.transpose(1, 2).reshape(b, n, w)), (k, v)
-
-
-class Block(nn.Module):
-    def __init__(self, width: int, heads: int, mlp_ratio: float, rope: Rope3D):
-        super().__init__()
-        self.norm1 = nn.LayerNorm(width)
-        self.attn = Attention(width, heads, rope)
-        self.norm2 = nn.LayerNorm(width)
-        hidden = int(width * mlp_ratio)
-        self.mlp = nn.Sequential(nn.Linear(width, hidden), nn.GELU(), nn.Linear(hidden, width))
-
-    def forward(self, x, mask, cos, sin, past=None):
-        a, kv = self.attn(self.norm1(x), mask, cos, sin, past)
-        x = x + a
-        return x + self.mlp(self.norm2(x)), kv
+    return pos.T[None].to(device), spatial_step.repeat(n_steps).to(device)
 
 
 class ACPredictor(nn.Module):
@@ -201,15 +133,11 @@ class ACPredictor(nn.Module):
         self.frame_embed = nn.Linear(cfg.embed_dim, w)
         self.action_embed = nn.Linear(cfg.action_dim, w)
         self.state_embed = nn.Linear(cfg.state_dim, w)
-        rope = Rope3D(w // cfg.heads, cfg.rope_theta)
-        self.blocks = nn.ModuleList([Block(w, cfg.heads, cfg.mlp_ratio, rope) for _ in range(cfg.depth)])
-        self.norm = nn.LayerNorm(w)
+        self.blocks = nn.ModuleList([Block(w, cfg.heads, cfg.mlp_ratio) for _ in range(cfg.depth)])
+        self.norm = nn.LayerNorm(w, eps=1e-6)
         self.out = nn.Linear(w, cfg.embed_dim)
         self.apply(init_weights)
-        # residual branches start small in deep stacks, as in ViT-style predictors
-        for i, blk in enumerate(self.blocks):
-            blk.attn.proj.weight.data.div_(math.sqrt(2.0 * (i + 1)))
-            blk.mlp[2].weight.data.div_(math.sqrt(2.0 * (i + 1)))
+        shrink_residual_branches(self.blocks)
 
     def forward(self, frames: torch.Tensor, actions: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
         """Predict the next step's frame tokens at every step.
@@ -220,7 +148,9 @@ class ACPredictor(nn.Module):
         """
         return self._run(frames, actions, states, 0, None)[0]
 
-    def _run(self, frames, actions, states, t0: int, cache):
+    def _run(
+        self, frames: torch.Tensor, actions: torch.Tensor, states: torch.Tensor, t0: int, cache: list[KeyValue] | None
+    ) -> tuple[torch.Tensor, list[KeyValue]]:
         """Steps t0 .. t0+T-1 given cached keys/values of steps < t0 (None when t0 = 0).
 
         Returns (predictions (B, T, P, D), new cache covering steps < t0 + T).
@@ -243,11 +173,12 @@ class ACPredictor(nn.Module):
         if t == 1:
             mask = None  # one step attends to everything before and within it
         pos, spatial = token_positions(t0 + t, cfg.grid, device=frames.device)
-        pos, spatial = pos[t0 * tps :], spatial[t0 * tps :]
-        cos, sin = self.blocks[0].attn.rope.angles(pos, spatial) if cfg.depth else (None, None)
+        rope = rope_tables(
+            pos[:, :, t0 * tps :], cfg.width // cfg.heads, spatial=spatial[t0 * tps :], theta=cfg.rope_theta
+        )
         new_cache = []
         for i, blk in enumerate(self.blocks):
-            tok, kv = blk(tok, mask, cos, sin, None if cache is None else cache[i])
+            tok, kv = blk(tok, rope, mask, None if cache is None else cache[i])
             new_cache.append(kv)
         tok = self.norm(tok).reshape(b, t, tps, cfg.width)[:, :, 2:]
         return self.out(tok), new_cache

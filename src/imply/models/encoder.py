@@ -39,7 +39,7 @@ To switch the study to the real encoder, download the weights once, then set e.g
 and rerun ``snakemake`` (the encode rule asks for a GPU then; ``encoder.device``, default
 ``auto``, uses CUDA when there is one).
 
-Cached features (:func:`encode_split`), one file per clip split, ``results/features/<split>.npz``:
+Cached features (:func:`encode_clips`, :func:`save_features`), one file per clip split, ``results/features/<split>.npz``:
 
     ``tokens``   float16 (n_clips, T, n_patches, dim): frame t of clip i -> tokens[i, t];
                  T = 8 frames as in ``results/clips/<split>.npz``; patches row-major over
@@ -57,8 +57,9 @@ from __future__ import annotations
 import logging
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -66,12 +67,12 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm.auto import tqdm
 
-from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig
+from imply.models.pretrain import PretrainConfig
+from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, preprocess
+from imply.options import Config
 
 log = logging.getLogger("imply.encoder")
 
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-IMAGENET_STD = (0.229, 0.224, 0.225)
 KINDS = ("cpu", "vjepa2_hf", "vjepa2_pt")
 CPU_FORMAT = "imply-cpu-encoder-v1"
 
@@ -80,15 +81,34 @@ class EncoderError(ValueError):
     """A weights path or checkpoint that cannot be used; the message says why."""
 
 
-def preprocess(frames: np.ndarray | torch.Tensor, input_size: tuple[int, int], tubelet: int = 2) -> torch.Tensor:
-    """uint8 (N, H, W, 3) -> float (N, 3, tubelet, h, w): resized, ImageNet-normalised, duplicated in time."""
-    x = torch.as_tensor(np.asarray(frames)).permute(0, 3, 1, 2).float() / 255.0
-    if tuple(x.shape[-2:]) != tuple(input_size):
-        x = F.interpolate(x, size=tuple(input_size), mode="bilinear", align_corners=False, antialias=True)
-    mean = torch.tensor(IMAGENET_MEAN).view(1, 3, 1, 1)
-    std = torch.tensor(IMAGENET_STD).view(1, 3, 1, 1)
-    x = (x - mean) / std
-    return x.unsqueeze(2).expand(-1, -1, tubelet, -1, -1).contiguous()
+@dataclass(frozen=True, kw_only=True)
+class EncoderConfig(Config):
+    """Config section ``encoder`` (see the module docstring for the kinds)."""
+
+    config_key: ClassVar[str] = "encoder"
+
+    kind: str = "cpu"
+    weights: str | None = None  # local path for vjepa2_hf / vjepa2_pt (never downloaded)
+    arch: str | dict[str, Any] = "vit_giant_xformers"  # vjepa2_pt architecture: a preset name or ViTConfig fields
+    input_size: tuple[int, int] = (256, 256)  # vjepa2_pt input size
+    checkpoint_key: str = "target_encoder"
+    pool_grid: tuple[int, int] | None = None  # pool cached tokens to this (rows, columns) grid
+    batch_size: int = 256
+    device: str = "auto"  # auto: CUDA when available
+    cpu_arch: str | dict[str, Any] = "tiny"  # the CPU default: a preset name or ViTConfig fields
+    pretrain: PretrainConfig = PretrainConfig()
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"encoder.kind {self.kind!r} is not one of {', '.join(KINDS)}")
+
+    def cpu_architecture(self) -> ViTConfig:
+        """The CPU default's architecture: preset ``cpu_arch`` or a mapping of :class:`ViTConfig` fields."""
+        if isinstance(self.cpu_arch, dict):
+            return ViTConfig.from_dict(self.cpu_arch, "encoder.cpu_arch")
+        if self.cpu_arch not in PRESETS:
+            raise ValueError(f"encoder.cpu_arch {self.cpu_arch!r} is not one of {', '.join(PRESETS)}")
+        return PRESETS[self.cpu_arch]
 
 
 class FrameEncoder:
@@ -257,26 +277,21 @@ def load_cpu_encoder(path: str | os.PathLike) -> ViTFrameEncoder:
     return ViTFrameEncoder(model, tuple(ckpt["input_size"]), name=f"cpu:{path.name}")
 
 
-def load_encoder(cfg: dict[str, Any], weights: str | os.PathLike | None = None) -> FrameEncoder:
+def load_encoder(cfg: EncoderConfig, weights: str | os.PathLike | None = None) -> FrameEncoder:
     """The encoder of config section ``encoder``; ``weights`` overrides ``encoder.weights``.
 
     For ``kind: cpu`` the weights are the pretrained file (``results/encoder/encoder.pt``).
     """
-    kind = cfg.get("kind", "cpu")
-    path = weights if weights is not None else cfg.get("weights")
-    if kind not in KINDS:
-        raise EncoderError(f"encoder.kind {kind!r} is not one of {', '.join(KINDS)}")
+    path = weights if weights is not None else cfg.weights
     if path is None:
-        raise EncoderError(f"encoder.kind {kind}: no weights path (encoder.weights)")
-    if kind == "cpu":
+        raise EncoderError(f"encoder.kind {cfg.kind}: no weights path (encoder.weights)")
+    if cfg.kind == "cpu":
         enc: FrameEncoder = load_cpu_encoder(path)
-    elif kind == "vjepa2_hf":
+    elif cfg.kind == "vjepa2_hf":
         enc = load_vjepa2_hf(path)
     else:
-        size = cfg.get("input_size", [256, 256])
-        arch = cfg.get("arch", "vit_giant_xformers")
-        enc = load_vjepa2_pt(path, arch, (int(size[0]), int(size[1])), cfg.get("checkpoint_key", "target_encoder"))
-    return enc.to(cfg.get("device", "auto"))
+        enc = load_vjepa2_pt(path, cfg.arch, cfg.input_size, cfg.checkpoint_key)
+    return enc.to(cfg.device)
 
 
 def pool_tokens(

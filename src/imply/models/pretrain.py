@@ -3,7 +3,7 @@
 Objective (as in V-JEPA, on single frames duplicated into a tubelet, the way the
 encoder is used downstream): hide a block of patch columns, encode the visible
 patches with the context encoder, predict the hidden patches' tokens with
-:class:`imply.models.jepa_predictor.MaskedPredictor`, and regress them (L1) onto the
+:class:`imply.models.masked_predictor.MaskedPredictor`, and regress them (L1) onto the
 layer-normed tokens of a target encoder that is an exponential moving average of the
 context encoder (momentum ramped from ``ema[0]`` to ``ema[1]``). AdamW with linear
 warmup and cosine decay. The frozen target encoder is what gets saved and used.
@@ -19,23 +19,27 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
-from imply.models.encoder import preprocess
-from imply.models.jepa_predictor import MaskedPredictor
-from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, grid_positions
-from imply.options import known_options
+from imply.models.masked_predictor import MaskedPredictor
+from imply.models.modules import grid_positions
+from imply.models.vision_transformer import VisionTransformer, ViTConfig, preprocess
+from imply.options import Config
 
 log = logging.getLogger("imply.encoder")
 
 
-@dataclass(frozen=True)
-class PretrainConfig:
+@dataclass(frozen=True, kw_only=True)
+class PretrainConfig(Config):
+    """Config section ``encoder.pretrain``: the CPU default encoder's JEPA pretraining."""
+
+    config_key: ClassVar[str] = "encoder.pretrain"
+
     seed: int = 0
     steps: int = 800
     batch_size: int = 64
@@ -49,24 +53,6 @@ class PretrainConfig:
     pred_depth: int = 2
     pred_heads: int = 4
 
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> PretrainConfig:
-        d = known_options(cls, d, "encoder.pretrain")
-        for key in ("ema", "mask_cols"):
-            if key in d:
-                d[key] = tuple(d[key])
-        return cls(**d)
-
-
-def arch_from_config(enc_cfg: dict[str, Any]) -> ViTConfig:
-    """The CPU encoder's architecture: preset ``encoder.cpu_arch`` (or a dict of ViTConfig fields)."""
-    arch = enc_cfg.get("cpu_arch", "tiny")
-    if isinstance(arch, dict):
-        return ViTConfig.from_dict(arch)
-    if arch not in PRESETS:
-        raise ValueError(f"encoder.cpu_arch {arch!r} is not one of {', '.join(PRESETS)}")
-    return PRESETS[arch]
-
 
 def _lr_at(step: int, cfg: PretrainConfig) -> float:
     if step < cfg.warmup:
@@ -79,6 +65,7 @@ def pretrain_encoder(
     frames: np.ndarray, arch: ViTConfig, cfg: PretrainConfig, *, progress: bool = True
 ) -> tuple[VisionTransformer, dict[str, Any]]:
     """Pretrain on uint8 frames (N, H, W, 3); returns the frozen target encoder and a history."""
+
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     h, w = frames.shape[1:3]

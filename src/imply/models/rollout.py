@@ -1,8 +1,9 @@
 """Clip splits as predictor sequences, the latent readout, and deterministic rollouts.
 
-Inputs are issue 5's files (formats in :mod:`imply.data.clips` and
+Inputs are the clips stage's files (formats in :mod:`imply.data.clips` and
 :mod:`imply.models.encoder`): ``results/clips/<split>.csv`` (one row per clip) and
-``results/features/<split>.npz`` (``tokens`` float16 (n_clips, 8, n_patches, dim)).
+``results/features/<split>.npz`` (``tokens`` float16 (n_clips, 8, n_patches, dim)),
+read together by :func:`load_feature_split`.
 
 * Training examples (:func:`training_sequences`): one per training object, its query
   clip, with the object's 2 calibration clips in context for the calibrated layout.
@@ -10,7 +11,8 @@ Inputs are issue 5's files (formats in :mod:`imply.data.clips` and
 * Readout (:func:`fit_latent_readout`): the predictor lives in layer-normed token
   space (its inputs and targets are the encoder tokens through a parameter-free layer
   norm), so its rollouts are read with :class:`LatentReadout`, a ridge readout fit like
-  issue 5's (last-frame tokens, log displacement, alpha by cross-validation) on
+  the encoder's (:mod:`imply.readout`: last-frame tokens, log displacement, alpha by
+  cross-validation) on
   layer-normed last-frame tokens of the training clips (see the class for the two
   differences).
 * Rollouts (:func:`rollout_split`): for every held-out object and each of its K query
@@ -49,8 +51,8 @@ CONTEXTS = ("own", "swap", "none")
 
 
 @dataclass
-class Split:
-    """A split's cached tokens and clip metadata, rows aligned."""
+class FeatureSplit:
+    """A split's cached encoder tokens and clip metadata, rows aligned."""
 
     tokens: np.ndarray
     meta: pd.DataFrame
@@ -61,7 +63,7 @@ class Split:
         return self.tokens.shape[1]
 
 
-def load_split(features: str | Path, metadata: str | Path) -> Split:
+def load_feature_split(features: str | Path, metadata: str | Path) -> FeatureSplit:
     """Read ``results/features/<split>.npz`` and ``results/clips/<split>.csv``."""
     meta = pd.read_csv(metadata, dtype={"object_id": str, "role": str, "split": str})
     with np.load(features) as z:
@@ -72,7 +74,7 @@ def load_split(features: str | Path, metadata: str | Path) -> Split:
         raise ValueError(f"{features} and {metadata} list different clips")
     if grid[0] * grid[1] != tokens.shape[2]:
         raise ValueError(f"{features}: grid {grid} does not match {tokens.shape[2]} patches")
-    return Split(tokens=tokens, meta=meta, grid=grid)
+    return FeatureSplit(tokens=tokens, meta=meta, grid=grid)
 
 
 def _square_grid(p: int) -> tuple[int, int]:
@@ -82,7 +84,7 @@ def _square_grid(p: int) -> tuple[int, int]:
     return (g, g)
 
 
-def frame_states(split: Split, rest_state: float) -> np.ndarray:
+def frame_states(split: FeatureSplit, rest_state: float) -> np.ndarray:
     """(n_frames,) state of each frame index (see :mod:`imply.models.ac_predictor`).
 
     Frames 0..T-2 are at the clip's nominal frame times (the same for every clip);
@@ -114,7 +116,7 @@ def _ok_objects(meta: pd.DataFrame) -> np.ndarray:
     return np.array([o for o in meta["object_id"].unique() if o not in bad])
 
 
-def training_sequences(split: Split, layout: Layout, rest_state: float) -> Sequences:
+def training_sequences(split: FeatureSplit, layout: Layout, rest_state: float) -> Sequences:
     """One sequence per training object (its query clip; calibration clips in context)."""
     meta = _clip_table(split.meta)
     keep = set(_ok_objects(meta))
@@ -138,7 +140,7 @@ class HeldOut:
     speeds: np.ndarray  # (K,)
 
 
-def heldout_objects(split: Split) -> HeldOut:
+def heldout_objects(split: FeatureSplit) -> HeldOut:
     meta = _clip_table(split.meta)
     keep = set(_ok_objects(meta))
     n_all = meta["object_id"].nunique()
@@ -180,7 +182,7 @@ class LatentReadout:
 
     A :class:`imply.readout.RidgeReadout` (log displacement, alpha by cross-validation
     over ``imply.readout.ALPHAS``) fit on layer-normed last-frame tokens of the training
-    clips, with two differences from issue 5's readout, both because it reads
+    clips, with two differences from the encoder's readout, both because it reads
     *predicted* tokens: features are centred but not scaled per feature (layer-normed
     tokens already share one scale; dividing by the tiny spread of background patches
     would amplify a predictor's small errors there into huge displacements), and the
@@ -230,7 +232,7 @@ def load_latent_readout(path: str | Path) -> LatentReadout:
     return LatentReadout(ridge, lo, hi)
 
 
-def fit_latent_readout(split: Split, margin: float = float(np.log(2.0))) -> LatentReadout:
+def fit_latent_readout(split: FeatureSplit, margin: float = float(np.log(2.0))) -> LatentReadout:
     """:class:`LatentReadout` fit on the layer-normed last-frame tokens of every ok clip."""
     from sklearn.linear_model import RidgeCV
 
@@ -251,6 +253,21 @@ def fit_latent_readout(split: Split, margin: float = float(np.log(2.0))) -> Late
     return LatentReadout(ridge, float(y.min() - margin), float(y.max() + margin))
 
 
+def latent_readout_report(readout: LatentReadout, heldout: dict[str, FeatureSplit]) -> dict:
+    """The latent readout's alpha, clipping range and held-out R^2 (log slide) on real layer-normed tokens."""
+    from imply.readout import r2_log
+
+    report: dict = {"alpha": readout.ridge.alpha, "log_range": [readout.log_min, readout.log_max], "heldout_r2_log": {}}
+    for name, split in heldout.items():
+        meta = split.meta
+        ok = (meta["ok"].to_numpy() == 1) if "ok" in meta.columns else np.ones(len(meta), bool)
+        last = normalise_tokens(torch.from_numpy(split.tokens[ok, -1].astype(np.float32))).numpy()
+        r2 = r2_log(meta["displacement"].to_numpy()[ok], readout.predict(last))
+        report["heldout_r2_log"][name] = r2
+        log.info("latent readout on %s: held-out R^2 (log slide) %.4f", name, r2)
+    return report
+
+
 @torch.no_grad()
 def final_tokens(model: ACPredictor, seqs: Sequences, batch_size: int, desc: str = "rollout") -> np.ndarray:
     """Last-frame tokens of each sequence's rollout from its context: (N, P, D)."""
@@ -265,7 +282,7 @@ def final_tokens(model: ACPredictor, seqs: Sequences, batch_size: int, desc: str
 def rollout_split(
     model: ACPredictor,
     layout: Layout,
-    split: Split,
+    split: FeatureSplit,
     readout,
     contexts: tuple[str, ...],
     *,

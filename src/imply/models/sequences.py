@@ -17,21 +17,29 @@ its feature file and a few index arrays in memory.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
 
 from imply.models.ac_predictor import normalise_tokens
+from imply.options import Config
 
 
-@dataclass(frozen=True)
-class Layout:
+@dataclass(frozen=True, kw_only=True)
+class Layout(Config):
     """How a variant lays out its sequence; from config ``model.variants.<name>``."""
+
+    config_key: ClassVar[str] = "model.variants"
 
     calib: bool
     calib_frames: tuple[int, ...] = (0, 3, 7)
     query_context: int = 2
     n_frames: int = 8
+
+    def __post_init__(self) -> None:
+        if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
+            raise ValueError("a layout needs query_context >= 1, n_frames >= 2 and, with calib, calib_frames")
 
     @property
     def n_calib_steps(self) -> int:
@@ -44,23 +52,6 @@ class Layout:
     @property
     def n_context(self) -> int:
         return self.n_calib_steps + self.query_context
-
-    @classmethod
-    def from_dict(cls, d: dict) -> Layout:
-        return cls(
-            calib=bool(d["calib"]),
-            calib_frames=tuple(int(f) for f in d.get("calib_frames", (0, 3, 7))),
-            query_context=int(d.get("query_context", 2)),
-            n_frames=int(d.get("n_frames", 8)),
-        )
-
-    def to_dict(self) -> dict:
-        return {
-            "calib": self.calib,
-            "calib_frames": list(self.calib_frames),
-            "query_context": self.query_context,
-            "n_frames": self.n_frames,
-        }
 
 
 @dataclass

@@ -30,23 +30,29 @@ import json
 import logging
 import math
 import os
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
 from imply.io import atomic_path
-from imply.models.ac_predictor import ACPredictor, PredictorConfig
+from imply.models.ac_predictor import ACPredictor, PredictorConfig, PredictorPreset
+from imply.models.rollout import FeatureSplit, training_sequences
 from imply.models.sequences import Layout, Sequences
-from imply.options import known_options
+from imply.options import Config
 
 log = logging.getLogger("imply.models.train")
 
 
-@dataclass(frozen=True)
-class TrainConfig:
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig(Config):
+    """Config section ``model.train``: the optimiser, its schedule and the loss's rollout term."""
+
+    config_key: ClassVar[str] = "model.train"
+
     epochs: int = 4
     batch_size: int = 32
     lr: float = 5e-4
@@ -62,16 +68,10 @@ class TrainConfig:
     rollout_steps: int = 6
     init_seed: int = 0
 
-    @classmethod
-    def from_dict(cls, d: dict) -> TrainConfig:
-        return cls(**known_options(cls, d, "training"))
-
-    def to_dict(self) -> dict:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
-
 
 def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
     """Warmup, constant, linear anneal (step counts from 0)."""
+
     warm = max(1, int(round(cfg.warmup * total))) if cfg.warmup > 0 else 0
     anneal = int(round(cfg.anneal * total))
     if step < warm:
@@ -221,6 +221,32 @@ def train(
     }
     _save(Path(out), payload)
     return payload
+
+
+def train_variant(
+    split: FeatureSplit,
+    *,
+    preset: PredictorPreset,
+    layout: Layout,
+    config: TrainConfig,
+    rest_state: float,
+    data_seed: int,
+    out: str | os.PathLike,
+    checkpoint: str | os.PathLike,
+    device: str = "cpu",
+) -> dict:
+    """Train (or resume) one variant on a training split's cached features: one sequence per object.
+
+    The predictor's width comes from ``preset``, its token width and patch grid from the
+    features. Returns the saved payload (see :func:`train`).
+    """
+    seqs = training_sequences(split, layout, rest_state)
+    pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
+    data_key = f"{split.tokens.shape}:{len(seqs)}:{rest_state}"
+    return train(
+        seqs, layout, pred_cfg, config, data_seed, out, checkpoint, data_key=data_key, device=device,
+        rest_state=rest_state,
+    )  # fmt: skip
 
 
 def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:

@@ -1,9 +1,12 @@
-"""Figure 1 of the paper: the controlled validation at a glance.
+"""The paper's figures, written as PDF and PNG with fixed metadata (the same inputs give the same files).
 
-(a) self and anchored disagreement of every object under each stand-in (log scale,
-one dot per object, a bar at the mean); (b) anchored disagreement's AUROC against the
-oracle as readout noise grows, one line per stand-in. Written as PDF and PNG with
-fixed metadata, so the same inputs give the same files.
+Figure 1, the controlled validation at a glance: (a) self and anchored disagreement of
+every object under each stand-in (log scale, one dot per object, a bar at the mean);
+(b) anchored disagreement's AUROC against the oracle as readout noise grows, one line
+per stand-in.
+
+Figure 2, the learned model: (a) predicted against true slide per object, (b) own
+against swapped disagreement, (c, d) self and anchored disagreement against true error.
 """
 
 from __future__ import annotations
@@ -18,16 +21,15 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from imply.io import atomic_path  # noqa: E402
-from imply.standins import STANDINS  # noqa: E402
+from imply.study import metrics  # noqa: E402
+from imply.study.section4.standins import STANDINS  # noqa: E402
 
 NAMES = {"oracle": "oracle", "jitter": "jitter", "blind": "object-blind", "collapse": "collapse"}
 COLORS = {"oracle": "#4d4d4d", "jitter": "#1f77b4", "blind": "#d62728", "collapse": "#2ca02c"}
 
 
-def figure1(
-    scores: pd.DataFrame, noise: pd.DataFrame, pdf_path: str | os.PathLike, png_path: str | os.PathLike
-) -> None:
-    """Draw Figure 1 from per-object scores (``scores.csv``) and the noise sweep (``noise.csv``)."""
+def figure1(scores: pd.DataFrame, noise: dict, *, pdf_path: str | os.PathLike, png_path: str | os.PathLike) -> None:
+    """Draw Figure 1 from per-object scores (``scores.csv``) and the noise sweep's result (``noise.json``)."""
     plt.rcParams.update({"font.size": 8, "svg.hashsalt": "imply"})
     fig, (ax_a, ax_b) = plt.subplots(1, 2, figsize=(7.0, 2.8), gridspec_kw={"width_ratios": [1.3, 1]})
     rng = np.random.default_rng(0)  # horizontal jitter of the dots only
@@ -48,9 +50,10 @@ def figure1(
     ax_a.set_ylabel("disagreement (RMS log residual)")
     ax_a.set_title("(a) self vs anchored disagreement", loc="left")
 
+    sds = [level["sd"] for level in noise["levels"]]
     for name in STANDINS[1:]:
-        sub = noise[noise["standin"] == name].sort_values("sd")
-        ax_b.plot(sub["sd"], sub["auroc_anchored"], marker="o", ms=3, color=COLORS[name], label=NAMES[name])
+        auroc = [level["standins"][name]["auroc_anchored"] for level in noise["levels"]]
+        ax_b.plot(sds, auroc, marker="o", ms=3, color=COLORS[name], label=NAMES[name])
     ax_b.axhline(0.5, color="grey", lw=0.8, ls=":")
     ax_b.set_ylim(0.4, 1.02)
     ax_b.set_xlabel("readout noise (log sd)")
@@ -62,4 +65,54 @@ def figure1(
         fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "Producer": None, "Creator": None})
     with atomic_path(png_path) as tmp:
         fig.savefig(tmp, format="png", dpi=200, metadata={"Software": None})
+    plt.close(fig)
+
+
+def _f(x: float, spec: str = ".2f") -> str:
+    return format(x, spec) if np.isfinite(x) else "nan"
+
+
+def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike, png_path: str | os.PathLike) -> None:
+    """Figure 2 from the per-object scores (``per_object.csv``) of data-order seed ``seed``:
+    (a) predicted vs true per object, (b) own vs swapped disagreement, (c, d) self and
+    anchored disagreement against true error (own and swapped pooled)."""
+    plt.rcParams.update({"svg.hashsalt": "imply", "pdf.compression": 6})
+    f = per_object[(per_object["seed"] == seed) & (per_object["model"] == "calib")]
+    by = {ctx: d.set_index("object_id").sort_index() for ctx, d in f.groupby("context")}
+    fig, ax = plt.subplots(1, 4, figsize=(14, 3.4))
+    colours = {"own": "tab:blue", "swap": "tab:red", "none": "tab:grey"}
+    names = {"own": "own calibration", "swap": "other's calibration", "none": "no calibration"}
+    for ctx in ("none", "swap", "own"):
+        d = by[ctx]
+        ax[0].scatter(np.exp(d["mean_log_true"]) * 1000, np.exp(d["mean_log_pred"]) * 1000, s=6, alpha=0.6,
+                      color=colours[ctx], label=names[ctx])  # fmt: skip
+    lim = ax[0].get_xlim()
+    ax[0].plot(lim, lim, "k--", lw=0.8)
+    ax[0].set_xlabel("true slide (mm, geometric mean)")
+    ax[0].set_ylabel("predicted slide (mm)")
+    ax[0].set_title("(a) prediction per object")
+    ax[0].legend(fontsize=7, markerscale=2)
+    own, swap = by["own"], by["swap"]
+    ax[1].scatter(own["self_disagreement"], swap["self_disagreement"], s=6, alpha=0.6, color="tab:orange", label="self")
+    ax[1].scatter(own["anchored_disagreement"], swap["anchored_disagreement"], s=6, alpha=0.6, color="tab:green",
+                  label="anchored")  # fmt: skip
+    hi = float(np.nanmax([own[["self_disagreement", "anchored_disagreement"]].to_numpy().max(),
+                          swap[["self_disagreement", "anchored_disagreement"]].to_numpy().max()]))  # fmt: skip
+    ax[1].plot([0, hi], [0, hi], "k--", lw=0.8)
+    ax[1].set_xlabel("disagreement, own calibration")
+    ax[1].set_ylabel("disagreement, other's calibration")
+    ax[1].set_title("(b) own vs swapped")
+    ax[1].legend(fontsize=7, markerscale=2)
+    pooled = pd.concat([own, swap])
+    for i, (col, name) in enumerate((("self_disagreement", "self"), ("anchored_disagreement", "anchored")), start=2):
+        ax[i].scatter(pooled[col], pooled["log_error"], s=6, alpha=0.6, color="tab:purple")
+        r = metrics.pearson(pooled[col], pooled["log_error"])
+        ax[i].set_xlabel(f"{name} disagreement")
+        ax[i].set_ylabel("true log error")
+        ax[i].set_title(f"({'cd'[i - 2]}) {name} vs error, r = {_f(r)}")
+    fig.tight_layout()
+    with atomic_path(pdf_path) as tmp:
+        fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "ModDate": None})
+    with atomic_path(png_path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
     plt.close(fig)

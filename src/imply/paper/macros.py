@@ -1,10 +1,11 @@
 """Merge the stages' result parts into ``macros.tex`` and ``numbers.json``.
 
-Whatever parts exist are merged (each stage adds its own to the workflow's
-``PAPER_PARTS``); a name reported by two parts is an error. ``macros.tex`` has one
-``\\newcommand{\\Name}{value}`` per number, formatted with the part's format spec (the
-paper's rounding); an undefined value (NaN, e.g. a correlation with a constant) prints
-as ``--``. ``numbers.json`` maps each name to its unrounded value (NaN as null).
+Whatever parts are given are merged; every name must be in the registry
+(:mod:`imply.paper.registry`) under the stage that reports it, and a name reported by
+two parts is an error. ``macros.tex`` has one ``\\newcommand{\\Name}{value}`` per number,
+formatted with the registry's format (the paper's rounding); an undefined value (NaN,
+e.g. a correlation with a constant) prints as ``--``. ``numbers.json`` maps each name to
+its unrounded value (NaN as null).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 from imply.io import write_json, write_text
 from imply.paper.parts import Claim, read_part
+from imply.paper.registry import Registry, format_value, load_registry
 
 
 @dataclass(frozen=True)
@@ -38,18 +40,9 @@ class Merged:
     stages: list[str]
 
 
-def format_value(value: float | int, spec: str) -> str:
-    """A number as the paper prints it; integer specs round, NaN prints as ``--``."""
-    v = float(value)
-    if not math.isfinite(v):
-        return "--"
-    if spec.endswith("d"):
-        return format(int(round(v)), spec)
-    return format(v, spec)
-
-
-def merge_parts(paths: Iterable[str | os.PathLike]) -> Merged:
+def merge_parts(paths: Iterable[str | os.PathLike], registry: Registry | None = None) -> Merged:
     """Read and merge parts (in stage-name order, so the result does not depend on input order)."""
+    registry = registry or load_registry()
     parts = sorted((read_part(p) for p in paths), key=lambda part: part["stage"])
     numbers: dict[str, MergedNumber] = {}
     claims: list[tuple[str, Claim]] = []
@@ -59,11 +52,13 @@ def merge_parts(paths: Iterable[str | os.PathLike]) -> Merged:
         if stage in stages:
             raise ValueError(f"two result parts are both from stage {stage!r}")
         stages.append(stage)
-        for name, entry in part["numbers"].items():
+        for name, value in part["numbers"].items():
+            entry = registry[name]
+            if entry.stage != stage:
+                raise ValueError(f"number {name!r} is registered to stage {entry.stage!r}, but part {stage!r} has it")
             if name in numbers:
                 raise ValueError(f"number {name!r} is reported by both {numbers[name].stage!r} and {stage!r}")
-            value = entry["value"]
-            numbers[name] = MergedNumber(name, float("nan") if value is None else value, entry["format"], stage)
+            numbers[name] = MergedNumber(name, float("nan") if value is None else value, entry.format, stage)
         for c in part["claims"]:
             claims.append((stage, Claim(**c)))
     return Merged(dict(sorted(numbers.items())), claims, stages)

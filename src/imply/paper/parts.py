@@ -1,29 +1,39 @@
 """Per-stage result parts that the paper rule merges into macros, numbers and the report.
 
-Each study stage writes one part, ``results/paper/parts/<stage>.json``::
+Each study stage has one part, ``results/paper/parts/<stage>.json``, built by
+:func:`build_part` from the stage's result documents (:mod:`imply.paper.results`)::
 
     {"stage": "section4",
-     "numbers": {"BlAurocSelf": {"value": 0.7012, "format": ".2f"}, ...},
+     "numbers": {"BlAurocSelf": 0.7012, ...},
      "claims": [{"id": "s4-blind-self-auroc", "section": "4",
                  "statement": "...", "holds": true, "detail": "self 0.70 vs anchored 1.00"}]}
 
-``value`` is unrounded; ``format`` is a Python format spec used for the LaTeX macro
-(the paper's own rounding). Macro names are the paper's where it has one.
+Every registered number of the stage (:mod:`imply.paper.registry`) is read from the
+result of its ``source`` function at its ``path``, unrounded; the stage's claims are
+checked on those values by the stage's claims function (:data:`STAGE_CLAIMS`).
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
-import re
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from imply.io import write_json
+from imply.paper.registry import NOT_PRODUCED, Registry, Values, load_registry
 
-_NAME = re.compile(r"^[A-Za-z]+$")
+# each stage's claims: a function (values, results) -> list[Claim], by dotted name
+STAGE_CLAIMS: dict[str, str] = {
+    "section4": "imply.study.section4.claims.section4_claims",
+    "clips": "imply.study.readout_evaluation.readout_claims",
+    "section5": "imply.study.section5.claims.section5_claims",
+    "gap": "imply.diagnose.benchmark_report.benchmark_claims",
+}
 
 
 @dataclass(frozen=True)
@@ -37,24 +47,53 @@ class Claim:
     detail: str = ""
 
 
-@dataclass(frozen=True)
-class Number:
-    value: float | int
-    format: str = ".3f"
+def stage_numbers(stage: str, results: Mapping[str, Any], registry: Registry | None = None) -> dict[str, Any]:
+    """Every registered number of ``stage`` read from ``results`` (source -> result); name -> value."""
+    registry = registry or load_registry()
+    numbers: dict[str, Any] = {}
+    for entry in registry.of_stage(stage):
+        value = entry.resolve(results)
+        if value is not NOT_PRODUCED:
+            numbers[entry.name] = value
+    return numbers
 
 
-def write_part(path: str | os.PathLike, stage: str, numbers: dict[str, Number], claims: list[Claim]) -> None:
-    """Write a stage's part file (validated: LaTeX-safe names, finite values)."""
-    for name, num in numbers.items():
-        if not _NAME.match(name):
-            raise ValueError(f"macro name {name!r} must be letters only (LaTeX command names)")
-        if isinstance(num.value, float) and not math.isfinite(num.value):
-            # a NaN is a result too (e.g. an undefined correlation); keep it visible
+def claims_function(stage: str) -> Callable[[Values, Mapping[str, Any]], list[Claim]]:
+    """The claims function of a stage (:data:`STAGE_CLAIMS`)."""
+    module, _, name = STAGE_CLAIMS[stage].rpartition(".")
+    return getattr(importlib.import_module(module), name)
+
+
+def build_part(
+    stage: str, results: Mapping[str, Any], registry: Registry | None = None
+) -> tuple[dict[str, Any], list[Claim]]:
+    """The numbers and checked claims of a stage's part."""
+    if stage not in STAGE_CLAIMS:
+        raise ValueError(f"unknown stage {stage!r} (one of {', '.join(STAGE_CLAIMS)})")
+    registry = registry or load_registry()
+    numbers = stage_numbers(stage, results, registry)
+    claims = claims_function(stage)(registry.values(numbers), results)
+    return numbers, claims
+
+
+def write_part(
+    path: str | os.PathLike, stage: str, numbers: Mapping[str, Any], claims: list[Claim],
+    registry: Registry | None = None,
+) -> None:  # fmt: skip
+    """Write a stage's part file; every name must be registered to that stage."""
+    registry = registry or load_registry()
+    for name, value in numbers.items():
+        entry = registry[name]
+        if entry.stage != stage:
+            raise ValueError(f"number {name!r} is registered to stage {entry.stage!r}, not {stage!r}")
+        if not isinstance(value, int | float) or isinstance(value, bool):
+            raise TypeError(f"number {name!r} is not a number: {value!r}")
+        if isinstance(value, float) and not math.isfinite(value):
+            # a NaN is a result too (e.g. an undefined correlation): it stays visible as null
             pass
-        format(num.value if math.isfinite(float(num.value)) else 0.0, num.format)
     payload: dict[str, Any] = {
         "stage": stage,
-        "numbers": {k: {"value": v.value, "format": v.format} for k, v in sorted(numbers.items())},
+        "numbers": dict(sorted(numbers.items())),
         "claims": [asdict(c) for c in claims],
     }
     write_json(path, payload)

@@ -1,8 +1,8 @@
 """The reproduction report: every paper number beside the reproduced one, every claim checked.
 
-``reproduction.csv`` has one row per paper value (``imply/data/paper_values.csv``):
-name, section, paper (as printed), reproduced (formatted like the paper), reproduced
-unrounded, stage, status. ``reproduction.md`` shows the same, then every claim of every
+``reproduction.csv`` has one row per number the paper prints (the registry's ``paper``
+column, :mod:`imply.paper.registry`): name, section, paper (as printed), reproduced
+(formatted like the paper), reproduced unrounded, stage, status. ``reproduction.md`` shows the same, then every claim of every
 part marked holds / fails, then the reproduced numbers the paper does not print.
 
 Status of a number:
@@ -23,35 +23,36 @@ import pandas as pd
 
 from imply.io import write_csv, write_text
 from imply.paper.macros import Merged
-from imply.paper.values import PaperValue
+from imply.paper.registry import Entry, Registry
 
 STATUSES = ("matches", "close", "differs", "not produced")
 
 
-def number_status(paper: PaperValue, reproduced: float | None) -> tuple[str, str]:
-    """(status, reproduced value printed at the paper's precision)."""
+def number_status(entry: Entry, reproduced: float | None) -> tuple[str, str]:
+    """(status, reproduced value printed at the paper's precision) of a number the paper prints."""
     if reproduced is None:
         return "not produced", "not produced"
     r = float(reproduced)
     if not math.isfinite(r):
         return "differs", "--"
-    text = f"{r:.{paper.decimals}f}"
-    if float(text) == paper.value or text == paper.text:
+    paper = entry.paper_value
+    text = f"{r:.{entry.paper_decimals}f}"
+    if float(text) == paper or text == entry.paper:
         return "matches", text
-    tol = max(0.1 * abs(paper.value), 5 * 10.0 ** (-paper.decimals))
-    return ("close" if abs(r - paper.value) <= tol else "differs"), text
+    tol = max(0.1 * abs(paper), 5 * 10.0 ** (-entry.paper_decimals))
+    return ("close" if abs(r - paper) <= tol else "differs"), text
 
 
-def reproduction_frame(paper_values: list[PaperValue], merged: Merged) -> pd.DataFrame:
+def reproduction_frame(registry: Registry, merged: Merged) -> pd.DataFrame:
     rows = []
-    for pv in paper_values:
-        num = merged.numbers.get(pv.name)
-        status, text = number_status(pv, None if num is None else num.value)
+    for entry in registry.in_paper():
+        num = merged.numbers.get(entry.name)
+        status, text = number_status(entry, None if num is None else num.value)
         rows.append(
             {
-                "name": pv.name,
-                "section": pv.section,
-                "paper": pv.text,
+                "name": entry.name,
+                "section": entry.section,
+                "paper": entry.paper,
                 "reproduced": text,
                 "reproduced_unrounded": "" if num is None else repr(num.value),
                 "stage": "" if num is None else num.stage,
@@ -63,7 +64,7 @@ def reproduction_frame(paper_values: list[PaperValue], merged: Merged) -> pd.Dat
     )
 
 
-def reproduction_md(paper_values: list[PaperValue], merged: Merged, frame: pd.DataFrame) -> str:
+def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
     counts = frame["status"].value_counts()
     n_claims = len(merged.claims)
     n_hold = sum(1 for _, c in merged.claims if c.holds)
@@ -96,7 +97,7 @@ def reproduction_md(paper_values: list[PaperValue], merged: Merged, frame: pd.Da
     out += ["", "## Numbers", "", "| name | section | paper | reproduced | status |", "|---|---|---|---|---|"]
     for r in frame.itertuples(index=False):
         out.append(f"| {r.name} | {r.section} | {r.paper} | {r.reproduced} | {r.status} |")
-    known = {pv.name for pv in paper_values}
+    known = {e.name for e in registry.in_paper()}
     extra = [n for n in merged.numbers.values() if n.name not in known]
     if extra:
         out += [
@@ -111,9 +112,9 @@ def reproduction_md(paper_values: list[PaperValue], merged: Merged, frame: pd.Da
 
 
 def write_report(
-    paper_values: list[PaperValue], merged: Merged, md_path: str | os.PathLike, csv_path: str | os.PathLike
+    registry: Registry, merged: Merged, md_path: str | os.PathLike, csv_path: str | os.PathLike
 ) -> pd.DataFrame:
-    frame = reproduction_frame(paper_values, merged)
+    frame = reproduction_frame(registry, merged)
     write_csv(csv_path, frame)
-    write_text(md_path, reproduction_md(paper_values, merged, frame))
+    write_text(md_path, reproduction_md(registry, merged, frame))
     return frame

@@ -10,7 +10,7 @@ Every effect has one signed or one-sided magnitude and enters in one of three wa
     :class:`mujoco.MjSpec` of :func:`imply.sim.scene.build_xml` (the friction triple with
     ``condim`` 4/6, joint damping, the pusher's ``solref``, gravity, the fluid model,
     the box's geometry). The diagnostic tabulates these on a coarse grid
-    (:mod:`imply.diagnose.tables`).
+    (:mod:`imply.diagnose.effect_tables`).
 ``speed``
     A transform of the commanded speed (the pusher's actual speed differs from the
     command): no new physics, the same table at another speed.

@@ -25,11 +25,12 @@ from __future__ import annotations
 import importlib
 import os
 from dataclasses import dataclass
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 
-from imply.options import known_options
+from imply.options import Config
 from imply.sim.pushes import batch_with_geometry, run_pushes
 from imply.sim.scene import SceneConfig, build_model
 
@@ -56,8 +57,8 @@ def _use_egl() -> None:
 _use_egl()
 
 
-@dataclass(frozen=True)
-class CameraConfig:
+@dataclass(frozen=True, kw_only=True)
+class CameraConfig(Config):
     """A fixed orthographic top-down view of the push axis.
 
     x_min, x_max: the strip of table (metres along the push axis) that fills the image
@@ -71,6 +72,8 @@ class CameraConfig:
       (slower; 1: off).
     """
 
+    config_key: ClassVar[str] = "clips.camera"
+
     x_min: float = -0.13
     x_max: float = 1.15
     height: int = 32
@@ -78,15 +81,16 @@ class CameraConfig:
     multisample: int = 4
     supersample: int = 1
 
-    @classmethod
-    def from_dict(cls, cfg: dict | None) -> CameraConfig:
-        cfg = known_options(cls, cfg, "camera")
-        cam = cls(**cfg)
-        if not cam.x_max > cam.x_min or cam.height < 8 or cam.width < 8 or cam.supersample < 1 or cam.multisample < 0:
+    def __post_init__(self) -> None:
+        if (
+            not self.x_max > self.x_min
+            or min(self.height, self.width) < 8
+            or self.supersample < 1
+            or self.multisample < 0
+        ):
             raise ValueError(
                 "camera needs x_max > x_min, an image of at least 8 x 8 pixels, supersample >= 1, multisample >= 0"
             )
-        return cam
 
     @property
     def metres_per_pixel(self) -> float:

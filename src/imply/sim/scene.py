@@ -25,18 +25,20 @@ Names the simulator relies on: body and geom ``box``, joint ``push``, actuator `
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 
-from imply.options import known_options
+from imply.options import Config
 
 
-@dataclass(frozen=True)
-class SceneConfig:
+@dataclass(frozen=True, kw_only=True)
+class SceneConfig(Config):
     """Physical and numerical settings of the push scene (config key ``scene``)."""
+
+    config_key: ClassVar[str] = "scene"
 
     timestep: float = 0.001  # s, while the box slides; pushing uses timestep / push_substeps
     push_substeps: int = 8
@@ -84,27 +86,6 @@ class SceneConfig:
                 f"scene timestep {self.timestep!r} with push_substeps {self.push_substeps} would take "
                 f"{self.max_time / fine:.3g} substeps per push (max_time {self.max_time:g} s); at most 1e7 are allowed"
             )
-
-    @classmethod
-    def from_dict(cls, cfg: dict[str, Any] | None) -> SceneConfig:
-        cfg = known_options(cls, cfg, "scene")
-        if "box_half_extents" in cfg:
-            he = cfg["box_half_extents"]
-            if not isinstance(he, list | tuple) or not all(
-                isinstance(x, int | float) and not isinstance(x, bool) for x in he
-            ):
-                raise ValueError(f"scene option box_half_extents must be three positive numbers, not {he!r}")
-            cfg["box_half_extents"] = tuple(float(x) for x in he)
-        if "option" in cfg and not isinstance(cfg["option"], dict):
-            raise ValueError(
-                f"scene option 'option' must be a mapping of MJCF option attributes, not {cfg['option']!r}"
-            )
-        return cls(**cfg)
-
-    def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["box_half_extents"] = list(self.box_half_extents)
-        return out
 
 
 def build_xml(

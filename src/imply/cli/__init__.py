@@ -1,0 +1,73 @@
+"""The ``imply`` command line: one module per top-level command group, each handler a thin wrapper.
+
+Groups (modules of this package, each with ``register(subparsers)``): ``score``,
+``table``, ``sim``, ``diagnose`` (what a user runs), and the study's steps, one group
+per stage of the workflow: ``section4``, ``clips``, ``encoder``, ``readout``,
+``model``, ``section5``, ``gap``, ``paper``. A handler parses its options, calls one
+library function and writes its outputs; the logic lives in the library.
+
+A user error (bad input, bad option, an output that would overwrite an input) prints
+one line and exits with status 2, leaving no output file. Registering a group imports
+nothing heavy: each command imports what it needs when it runs, so ``imply score``
+never loads torch or matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import signal
+import sys
+from typing import Any
+
+from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
+
+GROUPS: list[str] = [
+    "score", "table", "sim", "diagnose", "section4", "clips", "encoder", "readout", "model", "section5", "gap", "paper",
+]  # fmt: skip
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(prog="imply", description=__doc__.splitlines()[0])
+    parser.add_argument("--log", help="also write the log to this file")
+    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for name in GROUPS:
+        importlib.import_module(f"imply.cli.{name}").register(sub)
+    return parser
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    # a terminated job unwinds like Ctrl-C, so atomic writers remove their temporary files
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str] | None = None) -> int:
+    from imply.io import setup_logging
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    setup_logging(args.log, logging.DEBUG if args.verbose else logging.INFO)
+    if argv is None and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        # only as the console script: a caller's own process keeps its signal handling
+        signal.signal(signal.SIGTERM, _terminate)
+    import numpy as np
+
+    np.seterr(all="ignore")
+    name = " ".join(x for x in (args.command, getattr(args, f"{args.command}_command", None)) if x)
+    prefix = f"imply {name}: error:"
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"{prefix} {one_line(exc)}", file=sys.stderr)
+    except OSError as exc:
+        # files the user named: unreadable, unwritable, a folder where a file belongs
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{prefix} {one_line(where + (exc.strerror or str(exc)))}", file=sys.stderr)
+    except MemoryError:
+        print(f"{prefix} out of memory: the input or the options need more memory than is available", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"imply {name}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return EXIT_USER_ERROR

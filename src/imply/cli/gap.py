@@ -1,0 +1,148 @@
+"""``imply gap tables|generate|diagnose-many|benchmark``: the diagnostic's benchmark, step by step.
+
+The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
+tables into a folder, ``generate`` writes synthetic push logs with each one's label
+sealed in a separate file, ``diagnose-many`` runs ``imply diagnose`` on many logs in
+one process, ``benchmark`` scores the diagnoses against the sealed labels (a result
+document the gap stage's numbers are read from) and writes the benchmark's report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from pathlib import Path
+
+from imply.cli.common import UserError, config_from_json, int_range, json_arg, output_dir
+from imply.cli.diagnose import (
+    DEFAULT_TABLE,
+    candidate_effects,
+    check_pushlog,
+    diagnose_one,
+    load_table,
+    options,
+    report_folder,
+    session,
+)
+
+log = logging.getLogger("imply")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    g = sub.add_parser("gap", help="the diagnostic's benchmark (workflow steps)")
+    gsub = g.add_subparsers(dest="gap_command", required=True)
+    dm = gsub.add_parser(
+        "diagnose-many",
+        help="run 'imply diagnose' on several push logs in one process (one report folder per log, by file stem)",
+    )
+    dm.add_argument("pushlogs", nargs="+")
+    dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
+    dm.add_argument("--force", action="store_true", help="as for 'imply diagnose', for each report folder")
+    dm.add_argument("--table", default=DEFAULT_TABLE)
+    dm.add_argument("--cache-dir")
+    dm.add_argument("--effects")
+    dm.add_argument("--effect-grid-json", type=json_arg)
+    dm.add_argument("--options-json", type=json_arg)
+    dm.add_argument("--threads", type=int_range(0), default=0)
+    dm.set_defaults(func=cmd_diagnose_many)
+
+    t = gsub.add_parser("tables", help="build (or find) the effect tables in a folder, with a manifest")
+    t.add_argument("--table", default=DEFAULT_TABLE)
+    t.add_argument("--effect-grid-json", type=json_arg)
+    t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
+    t.add_argument("--threads", type=int_range(0), default=0)
+    t.add_argument("-o", "--output", required=True,
+                   help="folder of the effect tables (an effect-table cache) and their manifest.json")  # fmt: skip
+    t.set_defaults(func=cmd_tables)
+
+    gen = gsub.add_parser("generate", help="synthetic push logs with a withheld effect, labels sealed apart")
+    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the generator's starting point")
+    gen.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark")
+    gen.add_argument("--logs", required=True, help="folder for the push logs (<case>.csv)")
+    gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
+    gen.add_argument("--threads", type=int_range(0), default=0)
+    gen.set_defaults(func=cmd_generate)
+
+    b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
+    b.add_argument("--table", default=DEFAULT_TABLE)
+    b.add_argument("--bench-json", type=json_arg, required=True)
+    b.add_argument("--sealed", required=True)
+    b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
+    b.add_argument("-o", "--output", required=True, help="the benchmark's result document (JSON)")
+    b.add_argument("--markdown", required=True, help="benchmark report (Markdown)")
+    b.set_defaults(func=cmd_benchmark)
+
+
+def _benchmark_config(args: argparse.Namespace):
+    from imply.diagnose.benchmark import BenchmarkConfig
+
+    return config_from_json(BenchmarkConfig, args.bench_json, "--bench-json")
+
+
+def cmd_diagnose_many(args: argparse.Namespace) -> int:
+    from tqdm.auto import tqdm
+
+    out = output_dir(args.output)
+    stems: dict[str, str] = {}
+    for path in args.pushlogs:
+        stem = Path(path).stem
+        if stem in stems:
+            raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
+        stems[stem] = path
+        report_folder(out / stem, args.force, [path, args.table])
+    table = load_table(args.table)
+    for path in args.pushlogs:
+        check_pushlog(path, table)
+    options(args)
+    candidate_effects(args.effects)
+    sess = session(args, table)
+    for path in tqdm(args.pushlogs, desc="diagnoses", unit="log"):
+        diagnose_one(path, out / Path(path).stem, sess, args.force)
+    return 0
+
+
+def cmd_tables(args: argparse.Namespace) -> int:
+    from imply.diagnose.effect_tables import CoarseGrid, load_or_build
+    from imply.io import write_json
+
+    table = load_table(args.table)
+    grid = config_from_json(CoarseGrid, args.effect_grid_json, "--effect-grid-json")
+    folder = output_dir(args.output)
+    et = load_or_build(table, candidate_effects(args.effects), grid, folder, nthread=args.threads, progress=True)
+    write_json(folder / "manifest.json", {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
+    log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], folder)
+    return 0
+
+
+def cmd_generate(args: argparse.Namespace) -> int:
+    from imply.diagnose.benchmark import generate_logs
+    from imply.sim import SceneConfig
+
+    table = load_table(args.table)
+    scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
+    n = generate_logs(_benchmark_config(args), scene, Path(args.logs), Path(args.sealed), nthread=args.threads)
+    log.info("wrote %d logs -> %s (labels sealed in %s)", n, args.logs, args.sealed)
+    return 0
+
+
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    from imply.diagnose.benchmark import find_summaries, score_cases, visible_size
+    from imply.diagnose.benchmark_report import write_benchmark_markdown
+    from imply.paper.results import write_result
+
+    table = load_table(args.table)
+    config = _benchmark_config(args)
+    with open(args.sealed) as fh:
+        labels = json.load(fh)
+    try:
+        summaries = find_summaries(labels, [Path(r) for r in args.reports])
+    except FileNotFoundError as exc:
+        raise UserError(f"--reports: {exc}") from exc
+    sizes = {cid: visible_size(lab, table) for cid, lab in labels.items()}
+    result = score_cases(labels, summaries, sizes, config=config)
+    write_result(args.output, score_cases, result)
+    write_benchmark_markdown(result, args.markdown)
+    log.info("top-1 %.3f (n=%d), false alarms %.3f, shrinkage %.3f", result["top1_big"], result["n_big"],
+             result["false_alarm"], result["shrinkage_median"])  # fmt: skip
+    return 0

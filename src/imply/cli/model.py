@@ -1,0 +1,159 @@
+"""``imply model train|readout|rollout``: the action-conditioned predictor of Section 5 on cached encoder features.
+
+Typical use (what ``workflow/rules/model.smk`` runs)::
+
+    imply model train --features results/features/train.npz --clips results/clips/train.csv \\
+        --preset-json '{"width": 64, ...}' --variant-json '{"calib": true, ...}' --train-json '{...}' \\
+        --rest-state 1.0 --seed 0 -o results/model/calib/seed0/model.pt
+    imply model readout --features results/features/train.npz --clips results/clips/train.csv \\
+        -o results/model/readout_ln.npz --report results/model/readout_ln.json
+    imply model rollout --model results/model/calib/seed0/model.pt --features results/features/heldout_calib.npz \\
+        --clips results/clips/heldout_calib.csv --readout results/model/readout_ln.npz \\
+        --contexts own,swap,none --derangement-seed 11 -o results/model/calib/seed0/rollouts.csv
+
+A training run with a checkpoint beside its output resumes from it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+from pathlib import Path
+
+from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+
+log = logging.getLogger("imply.model")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    model = sub.add_parser("model", help="train and roll out the action-conditioned predictor (Section 5)")
+    msub = model.add_subparsers(dest="model_command", required=True)
+
+    tr = msub.add_parser("train", help="fine-tune the predictor on cached encoder features")
+    tr.add_argument("--features", type=existing_file, required=True, help="results/features/train.npz")
+    tr.add_argument("--clips", type=existing_file, required=True, help="results/clips/train.csv")
+    tr.add_argument("--preset-json", type=json_arg, required=True, help="the predictor's size (config model.presets.X)")
+    tr.add_argument(
+        "--variant-json", type=json_arg, required=True, help="the sequence layout (config model.variants.X)"
+    )
+    tr.add_argument("--train-json", type=json_arg, required=True, help="training settings (config model.train)")
+    tr.add_argument(
+        "--rest-state", type=float, default=1.0, help="state token of the last frame (config model.rest_state)"
+    )
+    tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
+    tr.add_argument("--threads", type=int_range(1), default=2)
+    tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
+    tr.add_argument("--device", default="cpu", help="torch device (cpu, cuda)")
+    tr.add_argument("-o", "--output", required=True)
+    tr.set_defaults(func=cmd_train)
+
+    rd = msub.add_parser("readout", help="fit the ridge readout on layer-normed last-frame tokens")
+    rd.add_argument("--features", type=existing_file, required=True)
+    rd.add_argument("--clips", type=existing_file, required=True)
+    rd.add_argument(
+        "--heldout",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("FEATURES", "CLIPS"),
+        type=existing_file,
+        help="held-out split to report R^2 on (repeatable)",
+    )
+    rd.add_argument("-o", "--output", required=True, help="the fitted readout (.npz)")
+    rd.add_argument("--report", required=True, help="its alpha, range and held-out R^2 (.json)")
+    rd.set_defaults(func=cmd_readout)
+
+    ro = msub.add_parser("rollout", help="deterministic latent rollouts of held-out objects, read out to displacement")
+    ro.add_argument("--model", type=existing_file, required=True)
+    ro.add_argument("--features", type=existing_file, required=True)
+    ro.add_argument("--clips", type=existing_file, required=True)
+    ro.add_argument("--readout", type=existing_file, required=True)
+    ro.add_argument("--contexts", default="own,swap,none", help="comma-separated: own, swap, none")
+    ro.add_argument("--derangement-seed", type=int_range(0), default=0)
+    ro.add_argument("--rest-state", type=float, default=None, help="default: the model's training value")
+    ro.add_argument("--batch-size", type=int_range(1), default=100)
+    ro.add_argument("--threads", type=int_range(1), default=2)
+    ro.add_argument("-o", "--output", required=True)
+    ro.set_defaults(func=cmd_rollout)  # fmt: skip
+
+
+def _setup_torch(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(max(1, threads))
+    torch.use_deterministic_algorithms(True, warn_only=True)
+
+
+def _feature_split(features: Path, clips: Path):
+    from imply.models.rollout import load_feature_split
+
+    try:
+        return load_feature_split(features, clips)
+    except (ValueError, KeyError) as exc:
+        raise UserError(str(exc)) from exc
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from imply.models.ac_predictor import PredictorPreset
+    from imply.models.sequences import Layout
+    from imply.models.train import TrainConfig, train_variant
+
+    _setup_torch(args.threads)
+    preset = config_from_json(PredictorPreset, args.preset_json, "--preset-json")
+    layout = config_from_json(Layout, args.variant_json, "--variant-json")
+    config = config_from_json(TrainConfig, args.train_json, "--train-json")
+    split = _feature_split(args.features, args.clips)
+    out = Path(args.output)
+    t0 = time.perf_counter()
+    try:
+        train_variant(
+            split, preset=preset, layout=layout, config=config, rest_state=args.rest_state, data_seed=args.seed,
+            out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
+            device=args.device,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    log.info("trained seed %d in %.1f s -> %s", args.seed, time.perf_counter() - t0, out)
+    return 0
+
+
+def cmd_readout(args: argparse.Namespace) -> int:
+    from imply.io import write_json
+    from imply.models.rollout import fit_latent_readout, latent_readout_report
+
+    readout = fit_latent_readout(_feature_split(args.features, args.clips))
+    heldout = {Path(feats).stem: _feature_split(feats, clips) for feats, clips in args.heldout}
+    report = latent_readout_report(readout, heldout)
+    readout.save(args.output)
+    write_json(args.report, report)
+    return 0
+
+
+def cmd_rollout(args: argparse.Namespace) -> int:
+    from imply.io import write_csv
+    from imply.models.rollout import CONTEXTS, load_latent_readout, rollout_split
+    from imply.models.train import load_model
+
+    _setup_torch(args.threads)
+    contexts = tuple(c.strip() for c in args.contexts.split(",") if c.strip())
+    bad = [c for c in contexts if c not in CONTEXTS]
+    if bad:
+        raise UserError(f"--contexts: unknown context {bad[0]!r} ({', '.join(CONTEXTS)})")
+    model, layout, payload = load_model(args.model)
+    if not layout.calib and any(c != "none" for c in contexts):
+        raise UserError("--contexts: a model trained without calibration context only takes 'none'")
+    split = _feature_split(args.features, args.clips)
+    try:
+        readout = load_latent_readout(args.readout)
+    except (ValueError, KeyError) as exc:
+        raise UserError(f"--readout: {exc}") from exc
+    rest = args.rest_state if args.rest_state is not None else float(payload.get("rest_state", 1.0))
+    t0 = time.perf_counter()
+    table = rollout_split(
+        model, layout, split, readout, contexts,
+        rest_state=rest, derangement_seed=args.derangement_seed, batch_size=args.batch_size,
+    )  # fmt: skip
+    write_csv(args.output, table)
+    log.info("rollouts written to %s in %.1f s", args.output, time.perf_counter() - t0)
+    return 0

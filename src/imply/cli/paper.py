@@ -1,0 +1,133 @@
+"""``imply paper part|tables|figure1|figure2|merge``: the paper outputs, from the stages' result documents.
+
+* ``part STAGE RESULT...``: every registered number of a stage (:mod:`imply.paper.registry`)
+  read from its result documents, and the stage's claims checked on them;
+* ``tables``: Tables 1 and 2 (from the section4 part) or Table 3 (from the section5 part);
+* ``figure1``, ``figure2``: the figures, from the per-object scores;
+* ``merge PART...``: ``macros.tex``, ``numbers.json`` and the reproduction report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+from imply.cli.common import UserError, existing_file, int_range
+
+log = logging.getLogger("imply.paper")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    pp = sub.add_parser("paper", help="paper outputs: parts, tables, figures, macros, numbers, reproduction report")
+    psub = pp.add_subparsers(dest="paper_command", required=True)
+
+    p = psub.add_parser("part", help="a stage's registered numbers and checked claims (results/paper/parts/STAGE.json)")
+    p.add_argument("stage", help="section4 | clips | section5 | gap")
+    p.add_argument("results", nargs="+", type=existing_file, help="the stage's result documents")
+    p.add_argument("-o", "--output", required=True)
+    p.set_defaults(func=cmd_part)
+
+    t = psub.add_parser("tables", help="the paper's tables as booktabs LaTeX, from a stage's part")
+    t.add_argument("--part", type=existing_file, required=True)
+    t.add_argument("--table1", help="Table 1 (.tex; from the section4 part)")
+    t.add_argument("--table2", help="Table 2 (.tex; from the section4 part)")
+    t.add_argument("--table3", help="Table 3 (.tex; from the section5 part)")
+    t.set_defaults(func=cmd_tables)
+
+    f1 = psub.add_parser("figure1", help="Figure 1 as PDF and PNG")
+    f1.add_argument("--scores", type=existing_file, required=True, help="results/section4/scores.csv")
+    f1.add_argument("--noise", type=existing_file, required=True, help="results/section4/noise.json")
+    f1.add_argument("--pdf", required=True)
+    f1.add_argument("--png", required=True)
+    f1.set_defaults(func=cmd_figure1)
+
+    f2 = psub.add_parser("figure2", help="Figure 2 as PDF and PNG")
+    f2.add_argument("--per-object", type=existing_file, required=True, help="results/section5/per_object.csv")
+    f2.add_argument("--seed", type=int_range(0), default=None, help="data-order seed shown (default: the smallest)")
+    f2.add_argument("--pdf", required=True)
+    f2.add_argument("--png", required=True)
+    f2.set_defaults(func=cmd_figure2)
+
+    m = psub.add_parser(
+        "merge",
+        help="merge result parts into macros.tex, numbers.json and the reproduction report",
+        description="Merges every given part (results/paper/parts/<stage>.json); paper numbers that no part "
+        "reports show as 'not produced'.",
+    )
+    m.add_argument("parts", nargs="*", type=existing_file, help="result part files")
+    m.add_argument("--macros", required=True, help="macros.tex to write")
+    m.add_argument("--numbers", required=True, help="numbers.json to write")
+    m.add_argument("--report-md", required=True, help="reproduction.md to write")
+    m.add_argument("--report-csv", required=True, help="reproduction.csv to write")
+    m.set_defaults(func=cmd_merge)
+
+
+def cmd_part(args: argparse.Namespace) -> int:
+    from imply.paper.parts import STAGE_CLAIMS, build_part, write_part
+    from imply.paper.results import read_results
+
+    if args.stage not in STAGE_CLAIMS:
+        raise UserError(f"unknown stage {args.stage!r} (one of {', '.join(STAGE_CLAIMS)})")
+    try:
+        numbers, claims = build_part(args.stage, read_results(args.results))
+    except (KeyError, ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from exc
+    write_part(args.output, args.stage, numbers, claims)
+    held = sum(c.holds for c in claims)
+    log.info("%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims),
+             args.output)  # fmt: skip
+    return 0
+
+
+def cmd_tables(args: argparse.Namespace) -> int:
+    from imply.io import write_text
+    from imply.paper.latex_tables import table1_tex, table2_tex, table3_tex
+    from imply.paper.parts import read_part
+    from imply.paper.registry import load_registry
+
+    values = load_registry().values(read_part(args.part)["numbers"])
+    for path, build in ((args.table1, table1_tex), (args.table2, table2_tex), (args.table3, table3_tex)):
+        if path:
+            write_text(path, build(values))
+            log.info("wrote %s", path)
+    return 0
+
+
+def cmd_figure1(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from imply.paper.figures import figure1
+    from imply.paper.results import read_result
+
+    _, noise = read_result(args.noise)
+    figure1(pd.read_csv(args.scores), noise, pdf_path=args.pdf, png_path=args.png)
+    log.info("figure 1 -> %s, %s", args.pdf, args.png)
+    return 0
+
+
+def cmd_figure2(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from imply.paper.figures import figure2
+
+    per_object = pd.read_csv(args.per_object, dtype={"object_id": str})
+    seed = args.seed if args.seed is not None else int(per_object["seed"].min())
+    figure2(per_object, seed=seed, pdf_path=args.pdf, png_path=args.png)
+    log.info("figure 2 -> %s, %s", args.pdf, args.png)
+    return 0
+
+
+def cmd_merge(args: argparse.Namespace) -> int:
+    from imply.paper.macros import merge_parts, write_macros
+    from imply.paper.registry import load_registry
+    from imply.paper.report import write_report
+
+    try:
+        merged = merge_parts(args.parts)
+    except (KeyError, ValueError) as exc:
+        raise UserError(str(exc)) from exc
+    write_macros(merged, args.macros, args.numbers)
+    frame = write_report(load_registry(), merged, args.report_md, args.report_csv)
+    counts = frame["status"].value_counts().to_dict()
+    log.info("merged %d parts, %d numbers; paper numbers: %s", len(merged.stages), len(merged.numbers), counts)
+    return 0

@@ -1,0 +1,49 @@
+"""``imply section5``: scores of the predictor's latent rollouts, the stage's result document and per-object table.
+
+``--rollouts MODEL:SEED:PATH`` (repeatable) names each rollout table: the calibrated
+(``calib``) and context-free (``nocalib``) model of each data-order seed. The first
+seed, in increasing order, gives the paper's Table 3 numbers; the second, its
+replication. Logic: :mod:`imply.study.section5`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+
+log = logging.getLogger("imply.section5")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    s5 = sub.add_parser("section5", help="Section 5 scores of the predictor's rollouts (a result document)")
+    s5.add_argument("--rollouts", action="append", required=True, metavar="MODEL:SEED:PATH",
+                    help="a rollout table of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
+    s5.add_argument("--table", type=existing_file, required=True)
+    s5.add_argument("--score-json", type=json_arg, required=True, help="the config's score section (grid, floor)")
+    s5.add_argument("--selection-seed", type=int_range(0), default=0)
+    s5.add_argument("--metrics", required=True, help="the result document (results/section5/metrics.json)")
+    s5.add_argument("--per-object", required=True, help="per-object scores (results/section5/per_object.csv)")
+    s5.set_defaults(func=cmd_section5)
+
+
+def cmd_section5(args: argparse.Namespace) -> int:
+    from imply.io import write_csv
+    from imply.paper.results import write_result
+    from imply.score import ScoreConfig
+    from imply.study.section5.scoring import read_rollout_tables, section5_results
+    from imply.table import PushTable
+
+    try:
+        tables = read_rollout_tables(args.rollouts)
+    except ValueError as exc:
+        raise UserError(f"--rollouts: {exc}") from exc
+    seeds = sorted({s for _, s in tables})
+    scorer = config_from_json(ScoreConfig, args.score_json, "--score-json").scorer(PushTable.load(args.table))
+    result, per_object = section5_results(tables, scorer, seeds=seeds, selection_seed=args.selection_seed)
+    write_result(args.metrics, section5_results, result)
+    write_csv(args.per_object, per_object)
+    log.info("section 5 scores of seeds %s -> %s", seeds, Path(args.metrics))
+    return 0

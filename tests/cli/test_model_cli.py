@@ -1,0 +1,97 @@
+"""``imply model train|readout|rollout`` and ``imply section5`` end to end on synthetic features, then the paper part."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+import torch
+
+from imply.cli import main
+from synthetic_features import synth_split
+
+TINY = {"width": 32, "depth": 2, "heads": 2}
+TRAIN = {"epochs": 2, "batch_size": 16, "rollout_steps": 2}
+VARIANTS = {"calib": {"calib": True}, "nocalib": {"calib": False}}
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory):
+    d = tmp_path_factory.mktemp("synth")
+    synth_split(d, "train", 48, False, 1)
+    synth_split(d, "heldout_calib", 12, True, 2)
+    synth_split(d, "heldout_nocalib", 14, True, 3)
+    return d
+
+
+def test_cli_train_rollout_section5(synth, tmp_path, tiny_table_path):
+    d = synth
+    assert main(["model", "readout", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+                 "--heldout", str(d / "heldout_calib.npz"), str(d / "heldout_calib.csv"),
+                 "-o", str(tmp_path / "readout.npz"), "--report", str(tmp_path / "readout.json")]) == 0  # fmt: skip
+    r2 = json.loads((tmp_path / "readout.json").read_text())["heldout_r2_log"]["heldout_calib"]
+    assert r2 > 0.8
+    specs = []
+    for variant, split, ctx in (("calib", "heldout_calib", "own,swap,none"), ("nocalib", "heldout_nocalib", "none")):
+        for seed in (0, 1):
+            out = tmp_path / variant / f"seed{seed}"
+            assert main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+                         "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS[variant]),
+                         "--train-json", json.dumps(TRAIN), "--seed", str(seed), "--threads", "1",
+                         "-o", str(out / "model.pt")]) == 0  # fmt: skip
+            assert (out / "checkpoint.pt").exists()
+            assert main(["model", "rollout", "--model", str(out / "model.pt"), "--features", str(d / f"{split}.npz"),
+                         "--clips", str(d / f"{split}.csv"), "--readout", str(tmp_path / "readout.npz"),
+                         "--contexts", ctx, "--derangement-seed", "4", "--threads", "1",
+                         "-o", str(out / "rollouts.csv")]) == 0  # fmt: skip
+            specs += ["--rollouts", f"{variant}:{seed}:{out / 'rollouts.csv'}"]
+    ro = pd.read_csv(tmp_path / "calib" / "seed0" / "rollouts.csv")
+    assert set(ro["context"]) == {"own", "swap", "none"}
+    assert len(ro[(ro.role == "rollout") & (ro.context == "own")]) == 12 * 5
+    sw = ro[ro.context == "swap"]
+    assert (sw["context_object"] != sw["object_id"]).all()
+    score = json.dumps({"grid": 21, "readout_floor": 1e-4})
+    metrics, part, paper = tmp_path / "s5" / "metrics.json", tmp_path / "parts" / "section5.json", tmp_path / "paper"
+    args = ["section5", *specs, "--table", str(tiny_table_path), "--score-json", score, "--selection-seed", "1",
+            "--metrics", str(metrics), "--per-object", str(tmp_path / "s5" / "per_object.csv")]  # fmt: skip
+    assert main(args) == 0
+    assert main(["paper", "part", "section5", str(metrics), "-o", str(part)]) == 0
+    numbers = json.loads(part.read_text())["numbers"]
+    for name in ("vjNOne", "vjNTwo", "vjQTrack", "vjCAnch", "vjSelAnchOwn", "vjSOneSCorrAnch", "vjSelfOwnLtSwap"):
+        assert name in numbers
+    assert numbers["vjNOne"] == 14 and numbers["vjNTwo"] == 12
+    claims = json.loads(part.read_text())["claims"]
+    assert {c["id"] for c in claims} >= {"s5-self-chance", "s5-anchored-prefers-own", "s5-second-seed"}
+    assert all(isinstance(c["holds"], bool) for c in claims)
+    assert main(["paper", "tables", "--part", str(part), "--table3", str(paper / "table3.tex")]) == 0
+    tex = (paper / "table3.tex").read_text()
+    assert r"\toprule" in tex and tex.count(r"\\") >= 7
+    assert main(["paper", "figure2", "--per-object", str(tmp_path / "s5" / "per_object.csv"),
+                 "--pdf", str(paper / "figure2.pdf"), "--png", str(paper / "figure2.png")]) == 0  # fmt: skip
+    assert (paper / "figure2.pdf").stat().st_size > 1000 and (paper / "figure2.png").exists()
+    first = metrics.read_bytes()
+    assert main(args) == 0
+    assert metrics.read_bytes() == first
+
+
+def test_cli_rejects_bad_options(synth, tmp_path, capsys):
+    d = synth
+    rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+               "--preset-json", json.dumps({**TINY, "widht": 3}), "--variant-json", json.dumps(VARIANTS["calib"]),
+               "--train-json", "{}", "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "widht" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "m.pt").exists()
+    rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+               "--preset-json", json.dumps({**TINY, "heads": 3}), "--variant-json", json.dumps(VARIANTS["calib"]),
+               "--train-json", "{}", "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
+    assert rc == 2 and "heads" in capsys.readouterr().err and not (tmp_path / "m.pt").exists()

@@ -1,0 +1,109 @@
+"""Stage parts from result documents, the merge into macros and numbers, the report, the tables."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from imply.paper.latex_tables import table1_tex, table2_tex
+from imply.paper.macros import macros_tex, merge_parts, numbers_json
+from imply.paper.parts import Claim, build_part, read_part, stage_numbers, write_part
+from imply.paper.registry import NOT_PRODUCED, UnknownNumberError, load_registry
+from imply.paper.report import reproduction_frame, reproduction_md
+from imply.paper.results import read_results, write_result
+from imply.study.section4.scoring import standin_metrics
+
+
+def test_result_documents_name_their_producer(tmp_path):
+    path = tmp_path / "m.json"
+    write_result(path, standin_metrics, {"n_objects": 3})
+    assert read_results([path]) == {"imply.study.section4.scoring.standin_metrics": {"n_objects": 3}}
+    with pytest.raises(ValueError, match="second result"):
+        read_results([path, path])
+    (tmp_path / "x.json").write_text('{"n_objects": 3}')
+    with pytest.raises(ValueError, match="not a result document"):
+        read_results([tmp_path / "x.json"])
+
+
+def test_paths_resolve_and_missing_levels_are_not_produced():
+    reg = load_registry()
+    noise = {"imply.study.section4.scoring.noise_sweep": {"levels": [
+        {"sd": 0.0, "standins": {"oracle": {"mean_anchored": 0.01}, "blind": {"auroc_anchored": 0.9}}},
+        {"sd": 0.2, "standins": {"oracle": {"mean_anchored": 0.1}, "blind": {"auroc_anchored": 0.7}}},
+    ]}}  # fmt: skip
+    assert reg["noiseBSd"].resolve(noise) == 0.2
+    assert reg["noiseMax"].resolve(noise) == 0.2 and reg["noiseMaxAurocBlind"].resolve(noise) == 0.7
+    assert reg["noiseCSd"].resolve(noise) is NOT_PRODUCED
+    broken = {"imply.study.section4.scoring.noise_sweep": {"levels": [{"sd": 0.0}]}}
+    with pytest.raises(KeyError, match="noiseAOracle"):
+        reg["noiseAOracle"].resolve(broken)
+    with pytest.raises(KeyError, match="no result"):
+        stage_numbers("section4", noise)
+    assert reg["BlCorr"].resolve({reg["BlCorr"].source: {"standins": {"blind": {"corr_anchored_error": None}}}}) != 0
+
+
+def test_merge_and_report(tmp_path):
+    a, b = tmp_path / "section4.json", tmp_path / "gap.json"
+    write_part(a, "section4", {"OrSelf": 0.0051234, "selK": 4}, [Claim("c1", "4", "oracle small", True, "0.005")])
+    write_part(b, "gap", {"gapFalseAlarm": float("nan")}, [Claim("c2", "gap", "x fails", False, "d")])
+    merged = merge_parts([b, a])
+    assert merged.stages == ["gap", "section4"]
+    tex = macros_tex(merged)
+    assert "\\newcommand{\\OrSelf}{0.005}" in tex and "\\newcommand{\\gapFalseAlarm}{--}" in tex
+    nums = numbers_json(merged)
+    assert nums["OrSelf"] == 0.0051234 and nums["gapFalseAlarm"] is None and nums["selK"] == 4
+    reg = load_registry()
+    frame = reproduction_frame(reg, merged)
+    status = dict(zip(frame["name"], frame["status"], strict=True))
+    assert status["OrSelf"] == "matches" and status["vjCTrack"] == "not produced"
+    md = reproduction_md(reg, merged, frame)
+    assert "oracle small" in md and "FAILS" in md and "gapFalseAlarm" in md
+    assert "hold: 1; fail: 1" in md
+    with pytest.raises(ValueError, match="registered to stage 'section4'"):
+        write_part(tmp_path / "dup.json", "gap", {"OrSelf": 0.1}, [])
+    (tmp_path / "dup.json").write_text(json.dumps({"stage": "gap", "numbers": {"OrSelf": 0.1}, "claims": []}))
+    with pytest.raises(ValueError, match="registered to stage"):
+        merge_parts([a, tmp_path / "dup.json"])
+    (tmp_path / "unknown.json").write_text(json.dumps({"stage": "gap", "numbers": {"gapNewThing": 1}, "claims": []}))
+    with pytest.raises(UnknownNumberError, match="gapNewThing"):
+        merge_parts([tmp_path / "unknown.json"])
+    with pytest.raises(UnknownNumberError):
+        write_part(tmp_path / "u.json", "gap", {"gapNewThing": 1}, [])
+
+
+def test_tables_print_registered_formats_and_refuse_missing_cells():
+    reg = load_registry()
+    numbers = {e.name: 0.5 for e in reg.of_stage("section4")}
+    numbers.update(OrSelf=0.0049, BlAurocSelf=0.7012, noiseASd=0.0, noiseAOracle=0.006, selAnchMiss=1.46,
+                   selPickedOracle=97.5)  # fmt: skip
+    t1 = table1_tex(reg.values(numbers))
+    assert "\\toprule" in t1 and "Oracle (true physics) & 0.005 & 0.500 & 0.500 & --" in t1 and "& 0.70 &" in t1
+    t2 = table2_tex(reg.values(numbers))
+    assert "0 & 0.006" in t2 and "Lowest anchored disagreement & 1.5 & 0\\% & 98\\%" in t2
+
+    def noise_rows(tex: str) -> int:
+        top = tex.split("\\bottomrule")[0]
+        return top.count("\\\\\n") - 1  # the header row ends in \\ too
+
+    assert noise_rows(t2) == 5
+    del numbers["noiseDSd"], numbers["noiseESd"]
+    assert noise_rows(table2_tex(reg.values(numbers))) == 3
+    del numbers["OrErr"]
+    with pytest.raises(KeyError, match="OrErr"):
+        table1_tex(reg.values(numbers))
+
+
+def test_build_part_reads_every_number_of_a_stage(tmp_path):
+    results = {"imply.diagnose.benchmark.score_cases": {
+        "top1_big": 1.0, "n_big": 13, "top1_all": 0.7, "n_library": 33, "false_alarm": 0.0, "n_null": 20,
+        "none_recall_outside": 0.75, "n_outside": 4, "removed_none_recall": 0.5, "removed_none_or_alias": 0.8,
+        "magnitude_rel_error_median": 0.01, "shrinkage_median": 0.9, "anchored_shrinkage_median": 0.8,
+        "noise_sd": 0.02, "null_visible_rms_median": 0.001, "min_size_sd": 2.0,
+        "targets": {"top1": 0.9, "false_alarm": 0.05, "shrinkage": 0.8},
+    }}  # fmt: skip
+    numbers, claims = build_part("gap", results)
+    assert set(numbers) == {e.name for e in load_registry().of_stage("gap")}
+    assert numbers["gapTopOneN"] == 13 and all(c.holds for c in claims)
+    write_part(tmp_path / "g.json", "gap", numbers, claims)
+    assert read_part(tmp_path / "g.json")["numbers"]["gapTopOneN"] == 13

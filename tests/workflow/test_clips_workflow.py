@@ -1,0 +1,45 @@
+"""The clips stage's rules on a tiny config: render -> pretrain -> encode -> readout, via snakemake."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from imply.data.clips import load_clips
+from imply.models.encoder import load_features
+from imply.readout import load_readout
+from workflow_helpers import copy_workflow
+
+
+@pytest.mark.slow
+def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):
+    copy_workflow(tmp_path)
+    cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
+    cfg.update(yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
+    # targets go before --configfile, which takes every value after it
+    run = subprocess.run(
+        [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(tmp_path), "--snakefile",
+         str(tmp_path / "Snakefile"), "results/readout/ridge.npz", "results/paper/parts/clips.json", "--configfile", str(tmp_path / "config.yaml")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    logs = "\n".join(p.read_text() for p in sorted((tmp_path / "results/logs").glob("*.log")))
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:] + logs[-3000:]
+
+    frames, meta = load_clips(tmp_path / "results/clips/train.npz")
+    assert frames.shape == (12, 3, 16, 64, 3) and len(meta) == 12
+    feats = load_features(tmp_path / "results/features/heldout_calib.npz")
+    assert feats["tokens"].shape == (1 * (2 + 5), 3, 4, 16) and feats["tokens"].dtype == np.float16
+    readout = load_readout(tmp_path / "results/readout/ridge.npz")
+    assert readout.predict(feats["tokens"][:, -1]).shape == (7,)
+    part = json.loads((tmp_path / "results/paper/parts/clips.json").read_text())
+    assert part["numbers"]["nTrainClips"] == 12
+    assert {c["id"] for c in part["claims"]} == {"s5-ridge-readout", "s5-framediff-readout"}
+    metrics = json.loads((tmp_path / "results/readout/metrics.json").read_text())["result"]
+    assert set(metrics["heldout"]) == {"heldout_calib", "heldout_nocalib"}
