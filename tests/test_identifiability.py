@@ -1,4 +1,4 @@
-"""Mass and friction are identifiable from pushes at the five query speeds (issue 2's test)."""
+"""Mass and friction are identifiable from pushes at the five query speeds."""
 
 from __future__ import annotations
 

@@ -38,7 +38,11 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
     order = [work / "results/table/table.npz", *clips.iterdir(), work / "results/encoder/encoder.pt", *feats.iterdir()]
     for i, path in enumerate(order):
         os.utime(path, (now - 1000 + i, now - 1000 + i))
-    target = ["results/paper/parts/section5.json", "results/paper/tables/table3.tex", "results/paper/figures/figure2.png"]
+    target = [
+        "results/paper/parts/section5.json",
+        "results/paper/tables/table3.tex",
+        "results/paper/figures/figure2.png",
+    ]
     cmd = [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(work), "--snakefile",
            str(work / "Snakefile"), "--configfile", str(work / "config.yaml"), str(work / "small.yaml"),
            "--rerun-triggers", "mtime", "--", *target]  # fmt: skip

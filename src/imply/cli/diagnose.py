@@ -85,10 +85,10 @@ def candidate_effects(arg: str | None):
 
 def options(args: argparse.Namespace):
     """Diagnostic options and effect-table grid from their JSON (and flags), checked before any work."""
-    from imply.diagnose.analysis import Options
+    from imply.diagnose.analysis import DiagnosisConfig
     from imply.diagnose.effect_tables import CoarseGrid
 
-    opts = config_from_json(Options, args.options_json, "--options-json")
+    opts = config_from_json(DiagnosisConfig, args.options_json, "--options-json")
     grid = config_from_json(CoarseGrid, args.effect_grid_json, "--effect-grid-json")
     if getattr(args, "noise_sd", None) is not None:
         opts = opts.replace(noise_sd=args.noise_sd)

@@ -58,7 +58,7 @@ NONE = "none"
 
 
 @dataclass(frozen=True, kw_only=True)
-class Options(Config):
+class DiagnosisConfig(Config):
     """Settings of the diagnostic (config ``gap.diagnose``)."""
 
     config_key: ClassVar[str] = "gap.diagnose"
@@ -82,7 +82,7 @@ class Diagnosis:
     residuals: dict = field(default_factory=dict)  # arrays for plots
 
 
-def _noise(prob: Problem, opts: Options) -> dict:
+def _noise(prob: Problem, opts: DiagnosisConfig) -> dict:
     key = np.stack([prob.obj.astype(float), prob.v, np.round(prob.phi, 6)], axis=1)
     _, group = np.unique(key, axis=0, return_inverse=True)
     group = group.ravel()
@@ -188,7 +188,7 @@ def _secant(prob: Problem, effect: Effect, fit: ObjectFit) -> tuple[np.ndarray, 
     return (prob.predict(effect, ref, fit) - base) / ref, max(abs(lo), abs(hi))
 
 
-def aliasing(prob: Problem, effects: list[Effect], fit: ObjectFit, opts: Options) -> dict:
+def aliasing(prob: Problem, effects: list[Effect], fit: ObjectFit, opts: DiagnosisConfig) -> dict:
     """Projected sensitivities, identifiability and alias classes of the effects."""
     obj, P = prob.obj, prob.obj.size
     lm, lu = fit.lm[obj], fit.lu[obj]
@@ -277,7 +277,7 @@ def _bounds(prob: Problem, effect: Effect) -> tuple[float, float]:
     return lo, hi
 
 
-def evaluate_effect(prob: Problem, effect: Effect, start: ObjectFit, opts: Options, sigma2: float | None,
+def evaluate_effect(prob: Problem, effect: Effect, start: ObjectFit, opts: DiagnosisConfig, sigma2: float | None,
                     base_sse: np.ndarray, folds: np.ndarray) -> dict:  # fmt: skip
     lo, hi = _bounds(prob, effect)
     grid = np.unique(np.concatenate([np.linspace(lo, hi, opts.n_profile), [0.0]]))
@@ -313,7 +313,7 @@ def evaluate_effect(prob: Problem, effect: Effect, start: ObjectFit, opts: Optio
     }  # fmt: skip
 
 
-def decide(ranking: list[dict], alias: dict, n_candidates: int, opts: Options, noise: dict,
+def decide(ranking: list[dict], alias: dict, n_candidates: int, opts: DiagnosisConfig, noise: dict,
            exclude: tuple[str, ...] = ()) -> dict:  # fmt: skip
     """The verdict from per-effect results (also used by the benchmark to drop the true effect)."""
     crit = float(stats.chi2.ppf(1 - opts.alpha / max(n_candidates, 1), 1))
@@ -338,7 +338,7 @@ def decide(ranking: list[dict], alias: dict, n_candidates: int, opts: Options, n
             "lr_critical": crit, "partial": None}  # fmt: skip
 
 
-def diagnose(prob: Problem, effects: list[Effect], opts: Options) -> Diagnosis:
+def diagnose(prob: Problem, effects: list[Effect], opts: DiagnosisConfig) -> Diagnosis:
     """Run every step on a prepared :class:`Problem`."""
     noise = _noise(prob, opts)
     sd = noise["sd"]

@@ -316,7 +316,7 @@ def score_cases(
     the settings they were judged by (``noise_sd``, ``min_size_sd``, ``targets``).
     """
     min_size_sd = config.min_size_sd
-    from imply.diagnose.analysis import Options, decide
+    from imply.diagnose.analysis import DiagnosisConfig, decide
 
     rows = []
     for cid in sorted(labels):
@@ -326,7 +326,7 @@ def score_cases(
         verdict = s["verdict"]
         predicted = verdict["effect"] or "none"
         members = _members(verdict["class"])
-        opts = Options.from_dict(s["options"])
+        opts = DiagnosisConfig.from_dict(s["options"])
         if group == "library":
             correct = eff in members
             removed = decide(

@@ -13,7 +13,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from imply.diagnose.analysis import Options, diagnose
+from imply.diagnose.analysis import DiagnosisConfig, diagnose
 from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
 from imply.diagnose.pushlog import PushLog, read_pushlog
@@ -31,14 +31,14 @@ class Session:
 
     table: PushTable
     effects: list[Effect]
-    options: Options
+    options: DiagnosisConfig
     effect_tables: EffectTables
 
 
 def prepare(
     table: PushTable,
     effects: list[Effect],
-    options: Options,
+    options: DiagnosisConfig,
     grid: CoarseGrid,
     cache_dir: str | os.PathLike | None,
     *,
