@@ -83,3 +83,14 @@ def full_table(scene, default_config, request, tmp_path_factory) -> PushTable:
     table = build_table(scene, grid, nthread=2)
     table.save(cache)
     return table
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Run a test on one torch thread (tiny tensors: more threads only contend with the rest of the suite)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)

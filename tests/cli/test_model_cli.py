@@ -6,22 +6,16 @@ import json
 
 import pandas as pd
 import pytest
-import torch
 
 from imply.cli import main
 from synthetic_features import synth_split
 
+# tiny tensors: extra torch threads only contend with the rest of the suite
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
 TINY = {"width": 32, "depth": 2, "heads": 2}
 TRAIN = {"epochs": 2, "batch_size": 16, "rollout_steps": 2}
 VARIANTS = {"calib": {"calib": True}, "nocalib": {"calib": False}}
-
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")

@@ -16,16 +16,10 @@ from imply.models.ac_predictor import (
 )
 from imply.models.modules import rope_apply, rope_tables
 
+# tiny tensors: extra torch threads only contend with the rest of the suite
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
 TINY = {"width": 32, "depth": 2, "heads": 2}
-
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    # tiny tensors: extra threads only contend with the rest of the suite
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 def tiny_model(grid=(2, 2), dim=8, steps=14) -> ACPredictor:

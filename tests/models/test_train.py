@@ -13,14 +13,8 @@ from imply.models.sequences import Layout
 from imply.models.train import TrainConfig, losses, train
 from synthetic_features import synth_split
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    # tiny tensors: extra threads only contend with the rest of the suite
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+# tiny tensors: extra torch threads only contend with the rest of the suite
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")
