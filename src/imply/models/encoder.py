@@ -54,6 +54,7 @@ caching (needed for ViT-g, whose 16 x 16 x 1408 tokens per frame are too large t
 
 from __future__ import annotations
 
+import io
 import logging
 import os
 import time
@@ -260,8 +261,11 @@ def save_cpu_encoder(
         "encoder": {k: v.detach().clone() for k, v in model.state_dict().items()},
         "extra": extra or {},
     }
+    # torch names the archive after the file it writes; through a buffer, the same weights give the same bytes
+    buf = io.BytesIO()
+    torch.save(payload, buf)
     with atomic_path(path) as tmp:
-        torch.save(payload, tmp)
+        tmp.write_bytes(buf.getvalue())
 
 
 def load_cpu_encoder(path: str | os.PathLike) -> ViTFrameEncoder:
