@@ -91,22 +91,28 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--cache-dir")
     t.add_argument("--effect-grid-json", type=json_arg)
     t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
+    t.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
     t.add_argument("--threads", type=int, default=0)
     t.add_argument("-o", "--output", required=True, help="manifest JSON to write (digest, model floor)")
     t.set_defaults(func=cmd_tables)
 
-    gen = gsub.add_parser("generate", help="synthetic push logs with a withheld effect, labels sealed apart")
-    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the generator's starting point")
+    gen = gsub.add_parser(
+        "generate",
+        help="the benchmark's push logs from the converged world (imply.realworld), labels sealed apart",
+    )
+    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the world's scene (its numbers are not read)")
     gen.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark")
-    gen.add_argument("--logs", required=True, help="folder for the push logs (<case>.csv)")
+    gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
     gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
-    gen.add_argument("--threads", type=int, default=0)
+    gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
+    gen.add_argument("--threads", type=int_range(0), default=0)
     gen.set_defaults(func=cmd_generate)
 
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels; write the stage's paper part")
     b.add_argument("--table", default=DEFAULT_TABLE)
     b.add_argument("--bench-json", type=json_arg, required=True)
     b.add_argument("--sealed", required=True)
+    b.add_argument("--accuracy", required=True, help="the world's measured numerical error (from 'gap generate')")
     b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
     b.add_argument("-o", "--output", required=True, help="benchmark JSON")
     b.add_argument("--markdown", required=True, help="benchmark report (Markdown)")
@@ -120,10 +126,10 @@ def _load_table(path: str):
 
 
 def _effects(arg: str | None):
-    from imply.sim import effects as E
+    from imply.diagnose import candidates as C
 
     try:
-        return E.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
+        return C.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
     except KeyError as exc:
         raise UserError(f"--effects: {exc.args[0]}") from exc
 
@@ -152,19 +158,23 @@ def _options(args: argparse.Namespace):
 
 def _diagnosis_setup(args: argparse.Namespace):
     """Table, candidate effects, options and effect tables of a diagnose call."""
-    from imply.diagnose.analysis import Options
+    from imply.diagnose.candidates import library_effects, needs_across
     from imply.diagnose.tables import load_or_build
 
     table = _load_table(args.table)
     effects = _effects(args.effects)
     opts, grid = _options(args)
     if getattr(args, "noise_sd", None) is not None:
-        opts = Options.from_dict({**opts.__dict__, "noise_sd": args.noise_sd})
+        opts = opts.replace(noise_sd=args.noise_sd)
     if getattr(args, "ignore_measured", False):
-        opts = Options.from_dict({**opts.__dict__, "use_measured": False})
-    etables = load_or_build(table, effects, grid, _cache_dir(args.cache_dir), nthread=args.threads, progress=True)
+        opts = opts.replace(use_measured=False)
+    etables = load_or_build(table, library_effects(effects), grid, _cache_dir(args.cache_dir), nthread=args.threads,
+                            progress=True, across=needs_across(effects), stop_time=opts.use_stop_time)  # fmt: skip
+    floor = etables.meta.get("model_floor") or {}
     if opts.model_floor is None:
-        opts = Options.from_dict({**opts.__dict__, "model_floor": etables.meta.get("model_floor_rms")})
+        opts = opts.replace(model_floor=floor.get("rms"))
+    if opts.stop_time_floor is None and floor.get("stop_time"):
+        opts = opts.replace(stop_time_floor=floor["stop_time"]["rms"])
     return table, effects, opts, etables
 
 
@@ -201,7 +211,9 @@ def diagnose_file(pushlog_path, output, table, effects, opts, etables, force: bo
                                friction_range=table.friction_range)  # fmt: skip
     except InputError as exc:
         raise UserError(str(exc)) from exc
-    diag = diagnose(Problem(pushlog, table, etables, grid=opts.grid, use_measured=opts.use_measured), effects, opts)
+    prob = Problem(pushlog, table, etables, grid=opts.grid, use_measured=opts.use_measured,
+                   use_stop_time=opts.use_stop_time)  # fmt: skip
+    diag = diagnose(prob, effects, opts)
     write_folder(out, lambda tmp: write_report(diag, tmp), force=force)
     v = diag.summary["verdict"]
     log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], out)
@@ -252,45 +264,67 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
 
 
 def cmd_tables(args: argparse.Namespace) -> int:
-    from imply.diagnose.tables import CoarseGrid, load_or_build
+    from imply.diagnose.candidates import library_effects, needs_across
+    from imply.diagnose.tables import load_or_build
     from imply.io import write_json
 
     table = _load_table(args.table)
-    et = load_or_build(table, _effects(args.effects), CoarseGrid.from_dict(args.effect_grid_json), _cache_dir(args.cache_dir),
-                       nthread=args.threads, progress=True)  # fmt: skip
+    effects = _effects(args.effects)
+    opts, grid = _options(args)
+    et = load_or_build(table, library_effects(effects), grid, _cache_dir(args.cache_dir), nthread=args.threads,
+                       progress=True, across=needs_across(effects), stop_time=opts.use_stop_time)  # fmt: skip
     write_json(args.output, {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
     log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], args.output)
     return 0
 
 
 def _design(cfg: dict):
-    from imply.diagnose.benchmark import Design
+    from imply.realworld.cases import BenchmarkDesign
 
-    keys = set(Design.__dataclass_fields__)
-    return Design(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items() if k in keys})
+    if not isinstance(cfg, dict):
+        raise UserError(f"--bench-json: expected a JSON object, not {type(cfg).__name__}")
+    try:
+        return BenchmarkDesign.from_dict(cfg)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"--bench-json: {exc}") from exc
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
-    from tqdm.auto import tqdm
-
-    from imply.diagnose.benchmark import case_list, simulate_case
     from imply.io import write_csv, write_json
+    from imply.realworld.accuracy import measure_error
+    from imply.realworld.cases import accuracy_sample, draw_cases, make_log, simulate_cases
     from imply.sim import SceneConfig
 
+    design = _design(args.bench_json)
+    acc = {"pushes": 48, "nominal": 16, "factor": 4, **(args.bench_json.get("accuracy") or {})}
     table = _load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"))
-    design = _design(args.bench_json)
+    cases = draw_cases(design)
+    log.info("simulating %d logs (%d objects x %d speeds each) in the world", len(cases), design.n_objects,
+             len(design.speeds))  # fmt: skip
+    sims = simulate_cases(cases, design, scene, nthread=args.threads, progress=True)
     labels = {}
-    for case in tqdm(case_list(args.bench_json), desc="synthetic logs", unit="log"):
-        frame, label = simulate_case(case, scene, design, nthread=args.threads)
+    for case in cases:
+        frame, label = make_log(case, sims[case["id"]], design, scene)
         write_csv(Path(args.logs) / f"{case['id']}.csv", frame)
         labels[case["id"]] = label
+    log.info("measuring the world's numerical error on %d of its pushes", acc["pushes"] + acc["nominal"])
+    sample, nominal = accuracy_sample(cases, design, scene, int(acc["pushes"]), int(acc["nominal"]))
+    error = measure_error(sample, nominal, scene, design.stepping, factor=int(acc["factor"]), nthread=args.threads,
+                          progress=True)  # fmt: skip
+    error["table_numerical_error"] = table.meta.get("numerical_error")
+    error["stepping"] = design.stepping.__dict__
+    write_json(args.accuracy, error)
     write_json(args.sealed, labels)
-    log.info("wrote %d logs -> %s (labels sealed in %s)", len(labels), args.logs, args.sealed)
+    e = error["against_finer"]["log_d"]
+    log.info("wrote %d logs -> %s (labels sealed in %s); world error max %.4f RMS %.4f in log d", len(labels),
+             args.logs, args.sealed, e["max_abs"], e["rms"])  # fmt: skip
     return 0
 
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
+    from tqdm.auto import tqdm
+
     from imply.diagnose.benchmark import score_cases, visible_size
     from imply.diagnose.report_bench import write_benchmark
     from imply.io import write_json
@@ -298,18 +332,24 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     table = _load_table(args.table)
     with open(args.sealed) as fh:
         labels = json.load(fh)
+    with open(args.accuracy) as fh:
+        accuracy = json.load(fh)
     summaries = {}
     for cid in labels:
         found = [Path(r) / cid / "summary.json" for r in args.reports if (Path(r) / cid / "summary.json").is_file()]
         if not found:
-            raise UserError(f"--reports: no diagnosis for case {cid} in {', '.join(args.reports)}")
-        path = found[0]
-        with open(path) as fh:
+            raise UserError(f"--reports: no diagnosis for log {cid} in {', '.join(args.reports)}")
+        with open(found[0]) as fh:
             summaries[cid] = json.load(fh)
-    sizes = {cid: visible_size(lab, table) for cid, lab in labels.items()}
+    sizes = {}
+    for cid, lab in tqdm(labels.items(), desc="visible sizes", unit="log"):
+        sizes[cid] = {what: visible_size(lab, table, what) for what in lab["noise_free"]}
     result = score_cases(labels, summaries, sizes, float(args.bench_json.get("min_size_sd", 2.0)))
+    result["world_accuracy"] = accuracy
     write_json(args.output, result)
     write_benchmark(result, args.bench_json, args.markdown, args.part)
-    log.info("top-1 %.3f (n=%d), false alarms %.3f, shrinkage %.3f", result["top1_big"], result["n_big"],
-             result["false_alarm"], result["shrinkage_median"])  # fmt: skip
+    log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "
+             "magnitude error %.3f, shrinkage %.3f", result["false_alarm"], result["n_null"], result["top1_big"],
+             result["n_big"], result["both_named_big"], result["n_double_big"], result["none_recall_outside"],
+             result["n_outside"], result["magnitude_rel_error_median"], result["shrinkage_median"])  # fmt: skip
     return 0

@@ -1,12 +1,13 @@
-# The sim-to-real gap diagnostic and its benchmark: effect tables -> synthetic push logs
-# (labels sealed in a file the diagnose rules never read) -> the diagnosis of every log
-# (`imply gap diagnose-many`, sharded over the threads) -> scoring against the sealed
+# The sim-to-real gap diagnostic and its benchmark: effect tables -> push logs from the
+# converged world of imply.realworld (labels sealed in a file the diagnose rules never
+# read; the world's own numerical error measured beside them) -> the diagnosis of every
+# log (`imply gap diagnose-many`, sharded over the threads) -> scoring against the sealed
 # labels -> results/paper/parts/gap.json.
 
-from imply.diagnose.benchmark import case_list
+from imply.realworld.cases import BenchmarkDesign, case_ids
 
 GAP = "results/gap"
-GAP_CASES = [c["id"] for c in case_list(config["gap"]["benchmark"])]
+GAP_CASES = case_ids(BenchmarkDesign.from_dict(config["gap"]["benchmark"]))
 # --effects option for the candidate list (empty: the whole library)
 GAP_EFFECTS = "--effects " + ",".join(config["gap"]["candidates"]) if config["gap"].get("candidates") else ""
 
@@ -20,6 +21,7 @@ rule gap_tables:
         f"{GAP}/effect_tables.json",
     params:
         grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(config["gap"]["diagnose"]),
         cache=f"{GAP}/cache",
         effects=GAP_EFFECTS,
     threads: config["threads"]
@@ -29,8 +31,8 @@ rule gap_tables:
     log:
         "results/logs/gap_tables.log",
     shell:
-        "imply gap tables --table {input.table} --effect-grid-json {params.grid} --cache-dir {params.cache} {params.effects}"
-        " --threads {threads} -o {output} > {log} 2>&1"
+        "imply gap tables --table {input.table} --effect-grid-json {params.grid} --options-json {params.options}"
+        " --cache-dir {params.cache} {params.effects} --threads {threads} -o {output} > {log} 2>&1"
 
 
 rule gap_generate:
@@ -41,18 +43,19 @@ rule gap_generate:
     output:
         logs=expand(f"{GAP}/logs/{{case}}.csv", case=GAP_CASES),
         sealed=f"{GAP}/sealed/labels.json",
+        accuracy=f"{GAP}/world_accuracy.json",
     params:
         bench=as_json(config["gap"]["benchmark"]),
         logs=f"{GAP}/logs",
     threads: config["threads"]
     resources:
-        mem_mb=2000,
-        runtime=15,
+        mem_mb=3000,
+        runtime=20,
     log:
         "results/logs/gap_generate.log",
     shell:
         "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.logs}"
-        " --sealed {output.sealed} --threads {threads} > {log} 2>&1"
+        " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
 
 
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once),
@@ -82,7 +85,7 @@ rule gap_diagnose:
     threads: 1
     resources:
         mem_mb=1500,
-        runtime=15,
+        runtime=20,
     log:
         "results/logs/gap_diagnose_shard{shard}.log",
     shell:
@@ -96,6 +99,7 @@ rule gap_benchmark:
     input:
         reports=expand(f"{GAP}/reports/shard{{shard}}", shard=GAP_SHARDS),
         sealed=f"{GAP}/sealed/labels.json",
+        accuracy=f"{GAP}/world_accuracy.json",
         table="results/table/table.npz",
     output:
         result=f"{GAP}/benchmark.json",
@@ -104,14 +108,14 @@ rule gap_benchmark:
     params:
         bench=as_json(config["gap"]["benchmark"]),
     resources:
-        mem_mb=1500,
+        mem_mb=2000,
         runtime=10,
     log:
         "results/logs/gap_benchmark.log",
     shell:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
-        " --reports {input.reports} -o {output.result} --markdown {output.markdown} --part {output.part}"
-        " > {log} 2>&1"
+        " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
+        " --part {output.part} > {log} 2>&1"
 
 
 FINAL_TARGETS.extend([f"{GAP}/benchmark.json", f"{GAP}/benchmark.md", "results/paper/parts/gap.json"])
