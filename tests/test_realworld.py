@@ -109,7 +109,7 @@ def test_effect_catalogue():
     assert all(e.default_range[0] < e.default_range[1] for e in EFFECTS.values())
 
 
-DESIGN = {"seed": 3, "logs": {"null": 1, "null_heavy": 1, "single": 2, "double": 1, "outside": 1},
+DESIGN = {"seed": 3, "logs": {"null_gaussian": 1, "null_heavy": 1, "single": 2, "double": 1, "outside": 1},
           "n_objects": 3, "speeds": [0.3, 0.6, 0.9], "noise": {"outliers": [2, 2]}}  # fmt: skip
 
 
@@ -118,7 +118,9 @@ def test_logs_are_drawn_reproducibly_and_say_nothing_of_their_labels(scene):
     a, b = C.draw_cases(design), C.draw_cases(design)
     assert a == b
     assert [c["id"] for c in a] == C.case_ids(design) == [f"log-{k:03d}" for k in range(6)]
-    assert sorted(c["group"] for c in a) == sorted(["null", "null_heavy", "single", "single", "double", "outside"])
+    assert sorted(c["group"] for c in a) == sorted(
+        ["null_gaussian", "null_heavy", "single", "single", "double", "outside"]
+    )
     heavy = next(c for c in a if c["group"] == "null_heavy")
     sims = C.simulate_cases([heavy], design, scene, nthread=2)
     frame, label = C.make_log(heavy, sims[heavy["id"]], design, scene)

@@ -78,7 +78,7 @@ class Options:
     stop_time_noise_sd: float | None = None
     model_floor: float | None = None
     stop_time_floor: float | None = None
-    min_share: float = 0.5
+    min_share: float = 0.8
     use_measured: bool = True
     use_stop_time: bool = True
     max_effects: int = 3
@@ -764,7 +764,7 @@ def diagnose(prob: Problem, candidates: list[Candidate], opts: Options) -> Diagn
                    "reason": f"the best candidates ({' + '.join(final.model.names)}) close only {judged:.0%} of the "
                              "gap above the noise floor"}  # fmt: skip
     else:
-        verdict = {"verdict": "+".join(e["class"] for e in reported), "effects": [e["effect"] for e in reported],
+        verdict = {"verdict": "; ".join(e["class"] for e in reported), "effects": [e["effect"] for e in reported],
                    "class": reported[0]["class"], "effect": reported[0]["effect"], "reason": "improves beyond noise",
                    "partial": None}  # fmt: skip
     verdict["lr_critical"] = steps[0][0].critical if steps and steps[0] else None

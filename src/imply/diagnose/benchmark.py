@@ -92,7 +92,7 @@ def score_cases(
         accepted = [e["effect"] for e in s["effects"]] if s["verdict"]["verdict"] != "none" else []
         predicted = accepted[0] if accepted else "none"
         big_each = {n: bool(eff_sizes[n] >= min_size_sd * sd) for n in true}
-        if group in ("null", "null_heavy"):
+        if group in ("null_gaussian", "null_heavy"):
             correct = not accepted
         elif group in ("outside", "single_unidentifiable"):
             correct = not accepted
@@ -144,9 +144,9 @@ def score_cases(
         return (float(sub["correct"].mean()) if len(sub) else float("nan")), int(len(sub))
 
     g = frame["group"]
-    null = g.isin(["null", "null_heavy"])
+    null = g.isin(["null_gaussian", "null_heavy"])
     fa_all = 1.0 - rate(null)[0] if null.any() else float("nan")
-    fa_gauss = 1.0 - rate(g == "null")[0] if (g == "null").any() else float("nan")
+    fa_gauss = 1.0 - rate(g == "null_gaussian")[0] if (g == "null_gaussian").any() else float("nan")
     fa_heavy = 1.0 - rate(g == "null_heavy")[0] if (g == "null_heavy").any() else float("nan")
     single, double, out = g == "single", g == "double", g == "outside"
     top1_big, n_big = rate(single & frame["big"])
@@ -174,7 +174,7 @@ def score_cases(
         "confusion": {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index},
         "n_logs": int(len(frame)),
         "false_alarm": fa_all, "n_null": int(null.sum()),
-        "false_alarm_gaussian": fa_gauss, "n_null_gaussian": int((g == "null").sum()),
+        "false_alarm_gaussian": fa_gauss, "n_null_gaussian": int((g == "null_gaussian").sum()),
         "false_alarm_heavy": fa_heavy, "n_null_heavy": int((g == "null_heavy").sum()),
         "top1_big": top1_big, "n_big": n_big, "top1_all": top1_all, "n_single": n_single,
         "both_named_big": both_big, "n_double_big": n_both_big, "both_named_all": both_all, "n_double": n_double,

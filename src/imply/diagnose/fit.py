@@ -76,8 +76,9 @@ class JointFit:
         for f in np.unique(folds):
             keep = folds != f
             Hk = self.S[keep].sum(0)
-            gk = self.b[keep].sum(0)
-            step = -np.linalg.lstsq(Hk + 1e-9 * np.trace(H) / max(p, 1) * np.eye(p), gk, rcond=None)[0]
+            # the fold's own pull, taken away (at a bound the full gradient is held by the bound)
+            gf = self.b[~keep].sum(0)
+            step = np.linalg.lstsq(Hk + 1e-9 * np.trace(H) / max(p, 1) * np.eye(p), gf, rcond=None)[0]
             out[int(f)] = self.model.project(self.theta + step) if p else self.theta
         return out
 
@@ -240,9 +241,10 @@ class Problem:
                 pt = pt + ext_t
         if t is not None:
             for key, s in t.tables:
-                pd = pd + self.etables.delta(key, vc, m, mu, s, "d")
+                dd, dt = self.etables.delta_both(key, vc, m, mu, s)
+                pd = pd + dd
                 if self.use_t:
-                    pt = pt + self.etables.delta(key, vc, m, mu, s, "t")
+                    pt = pt + dt
         if extrapolation:
             zeros = np.zeros(v.size)
             return pd, pt, (np.abs(ext_d) if ext_d is not None else zeros,
@@ -258,8 +260,11 @@ class Problem:
         v = np.clip(v * (1.0 + t.gain) + t.offset, *self.v_range)
         m = np.exp(np.clip(lm_c, *self.lm_range))
         mu = np.exp(np.clip(lu_c + np.log(np.maximum(t.friction, 1e-6)), *self.lu_range))
-        return [(key, self.etables.delta(key, v, m, mu, s, "d"),
-                 self.etables.delta(key, v, m, mu, s, "t") if self.use_t else None) for key, s in t.tables]  # fmt: skip
+        out = []
+        for key, s in t.tables:
+            dd, dt = self.etables.delta_both(key, v, m, mu, s)
+            out.append((key, dd, dt if self.use_t else None))
+        return out
 
     def row_residuals(self, pd_c: np.ndarray, pt_c: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         """Raw (unwhitened, unweighted) residuals observed minus predicted per row."""
@@ -448,14 +453,13 @@ class Problem:
         thetas = [theta, theta, theta]
         signs = []
         for j in range(p):
-            up = model.project(theta + hstep[j] * np.eye(p)[j])
-            if up[j] != theta[j]:
-                thetas.append(up)
-                signs.append(up[j] - theta[j])
-            else:  # at the upper bound: difference backward
-                dn = model.project(theta - hstep[j] * np.eye(p)[j])
-                thetas.append(dn)
-                signs.append(dn[j] - theta[j])
+            # a step along component j alone (forward, or backward where forward leaves the range)
+            e = hstep[j] * np.eye(p)[j]
+            up = theta + e
+            if not np.allclose(model.project(up), up):
+                up = theta - e
+            thetas.append(up)
+            signs.append(up[j] - theta[j])
         th = np.stack(thetas) if p else np.zeros((3, 0))
         rs = self.residuals(model, th, np.stack([lm, lm + _H, lm] + [lm] * p),
                             np.stack([lu, lu, lu + _H] + [lu] * p))  # fmt: skip
@@ -486,15 +490,3 @@ class Problem:
             for k in range(j, p):
                 C[:, j, k] = C[:, k, j] = np.bincount(ro, jt[:, j] * jt[:, k], minlength=n)
         return A, B, C, g_u, g_t, r0
-
-    def sensitivities(self, model: Model, theta, objs: ObjectFit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Whitened residual Jacobians at (theta, objects): (rows, p) for theta, (rows,) each for log m and log mu."""
-        p = model.dim
-        hstep = 1e-3 * np.maximum(model.scale(), 1e-12)
-        lm, lu = objs.lm, objs.lu
-        thetas = [theta, theta, theta] + [model.project(theta + hstep[j] * np.eye(p)[j]) for j in range(p)]
-        rs = self._eval_many(model, thetas, [lm, lm + _H, lm] + [lm] * p, [lu, lu, lu + _H] + [lu] * p)
-        r0 = rs[0]
-        jt = np.stack([(rs[3 + j] - r0) / max(thetas[3 + j][j] - theta[j], 1e-300) for j in range(p)], 1)
-        jm, ju = (rs[1] - r0) / _H, (rs[2] - r0) / _H
-        return jt, jm, ju

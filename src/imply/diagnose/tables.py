@@ -216,13 +216,15 @@ class EffectTables:
     stop_log_t: np.ndarray | None = None
 
     @cached_property
-    def _interp(self) -> dict[tuple[str, str], list[RegularGridInterpolator]]:
+    def _interp(self) -> dict[str, RegularGridInterpolator]:
+        """One interpolator per key over every level of both observables (values (nv, nm, nu, 2 L))."""
         v, m, u = self.axes
         pts = (v, np.log(m), np.log(u))
         out = {}
-        for which, tables in (("d", self.deltas), ("t", self.deltas_t)):
-            for k, d in tables.items():
-                out[(which, k)] = [RegularGridInterpolator(pts, x, method="cubic") for x in d]
+        for k, d in self.deltas.items():
+            dt = self.deltas_t.get(k, np.zeros_like(d))
+            stacked = np.moveaxis(np.concatenate([d, dt]), 0, -1)
+            out[k] = RegularGridInterpolator(pts, stacked, method="cubic")
         return out
 
     @cached_property
@@ -268,28 +270,28 @@ class EffectTables:
                         np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
         return interp(pts).reshape(v.shape)
 
-    def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
-        """Delta log d (``which='d'``) or log stop time (``'t'``) at points (v, m, mu) with per-point
-        level s (clipped to the tabulated range)."""
+    def delta_both(self, key: str, v, m, mu, s) -> tuple[np.ndarray, np.ndarray]:
+        """Delta log d and Delta log stop time at points (v, m, mu) with per-point level s (clipped to
+        the tabulated range; linear between the two bracketing levels)."""
         levels = self.levels[key]
-        tables = self.deltas if which == "d" else self.deltas_t
         v, m, mu, s = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu, s)))
-        s = np.clip(s, levels[0], levels[-1])
+        s = np.clip(s, levels[0], levels[-1]).ravel()
         j = np.clip(np.searchsorted(levels, s, side="right") - 1, 0, levels.size - 2)
         w = (s - levels[j]) / (levels[j + 1] - levels[j])
         ax = self.axes
         pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
                         np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
-        out = np.zeros(v.size)
-        jr, wr = j.ravel(), w.ravel()
-        interps = self._interp[(which, key)]
-        for lev, interp in enumerate(interps):
-            # weight of level `lev` for each point (linear blend of the two bracketing levels)
-            wt = np.where(jr == lev, 1.0 - wr, 0.0) + np.where(jr + 1 == lev, wr, 0.0)
-            used = wt != 0
-            if used.any() and np.any(tables[key][lev] != 0):
-                out[used] += wt[used] * interp(pts[used])
-        return out.reshape(v.shape)
+        vals = self._interp[key](pts)  # (n, 2 L)
+        L = levels.size
+        rows = np.arange(s.size)
+        d = (1.0 - w) * vals[rows, j] + w * vals[rows, j + 1]
+        t = (1.0 - w) * vals[rows, L + j] + w * vals[rows, L + j + 1]
+        return d.reshape(v.shape), t.reshape(v.shape)
+
+    def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
+        """Delta log d (``which='d'``) or log stop time (``'t'``), see :meth:`delta_both`."""
+        d, t = self.delta_both(key, v, m, mu, s)
+        return d if which == "d" else t
 
 
 CHECK_PUSHES = 24  # off-grid pushes per key for its table's accuracy

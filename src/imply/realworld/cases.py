@@ -4,7 +4,7 @@ Each log is one lab's session: ``n_objects`` boxes of the canonical size, masses
 frictions drawn log-uniformly over the push table's whole range, each pushed once at every
 speed of ``speeds`` in a direction drawn uniformly on the table (radians), every push
 recorded ``replicates`` times with independent readout noise. The world carries no
-effect (null logs), one effect, or two at once; magnitudes are drawn log-uniformly over
+effect (null logs: ``null_gaussian`` and ``null_heavy``), one effect, or two at once; magnitudes are drawn log-uniformly over
 each effect's range (signed effects of either sign), directional effects at a random
 azimuth. What the lab recorded is drawn too: the objects' weighed masses (share
 ``measured_mass_share`` of the logs) and the stop time of every push (share
@@ -39,7 +39,7 @@ from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.realworld")
 
-GROUPS = ("null", "null_heavy", "single", "single_unidentifiable", "double", "outside")
+GROUPS = ("null_gaussian", "null_heavy", "single", "single_unidentifiable", "double", "outside")
 
 
 def _pair(value, what: str) -> tuple[float, float]:
@@ -79,7 +79,7 @@ class BenchmarkDesign:
 
     seed: int
     logs: dict[str, int] = field(
-        default_factory=lambda: {"null": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12,
+        default_factory=lambda: {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12,
                                  "double": 40, "outside": 48}
     )  # fmt: skip
     n_objects: int = 8
@@ -152,7 +152,7 @@ def draw_cases(design: BenchmarkDesign) -> list[dict]:
     """Every log's draw (effects, objects, directions, what was measured, noise), in the logs' order."""
     rng = np.random.default_rng(design.seed)
     plans: list[tuple[str, list[str]]] = []
-    plans += [("null", [])] * design.logs.get("null", 0)
+    plans += [("null_gaussian", [])] * design.logs.get("null_gaussian", 0)
     plans += [("null_heavy", [])] * design.logs.get("null_heavy", 0)
     plans += [("single", [e]) for e in _round_robin(IDENTIFIABLE, design.logs.get("single", 0), rng)]
     unident = tuple(n for n in LIBRARY if n not in IDENTIFIABLE)
@@ -183,7 +183,7 @@ def draw_cases(design: BenchmarkDesign) -> list[dict]:
             if name == "stribeck":
                 e["stribeck_speed"] = float(np.exp(crng.uniform(*np.log(design.stribeck_speed))))
             effects.append(e)
-        heavy = group == "null_heavy" or (group != "null" and crng.random() < design.heavy_share)
+        heavy = group == "null_heavy" or (group != "null_gaussian" and crng.random() < design.heavy_share)
         cases.append({
             "id": cid, "group": group, "effects": effects,
             "mass": np.exp(crng.uniform(*np.log(design.masses), n_obj)).tolist(),
