@@ -86,7 +86,7 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     ax.set_xlabel("commanded speed (m/s)")
     ax.set_ylabel("log d residual (baseline fit)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.15, top=0.95)  # fixed margins: no extra draw
     _save(fig, out / "residuals_vs_speed.png")
     plt.close(fig)
 
@@ -103,7 +103,7 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     ax.set_xlabel("commanded speed (m/s)")
     ax.set_ylabel("RMS log d residual")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.15, top=0.95)  # fixed margins: no extra draw
     _save(fig, out / "before_after.png")
     plt.close(fig)
 
@@ -152,14 +152,14 @@ def _ranking_plot(plt, s: dict, path: Path) -> None:
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("held-out improvement (share of baseline SSE)")
     ax.set_title("green: verdict; blue: helps; red: hurts; grey: not identifiable", fontsize=8)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.3, right=0.95, bottom=0.5 / fig.get_figheight() + 0.05, top=0.9)
     _save(fig, path)
     plt.close(fig)
 
 
 def _save(fig, path: Path) -> None:
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
+        fig.savefig(tmp, dpi=90, format="png", metadata={"Software": None})
 
 
 def _floor_parts(parts: dict | None) -> str:
