@@ -182,24 +182,34 @@ def check_rules(config: dict[str, Any]) -> None:
 
     gap = config.get("gap")
     if gap is not None:
-        from imply.diagnose.benchmark import OUTSIDE
-        from imply.sim.effects import EFFECTS
+        from imply.diagnose.candidates import ALIASES, CANDIDATES
+        from imply.realworld.cases import BenchmarkConfig
 
-        known = list(EFFECTS)
-        for where, names in (("gap.candidates", gap.get("candidates") or []),
-                             ("gap.benchmark.effects", gap["benchmark"]["effects"])):  # fmt: skip
-            for name in names:
-                if name not in EFFECTS:
-                    raise ConfigError(
-                        f"{where}: unknown effect {name!r}{_suggest(name, known)}; known: {', '.join(known)}"
-                    )
-        unknown_keys(gap["benchmark"]["outside"], list(OUTSIDE), "gap.benchmark.outside")
+        known = list(CANDIDATES)
+        for name in gap.get("candidates") or []:
+            if name not in CANDIDATES and name not in ALIASES:
+                raise ConfigError(
+                    f"gap.candidates: unknown effect {name!r}{_suggest(name, known)}; known: {', '.join(known)}"
+                )
         bench = gap["benchmark"]
-        _inside(bench["speeds"], *speeds, "gap.benchmark.speeds", "speed")
-        _inside(list(_ordered(bench["masses"], "gap.benchmark.masses", strict=False)), *masses,
+        try:
+            design = BenchmarkConfig.from_dict(bench)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(str(exc)) from None
+        _inside(list(design.speeds), *speeds, "gap.benchmark.speeds", "speed")
+        _inside(list(_ordered(list(design.masses), "gap.benchmark.masses", strict=False)), *masses,
                 "gap.benchmark.masses", "mass")  # fmt: skip
-        _inside(list(_ordered(bench["frictions"], "gap.benchmark.frictions", strict=False)), *frictions,
+        _inside(list(_ordered(list(design.frictions), "gap.benchmark.frictions", strict=False)), *frictions,
                 "gap.benchmark.frictions", "friction")  # fmt: skip
+        gain = design.range_of("speed_gain")[1]
+        offset = design.range_of("speed_offset")[1]
+        lo, hi = min(design.speeds), max(design.speeds)
+        if lo * (1 - gain) < speeds[0] * (1 - TOL) or hi * (1 + gain) > speeds[1] * (1 + TOL) or \
+                lo - offset < speeds[0] * (1 - TOL) or hi + offset > speeds[1] * (1 + TOL):  # fmt: skip
+            raise ConfigError(
+                f"gap.benchmark.speeds: speeds {lo:g} to {hi:g} m/s with speed errors up to {gain:g} (gain) and "
+                f"{offset:g} m/s (offset) leave the table's speed range [{speeds[0]:g}, {speeds[1]:g}]"
+            )
 
     clips = config.get("clips")
     if clips is not None:

@@ -139,7 +139,7 @@ CASES = [
     ("diag-no-log", ["diagnose", "none.csv", "--table", "table.npz", "-o", "report"], {}, "none.csv: no such file"),
     ("diag-no-table", ["diagnose", "log.csv", "--table", "none.npz", "-o", "report"], {}, "--table: table file"),
     ("diag-table-text", ["diagnose", "log.csv", "--table", "notes.txt", "-o", "report"], {}, "is not a push table"),
-    ("diag-effects", [*DIAGNOSE, "--effects", "tilt,viscous"], {}, "--effects: unknown effect(s): tilt"),
+    ("diag-effects", [*DIAGNOSE, "--effects", "tlit,viscous"], {}, "--effects: unknown effect(s): tlit"),
     ("diag-noise-sd", [*DIAGNOSE, "--noise-sd", "0"], {}, "argument --noise-sd: 0 must be a positive number"),
     ("diag-threads", [*DIAGNOSE, "--threads", "-1"], {}, "argument --threads: -1 is out of range"),
     ("diag-options-list", [*DIAGNOSE, "--options-json", "[1]"], {}, "--options-json: expected a JSON object"),

@@ -1,7 +1,7 @@
-"""`imply diagnose` end to end on a tiny table: an injected effect is found, the null is not flagged.
+"""`imply diagnose` end to end on a tiny table: an oblique tilt, two effects at once, the null, outliers.
 
-The push logs come from the benchmark's generator (its own scene timestep, direct
-simulation, noise), never from the diagnostic's effect tables.
+The push logs come from the benchmark's world (:mod:`imply.realworld`: its own stepping and
+effect mechanisms, no tables), never from the diagnostic's effect tables.
 """
 
 from __future__ import annotations
@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 
 from imply.cli import main
-from imply.diagnose.benchmark import BenchmarkConfig, simulate_case
 from imply.io import write_csv
+from imply.realworld import cases as C
 from imply.sim import SceneConfig
 from sample_inputs import PUSHLOG_CSV
 
-EFFECTS = "tilt_x,speed_gain,viscous"
-GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4}'
-DESIGN = BenchmarkConfig(n_objects=10, noise_sd=0.02, timestep=0.0009)
+EFFECTS = "tilt,speed_offset,viscous"
+GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, "floor_pushes": 24}'
+DESIGN = C.BenchmarkConfig.from_dict({"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85],
+                                      "masses": [0.3, 1.5], "frictions": [0.15, 0.45]})  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -27,50 +28,86 @@ def cache(tmp_path_factory):
     return tmp_path_factory.mktemp("effect-cache")
 
 
-def _diagnose(tmp_path, tiny_table, tiny_table_path, cache, effect: str, magnitude: float, seed: int) -> dict:
-    case = {"id": effect, "effect": effect, "magnitude": magnitude, "seed": seed}
-    frame, label = simulate_case(case, SceneConfig.from_dict(tiny_table.meta["scene"]), DESIGN, nthread=2)
-    assert "effect" not in frame.columns and label["effect"] == effect
-    log = tmp_path / f"{effect}.csv"
+def _case(effects: list[dict], seed: int, *, stop_time: bool = False, measured_mass: bool = True, noise="gaussian"):
+    rng = np.random.default_rng(seed)
+    n = DESIGN.n_objects
+    return {"id": f"case{seed}", "group": "test", "effects": effects,
+            "mass": np.exp(rng.uniform(*np.log(DESIGN.masses), n)).tolist(),
+            "friction": np.exp(rng.uniform(*np.log(DESIGN.frictions), n)).tolist(),
+            "direction": rng.uniform(0, 2 * np.pi, n * len(DESIGN.speeds)).tolist(),
+            "measured_mass": measured_mass, "stop_time": stop_time, "noise": noise, "noise_seed": seed}  # fmt: skip
+
+
+def _effect(name: str, magnitude: float, azimuth_deg: float | None = None) -> dict:
+    return {"name": name, "magnitude": magnitude, "in_library": True,
+            "azimuth": None if azimuth_deg is None else float(np.radians(azimuth_deg))}  # fmt: skip
+
+
+def _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case: dict, extra=()) -> tuple[dict, dict, str]:
+    scene = SceneConfig.from_dict(tiny_table.meta["scene"])
+    sims = C.simulate_cases([case], DESIGN, scene, nthread=2)
+    frame, label = C.make_log(case, sims[case["id"]], DESIGN, scene)
+    log = tmp_path / f"{case['id']}.csv"
     write_csv(log, frame)
-    out = tmp_path / f"report-{effect}"
+    out = tmp_path / f"report-{case['id']}"
     argv = ["diagnose", str(log), "--table", str(tiny_table_path), "--effects", EFFECTS,
-            "--effect-grid-json", GRID, "--cache-dir", str(cache), "--threads", "2", "-o", str(out)]  # fmt: skip
+            "--effect-grid-json", GRID, "--cache-dir", str(cache), "--threads", "2", "-o", str(out), *extra]  # fmt: skip
     assert main(argv) == 0
-    for name in (
-        "summary.json",
-        "report.md",
-        "residuals.csv",
-        "residuals_vs_speed.png",
-        "before_after.png",
-        "ranking.png",
-    ):
+    for name in ("summary.json", "report.md", "residuals.csv", "residuals_vs_speed.png", "before_after.png",
+                 "ranking.png"):  # fmt: skip
         assert (out / name).is_file(), name
     with open(out / "summary.json") as fh:
-        return json.load(fh)
+        return json.load(fh), label, (out / "report.md").read_text()
 
 
-def test_injected_tilt_is_identified(tmp_path, tiny_table, tiny_table_path, cache):
-    s = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, "tilt_x", 0.03, seed=11)
-    assert s["verdict"]["effect"] == "tilt_x"
-    top = next(r for r in s["ranking"] if r["effect"] == "tilt_x")
-    lo, hi = top["ci95"]
-    assert lo <= top["magnitude"] <= hi
-    assert abs(top["magnitude"] - 0.03) < 0.01
-    # direction is where the gap lies: pushes along +x and -x differ from zero, in opposite senses
-    bands = {b["band"]: b for b in s["localisation"]["direction"]}
-    assert bands["0 deg"]["differs"] and bands["180 deg"]["differs"]
-    assert bands["0 deg"]["mean"] * bands["180 deg"]["mean"] < 0
-    sh = s["shrinkage"]
-    assert sh["after_rms"] < 0.5 * sh["before_rms"] and sh["gap_share_closed"] > 0.5
-    assert s["noise"]["source"] == "replicate pushes" and abs(s["noise"]["sd"] - 0.02) < 0.005
+def test_oblique_tilt_is_one_effect_with_its_azimuth(tmp_path, tiny_table, tiny_table_path, cache):
+    """A table sloping toward 35 degrees (not along an axis) is found as one tilt, with its direction."""
+    case = _case([_effect("tilt", 0.03, 35.0)], seed=11, stop_time=True)
+    s, label, report = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case)
+    assert s["verdict"]["effects"] == ["tilt"], s["verdict"]
+    tilt = s["effects"][0]
+    assert abs(tilt["magnitude"] - 0.03) < 0.008
+    assert abs(((tilt["azimuth_deg"] - 35.0) + 180) % 360 - 180) < 20
+    lo, hi = tilt["azimuth_ci95_deg"]
+    assert lo < tilt["azimuth_deg"] < hi
+    assert s["observables"] == ["displacement", "stop_time"]
+    # the report leads with the verdict in one sentence, then the evidence
+    first = report.split("\n")[2]
+    assert first.startswith("**The table slopes") and "toward" in first and "of the gap" in first
+    assert "Observables used: displacement and stop time" in report
+    assert s["shrinkage"]["gap_share_closed"] > 0.6
 
 
-def test_null_log_raises_no_alarm(tmp_path, tiny_table, tiny_table_path, cache):
-    s = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, "null", 0.0, seed=12)
-    assert s["verdict"]["verdict"] == "none"
-    assert s["shrinkage"]["unexplained_rms_above_floor"] < 0.02
-    assert np.isfinite(s["baseline"]["rms"])
+def test_two_effects_at_once_are_both_named(tmp_path, tiny_table, tiny_table_path, cache):
+    case = _case([_effect("tilt", 0.025, 200.0), _effect("speed_offset", 0.05)], seed=12)
+    s, label, report = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case)
+    assert sorted(s["verdict"]["effects"]) == ["speed_offset", "tilt"], s["verdict"]
+    by = {e["effect"]: e for e in s["effects"]}
+    assert abs(by["speed_offset"]["magnitude"] - 0.05) < 0.015
+    assert abs(((by["tilt"]["azimuth_deg"] - 200.0) + 180) % 360 - 180) < 25
+    assert [step["accepted"] for step in s["selection"]][:2] in (["tilt", "speed_offset"], ["speed_offset", "tilt"])
+    assert "The table slopes" in report and "than commanded" in report
+
+
+def test_null_log_with_gross_outliers_raises_no_alarm(tmp_path, tiny_table, tiny_table_path, cache):
+    """Heavy-tailed noise and gross outliers: the outliers are flagged and left out, and the verdict is none."""
+    case = _case([], seed=13, noise="heavy")
+    s, label, report = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case)
+    assert s["verdict"]["verdict"] == "none", s["verdict"]
+    flagged = {tuple(label["rows_kept"][r["row"]]) for r in s["outliers"]["displacement"]}
+    true = {(p, r) for r, p in label["outliers"]}
+    assert true <= flagged
+    assert "Gross outliers" in report
+    assert s["noise"]["source"] == "replicate pushes"
+
+
+def test_speed_gain_is_reported_as_aliased_with_friction(tmp_path, tiny_table, tiny_table_path, cache):
+    """With weighed masses, a commanded-speed gain looks like a friction change: the report says so."""
+    case = _case([], seed=14)
+    s, _, _ = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case, extra=["--effects", "speed_gain,tilt"])
+    alias = s["aliasing"]["effects"]["speed_gain"]
+    assert alias["absorbed_by_fit"] > 0.5 and "friction change" in alias["fit_alias"], alias
+    assert "unless friction is measured" in alias["fit_alias"]
 
 
 PUSHLOG = PUSHLOG_CSV
@@ -107,7 +144,7 @@ def test_ranking_colours_mark_only_the_verdict_green():
     from imply.diagnose.report import ranking_colours
 
     summary = {
-        "verdict": {"effect": "tilt_x"},
+        "verdict": {"effect": "tilt_x", "effects": ["tilt_x"]},
         "ranking": [
             {"effect": "tilt_x", "identifiable": True, "heldout_improvement": 0.6},
             {"effect": "viscous", "identifiable": True, "heldout_improvement": 0.1},
@@ -116,5 +153,5 @@ def test_ranking_colours_mark_only_the_verdict_green():
         ],
     }
     assert ranking_colours(summary) == ["C2", "C0", "0.75", "C3"]
-    summary["verdict"]["effect"] = None  # "none of the candidates": nothing is green
+    summary["verdict"] = {"effect": None, "effects": []}  # "none of the candidates": nothing is green
     assert "C2" not in ranking_colours(summary)

@@ -22,6 +22,7 @@ from imply.paper.registry import (
     read_registry,
 )
 from imply.paper.report import number_status
+from registry_helpers import fake_results
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "imply"
 
@@ -84,16 +85,13 @@ def test_renaming_a_macro_without_the_registry_fails(monkeypatch):
 
 
 def test_every_name_used_by_tables_and_claims_is_registered():
-    """Tables and claims run on a full set of registered values without an unknown name."""
+    """Parts, tables and claims run on a full set of registered values without an unknown name."""
+    from imply.paper.parts import build_part
+
     reg = load_registry()
     for stage in STAGE_CLAIMS:
-        values = reg.values({e.name: 0.5 for e in reg.of_stage(stage)})
-        results = {
-            "imply.study.readout_evaluation.evaluate_readouts": {"r2_threshold": 0.95, "heldout_clips": 1, "features": "f"},
-            "imply.diagnose.benchmark.score_cases": {"targets": {"top1": 0.9, "false_alarm": 0.05, "shrinkage": 0.8},
-                                                     "min_size_sd": 2.0},
-        }  # fmt: skip
-        assert claims_function(stage)(values, results)
+        numbers, claims = build_part(stage, fake_results(reg, stage))
+        assert set(numbers) == {e.name for e in reg.of_stage(stage)} and claims
     s4 = reg.values({e.name: 0.5 for e in reg.of_stage("section4")})
     assert "\\toprule" in latex_tables.table1_tex(s4) and "\\toprule" in latex_tables.table2_tex(s4)
     assert "\\toprule" in latex_tables.table3_tex(reg.values({e.name: 0.5 for e in reg.of_stage("section5")}))

@@ -1,4 +1,4 @@
-"""The gap stage's workflow on a tiny config: logs, sealed labels, diagnoses, benchmark part."""
+"""The gap stage's workflow on a tiny config: world logs, sealed labels, diagnoses, benchmark part."""
 
 from __future__ import annotations
 
@@ -21,11 +21,25 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert run.returncode == 0, run.stderr[-3000:]
     part = json.loads((tmp_path / target).read_text())
     assert part["stage"] == "gap"
-    assert {"gapTopOneAcc", "gapFalseAlarm", "gapShrinkMedian", "gapNoneRecall"} <= set(part["numbers"])
-    assert {c["id"] for c in part["claims"]} == {"gap-top1", "gap-null", "gap-shrink"}
+    assert {"gapTopOneAcc", "gapFalseAlarm", "gapFalseAlarmHeavy", "gapBothNamed", "gapNoneRecall", "gapMagErr",
+            "gapShrinkMedian", "gapWorldErrMax", "gapTableErrMax", "gapLogsN"} <= set(part["numbers"])  # fmt: skip
+    assert {c["id"] for c in part["claims"]} == {
+        "gap-world", "gap-null", "gap-top1", "gap-both", "gap-outside", "gap-magnitude", "gap-shrink",
+    }  # fmt: skip
     bench = json.loads((tmp_path / "results/gap/benchmark.json").read_text())["result"]
-    assert bench["n_null"] == 2 and bench["n_outside"] == 1 and bench["n_library"] == 2
-    # the diagnose rules never see the labels: the push logs hold no label column
-    log = (tmp_path / "results/gap/logs/tilt_x-0.csv").read_text().splitlines()[0]
-    assert log.split(",") == ["object_id", "speed", "direction", "displacement", "size_x", "size_y", "size_z", "mass"]
-    assert (tmp_path / "results/gap/benchmark.md").read_text().startswith("# Gap diagnostic benchmark")
+    assert bench["n_logs"] == 7 and bench["n_null"] == 3 and bench["n_double"] == 1 and bench["n_outside"] == 1
+    # the world measured its own error, and the table's is beside it
+    acc = json.loads((tmp_path / "results/gap/world_accuracy.json").read_text())
+    assert acc["against_finer"]["log_d"]["n"] == 6 and acc["table_numerical_error"]["cells"] == 4
+    # the diagnose rules never see the labels: the push logs hold what a lab records, named log-NNN
+    logs = sorted(p.name for p in (tmp_path / "results/gap/logs").iterdir())
+    assert logs == [f"log-{k:03d}.csv" for k in range(7)]
+    for name in logs:
+        header = (tmp_path / "results/gap/logs" / name).read_text().splitlines()[0].split(",")
+        assert header[:4] == ["object_id", "speed", "direction", "displacement"]
+        assert set(header) <= {"object_id", "speed", "direction", "displacement", "stop_time", "size_x", "size_y",
+                               "size_z", "mass"}  # fmt: skip
+    md = (tmp_path / "results/gap/benchmark.md").read_text()
+    assert md.startswith("# Gap diagnostic benchmark") and "## Confusion matrix" in md
+    report = next((tmp_path / "results/gap/reports").glob("shard*/log-*/report.md")).read_text()
+    assert report.startswith("# Sim-to-real gap diagnosis\n\n**")

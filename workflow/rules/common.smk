@@ -7,7 +7,7 @@ from pathlib import Path
 from snakemake.utils import min_version
 
 from imply.config_check import validate_workflow_config
-from imply.diagnose.benchmark import BenchmarkConfig, case_list
+from imply.realworld.cases import BenchmarkConfig, case_ids
 
 min_version("8.0")
 
@@ -25,7 +25,7 @@ MODEL_SEEDS = [int(s) for s in config["model"]["seeds"]]
 # which held-out split and contexts each variant is rolled out on
 ROLLOUT_SPLIT = {"calib": "heldout_calib", "nocalib": "heldout_nocalib"}
 ROLLOUT_CONTEXTS = {"calib": "own,swap,none", "nocalib": "none"}
-GAP_CASES = [c["id"] for c in case_list(BenchmarkConfig.from_dict(config["gap"]["benchmark"], "gap.benchmark"))]
+GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
 GAP_SHARDS = list(range(config["threads"]))
 PAPER_STAGES = ["section4", "clips", "section5", "gap"]

@@ -1,7 +1,8 @@
-# The sim-to-real gap diagnostic's benchmark: effect tables -> synthetic push logs (labels
-# sealed in a file the diagnose rules never read) -> the diagnosis of every log (`imply gap
-# diagnose-many`, sharded over the threads) -> scoring against the sealed labels (a result
-# document). The stage's part: paper.smk.
+# The sim-to-real gap diagnostic's benchmark: effect tables -> push logs from the converged
+# world of imply.realworld (labels sealed in a file the diagnose rules never read; the
+# world's own numerical error measured beside them) -> the diagnosis of every log (`imply
+# gap diagnose-many`, sharded over the threads) -> scoring against the sealed labels (a
+# result document). The stage's part: paper.smk.
 
 
 rule gap_tables:
@@ -13,6 +14,7 @@ rule gap_tables:
         directory("results/gap/effect_tables"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(config["gap"]["diagnose"]),
         effects=gap_effects_option(),
     threads: config["threads"]
     resources:
@@ -21,8 +23,8 @@ rule gap_tables:
     log:
         "results/logs/gap_tables.log",
     shell:
-        "imply gap tables --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --threads {threads} -o {output} > {log} 2>&1"
+        "imply gap tables --table {input.table} --effect-grid-json {params.grid} --options-json {params.options}"
+        " {params.effects} --threads {threads} -o {output} > {log} 2>&1"
 
 
 rule gap_generate:
@@ -33,18 +35,19 @@ rule gap_generate:
     output:
         logs=expand("results/gap/logs/{case}.csv", case=GAP_CASES),
         sealed="results/gap/sealed/labels.json",
+        accuracy="results/gap/world_accuracy.json",
     params:
         bench=as_json(config["gap"]["benchmark"]),
         folder=lambda wildcards, output: folder_of(output.logs),
     threads: config["threads"]
     resources:
-        mem_mb=2000,
-        runtime=15,
+        mem_mb=3000,
+        runtime=20,
     log:
         "results/logs/gap_generate.log",
     shell:
         "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.folder}"
-        " --sealed {output.sealed} --threads {threads} > {log} 2>&1"
+        " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
 
 
 rule gap_diagnose:
@@ -63,7 +66,7 @@ rule gap_diagnose:
     threads: 1
     resources:
         mem_mb=1500,
-        runtime=15,
+        runtime=20,
     log:
         "results/logs/gap_diagnose_shard{shard}.log",
     shell:
@@ -77,6 +80,7 @@ rule gap_benchmark:
     input:
         reports=expand("results/gap/reports/shard{shard}", shard=GAP_SHARDS),
         sealed="results/gap/sealed/labels.json",
+        accuracy="results/gap/world_accuracy.json",
         table="results/table/table.npz",
     output:
         result="results/gap/benchmark.json",
@@ -84,10 +88,11 @@ rule gap_benchmark:
     params:
         bench=as_json(config["gap"]["benchmark"]),
     resources:
-        mem_mb=1500,
+        mem_mb=2000,
         runtime=10,
     log:
         "results/logs/gap_benchmark.log",
     shell:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
-        " --reports {input.reports} -o {output.result} --markdown {output.markdown} > {log} 2>&1"
+        " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
+        " > {log} 2>&1"

@@ -75,10 +75,10 @@ def load_table(path: str):
 
 def candidate_effects(arg: str | None):
     """The candidates of ``--effects`` (all of the library when absent)."""
-    from imply.sim import effects
+    from imply.diagnose import candidates
 
     try:
-        return effects.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
+        return candidates.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
     except KeyError as exc:
         raise UserError(f"--effects: {exc.args[0]}") from exc
 

@@ -51,16 +51,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--table", default=DEFAULT_TABLE)
     t.add_argument("--effect-grid-json", type=json_arg)
     t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
+    t.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
     t.add_argument("--threads", type=int_range(0), default=0)
     t.add_argument("-o", "--output", required=True,
                    help="folder of the effect tables (an effect-table cache) and their manifest.json")  # fmt: skip
     t.set_defaults(func=cmd_tables)
 
-    gen = gsub.add_parser("generate", help="synthetic push logs with a withheld effect, labels sealed apart")
-    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the generator's starting point")
+    gen = gsub.add_parser(
+        "generate", help="the benchmark's push logs from the converged world (imply.realworld), labels sealed apart"
+    )
+    gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the world's scene (its numbers are not read)")
     gen.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark")
-    gen.add_argument("--logs", required=True, help="folder for the push logs (<case>.csv)")
+    gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
     gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
+    gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
     gen.add_argument("--threads", type=int_range(0), default=0)
     gen.set_defaults(func=cmd_generate)
 
@@ -68,6 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--table", default=DEFAULT_TABLE)
     b.add_argument("--bench-json", type=json_arg, required=True)
     b.add_argument("--sealed", required=True)
+    b.add_argument("--accuracy", required=True, help="the world's measured numerical error (from 'gap generate')")
     b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
     b.add_argument("-o", "--output", required=True, help="the benchmark's result document (JSON)")
     b.add_argument("--markdown", required=True, help="benchmark report (Markdown)")
@@ -75,9 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _benchmark_config(args: argparse.Namespace):
-    from imply.diagnose.benchmark import BenchmarkConfig
+    from imply.realworld.cases import BenchmarkConfig
 
-    return config_from_json(BenchmarkConfig, args.bench_json, "--bench-json")
+    return config_from_json(BenchmarkConfig, args.bench_json, "gap.benchmark")
 
 
 def cmd_diagnose_many(args: argparse.Namespace) -> int:
@@ -103,31 +108,37 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
 
 
 def cmd_tables(args: argparse.Namespace) -> int:
-    from imply.diagnose.effect_tables import CoarseGrid, load_or_build
+    from imply.diagnose.run import effect_tables
     from imply.io import write_json
 
     table = load_table(args.table)
-    grid = config_from_json(CoarseGrid, args.effect_grid_json, "--effect-grid-json")
+    opts, grid = options(args)
     folder = output_dir(args.output)
-    et = load_or_build(table, candidate_effects(args.effects), grid, folder, nthread=args.threads, progress=True)
+    et = effect_tables(table, candidate_effects(args.effects), opts, grid, folder, nthread=args.threads)
     write_json(folder / "manifest.json", {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
     log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], folder)
     return 0
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
-    from imply.diagnose.benchmark import generate_logs
+    from imply.realworld.cases import write_benchmark_logs
     from imply.sim import SceneConfig
 
+    config = _benchmark_config(args)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
-    n = generate_logs(_benchmark_config(args), scene, Path(args.logs), Path(args.sealed), nthread=args.threads)
-    log.info("wrote %d logs -> %s (labels sealed in %s)", n, args.logs, args.sealed)
+    error = write_benchmark_logs(
+        config, scene, logs=Path(args.logs), sealed=Path(args.sealed), accuracy=Path(args.accuracy),
+        table_error=table.meta.get("numerical_error"), nthread=args.threads, progress=True,
+    )  # fmt: skip
+    e = error["against_finer"]["log_d"]
+    log.info("wrote %d logs -> %s (labels sealed in %s); world error max %.4f RMS %.4f in log d", config.n_logs,
+             args.logs, args.sealed, e["max_abs"], e["rms"])  # fmt: skip
     return 0
 
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
-    from imply.diagnose.benchmark import find_summaries, score_cases, visible_size
+    from imply.diagnose.benchmark import find_summaries, score_cases, visible_sizes
     from imply.diagnose.benchmark_report import write_benchmark_markdown
     from imply.paper.results import write_result
 
@@ -135,14 +146,17 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     config = _benchmark_config(args)
     with open(args.sealed) as fh:
         labels = json.load(fh)
+    with open(args.accuracy) as fh:
+        accuracy = json.load(fh)
     try:
         summaries = find_summaries(labels, [Path(r) for r in args.reports])
     except FileNotFoundError as exc:
         raise UserError(f"--reports: {exc}") from exc
-    sizes = {cid: visible_size(lab, table) for cid, lab in labels.items()}
-    result = score_cases(labels, summaries, sizes, config=config)
+    result = score_cases(labels, summaries, visible_sizes(labels, table), config=config, accuracy=accuracy)
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
-    log.info("top-1 %.3f (n=%d), false alarms %.3f, shrinkage %.3f", result["top1_big"], result["n_big"],
-             result["false_alarm"], result["shrinkage_median"])  # fmt: skip
+    log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "
+             "magnitude error %.3f, shrinkage %.3f", result["false_alarm"], result["n_null"], result["top1_big"],
+             result["n_big"], result["both_named_big"], result["n_double_big"], result["none_recall_outside"],
+             result["n_outside"], result["magnitude_rel_error_median"], result["shrinkage_median"])  # fmt: skip
     return 0

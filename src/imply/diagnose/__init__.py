@@ -1,11 +1,14 @@
 """The sim-to-real gap diagnostic: where a push table disagrees with observed pushes,
-which unmodelled effect (:mod:`imply.sim.effects`) explains it, and how far it shrinks.
+which unmodelled effects (candidates built on :mod:`imply.sim.effects`) explain it, and how
+far it shrinks.
 
 Modules: :mod:`~imply.diagnose.pushlog` (reading push logs), :mod:`~imply.diagnose.effect_tables`
-(effect tables, cached), :mod:`~imply.diagnose.fit` (per-object fits),
-:mod:`~imply.diagnose.analysis` (localisation, aliasing, ranking, shrinkage),
-:mod:`~imply.diagnose.report` (summary JSON, Markdown report, plots), :mod:`~imply.diagnose.run`
-(diagnosing push-log files into report folders), :mod:`~imply.diagnose.benchmark`
-(synthetic logs with a withheld effect, and scoring) and
+(effect and stop-time tables, cached), :mod:`~imply.diagnose.candidates` (the candidate
+effects, one or two components each), :mod:`~imply.diagnose.fit` (joint fits of effects and
+every object's mass and friction), :mod:`~imply.diagnose.analysis` (noise and outliers,
+localisation, aliasing, forward selection, shrinkage), :mod:`~imply.diagnose.report`
+(summary JSON, Markdown report, plots), :mod:`~imply.diagnose.run` (diagnosing push-log
+files into report folders), :mod:`~imply.diagnose.benchmark` (scoring against the sealed
+labels of the benchmark's logs, which :mod:`imply.realworld` makes) and
 :mod:`~imply.diagnose.benchmark_report` (the benchmark's report and claims).
 """

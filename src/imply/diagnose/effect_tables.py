@@ -1,24 +1,40 @@
-"""Effect tables: how each tabulated effect changes log d, on a coarse grid, cached on disk.
+"""Effect tables: how each tabulated effect changes log d and log stop time, on a coarse grid, cached on disk.
 
 For a ``model`` effect (:mod:`imply.sim.effects`) at level s, the table holds
 Delta(v, m, mu; s) = log d_effect - log d_baseline on a coarse (speed, mass, friction)
 grid spanning the baseline table's range, simulated with the same scene (the baseline
-table's ``meta['scene']``) and the same batched simulator. The augmented model is the
-baseline table plus Delta: cubic in (v, log m, log mu) on the coarse grid, linear in s
-between the tabulated levels (0 is a level with Delta = 0). Differencing two runs of
-the same simulator on the same grid cancels most of its solver jitter, and Delta is
-smooth, so a coarse grid carries it: 7 x 6 x 6 cells per level cost about a second.
+table's ``meta['scene']``) and the same batched simulator (:func:`imply.sim.pushes.run_pushes`);
+and the same for log stop time. The augmented model is the baseline plus Delta: cubic in
+(v, log m, log mu) on the coarse grid, linear in s between the tabulated levels (0 is a
+level with Delta = 0). Differencing two runs of the same simulator on the same grid
+cancels most of its solver jitter, and Delta is smooth, so a coarse grid carries it.
+
+Besides the library's keys, the diagnostic tabulates ``slope_across``: the table sloping
+across the push (gravity tilted toward the scene's +y), which a tilt in any direction
+other than along the push brings (the diagnostic's ``tilt`` candidate uses both).
+
+Stop time. The push table holds displacements only, so the stop time's baseline,
+f_T(v, m, mu) = log stop time, is tabulated here too, on its own grid
+(:class:`CoarseGrid` ``stop_*``). A push's stop time is when the box's speed in the table
+plane falls below :data:`STOP_SPEED` (measured from the start of the push), read from
+the box's positions recorded every millisecond (speeds from successive positions,
+the crossing interpolated). MuJoCo's soft contacts end a slide in an exponential tail
+of a few milliseconds, in which a lower threshold's crossing would move with every
+numerical detail.
 
 Tables are cached per effect key as ``effects-<key>-<digest>.npz`` in a cache folder,
 the digest covering the scene, the coarse grid, the key's levels, MuJoCo's version and
-the baseline table's own digest; a changed setting builds a new file. The build also measures the
-baseline table's own accuracy (:func:`model_floor`: its interpolation error combined with
-the simulator's numerical error that the table file records), which the diagnostic uses
-as the smallest gap it will attribute to an effect.
+the baseline table's own digest; a changed setting builds a new file. The build also
+measures the model's own accuracy (:func:`model_floor`: for displacement, the baseline
+table's interpolation error combined with the simulator's numerical error that the table
+file records; for stop time, the stop-time table's interpolation error combined with the
+simulator's own convergence, measured against a run at a quarter of the scene's
+timestep), which the diagnostic uses as the smallest gap it will attribute to an effect.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -29,87 +45,295 @@ from typing import ClassVar
 
 import mujoco
 import numpy as np
+from mujoco import batch as mjbatch
 from scipy.interpolate import RegularGridInterpolator
 from tqdm.auto import tqdm
 
 from imply.io import write_json, write_npz
 from imply.options import Config
-from imply.sim.effects import MODEL, Effect, effect_model
-from imply.sim.pushes import simulate_pushes
-from imply.sim.scene import SceneConfig
+from imply.sim.effects import MODEL, Effect, effect_spec
+from imply.sim.pushes import run_pushes
+from imply.sim.scene import SceneConfig, build_model
 from imply.table import PushTable, config_digest
 
 log = logging.getLogger("imply.diagnose")
 
+# a push's stop time: when the box's speed in the table plane falls below this (m/s)
+STOP_SPEED = 0.01
+# positions are recorded this often (s) to find the stop time
+FRAME_STEP = 0.001
+# bump when the files' content changes meaning
+FORMAT = 3
+
+# tabulated keys the diagnostic adds to the library's scene edits
+ACROSS = "slope_across"
+ACROSS_LEVELS = (0.005, 0.015, 0.03)
+
+
+def _slope_across(spec: mujoco.MjSpec, s: float) -> None:
+    # the table slopes down by angle s toward the scene's +y, across the push
+    g = float(np.linalg.norm(np.array(spec.option.gravity, float)))
+    spec.option.gravity = [0.0, g * np.sin(s), -g * np.cos(s)]
+
 
 @dataclass(frozen=True, kw_only=True)
 class CoarseGrid(Config):
-    """Points per axis of the effect tables (config ``gap.effect_grid``)."""
+    """Points per axis of the effect tables and of the stop-time table (config ``gap.effect_grid``)."""
 
     config_key: ClassVar[str] = "gap.effect_grid"
 
     n_speeds: int = 7
     n_masses: int = 6
     n_frictions: int = 6
+    stop_speeds: int = 10
+    stop_masses: int = 8
+    stop_frictions: int = 8
+    floor_pushes: int = 200  # random pushes that measure the model's own accuracy
 
-    def __post_init__(self) -> None:
-        if min(self.n_speeds, self.n_masses, self.n_frictions) < 4:
-            raise ValueError("effect tables need at least 4 points per axis (cubic interpolation)")
-
-    def axes(self, table: PushTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def axes(self, table: PushTable, stop: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range
-        return (
-            np.linspace(v0, v1, self.n_speeds),
-            np.geomspace(m0, m1, self.n_masses),
-            np.geomspace(u0, u1, self.n_frictions),
+        nv, nm, nu = (
+            (self.stop_speeds, self.stop_masses, self.stop_frictions)
+            if stop
+            else (self.n_speeds, self.n_masses, self.n_frictions)
         )
+        return np.linspace(v0, v1, nv), np.geomspace(m0, m1, nm), np.geomspace(u0, u1, nu)
 
 
-def table_levels(effects: list[Effect]) -> dict[str, tuple[float, ...]]:
+def table_levels(effects: list[Effect], across: bool = False) -> dict[str, tuple[float, ...]]:
     """Tabulated levels per table key (effects sharing a key share its levels)."""
     out: dict[str, set[float]] = {}
     for e in effects:
         if e.kind == MODEL:
             out.setdefault(e.table_key, set()).update(float(x) for x in e.levels)
+    if across:
+        out.setdefault(ACROSS, set()).update(ACROSS_LEVELS)
     return {k: tuple(sorted(v | {0.0})) for k, v in sorted(out.items())}
+
+
+def _spec_model(scene: SceneConfig, key: str, value: float) -> mujoco.MjModel:
+    if key == ACROSS:
+        spec = effect_spec(scene, "slope", 0.0)
+        if value != 0.0:
+            _slope_across(spec, float(value))
+        return spec.compile()
+    return effect_spec(scene, key, value).compile()
+
+
+@dataclass(frozen=True)
+class PushObservables:
+    """log displacement and log stop time of n pushes (NaN where the push failed)."""
+
+    log_d: np.ndarray
+    log_t: np.ndarray
+    ok: np.ndarray
+
+
+def stop_times(frames_xy: np.ndarray, frames_time: np.ndarray, threshold: float = STOP_SPEED) -> np.ndarray:
+    """When each push's speed in the plane first falls below ``threshold`` after it has exceeded it.
+
+    frames_xy: (n, T, 2) box positions at times frames_time (n, T). Speeds are taken
+    between successive frames (at their mid-times) and the crossing is interpolated.
+    """
+    dt = np.diff(frames_time, axis=1)
+    dist = np.linalg.norm(np.diff(frames_xy, axis=1), axis=2)
+    valid = dt > 1e-9  # two frames taken at one step carry no speed: use the previous one's
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where(valid, dist / np.where(valid, dt, 1.0), 0.0)
+    mid = 0.5 * (frames_time[:, 1:] + frames_time[:, :-1])
+    n, k = speed.shape
+    last = np.maximum.accumulate(np.where(valid, np.arange(k)[None, :], 0), axis=1)
+    rows = np.arange(n)[:, None]
+    speed, mid = speed[rows, last], mid[rows, last]
+    out = np.full(n, np.nan)
+    moving = np.maximum.accumulate(speed >= threshold, axis=1)
+    below = (speed < threshold) & moving
+    first = np.argmax(below, axis=1)
+    has = below[np.arange(n), first]
+    for i in np.flatnonzero(has):
+        j = first[i]
+        s0, s1 = speed[i, j - 1], speed[i, j]
+        w = (s0 - threshold) / (s0 - s1) if s0 > s1 else 1.0
+        out[i] = mid[i, j - 1] + w * (mid[i, j] - mid[i, j - 1])
+    return out
+
+
+def simulate_observables(
+    model: mujoco.MjModel, speeds, masses, frictions, *, nthread: int = 0, max_frame_time: float | None = None
+) -> PushObservables:
+    """log d and log stop time of pushes on ``model`` (the table's simulator, positions recorded every ms)."""
+    speeds, masses, frictions = (np.asarray(x, float).ravel() for x in (speeds, masses, frictions))
+    n = speeds.size
+    batch = mjbatch.Batch(model, n, nthread=nthread)
+    box = model.body("box").id
+    batch.body("box").mass = masses[:, None]
+    batch.body("box").inertia = model.body_inertia[box][None, :] * (masses / float(model.body_mass[box]))[:, None]
+    fr = np.tile(model.geom_friction[model.geom("box").id], (n, 1))
+    fr[:, 0] = frictions
+    batch.geom("box").friction = fr
+    batch.set_const()
+    # slides in the table's range last about a second; a push still sliding at the last
+    # frame has no stop time (NaN)
+    end = (
+        max_frame_time if max_frame_time is not None else min(2.5, float(np.asarray(model.numeric("max_time").data)[0]))
+    )
+    frames = np.arange(0.0, end + FRAME_STEP / 2, FRAME_STEP)
+    run = run_pushes(batch, model, speeds, frame_times=frames)
+    res = run.result
+    t = stop_times(run.frames_box_qpos[:, :, :2], run.frames_time)
+    ok = res.ok & np.isfinite(t) & (res.displacement > 0)
+    log_d = np.where(ok, np.log(np.maximum(res.displacement, 1e-9)), np.nan)
+    log_t = np.where(ok, np.log(np.where(np.isfinite(t) & (t > 0), t, 1.0)), np.nan)
+    return PushObservables(log_d, log_t, ok)
+
+
+def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """Reshape to the grid, filling failed cells (NaN) from their nearest finite neighbour along speed."""
+    grid = values.reshape(shape).copy()
+    bad = ~np.isfinite(grid)
+    if bad.any():
+        idx = np.argwhere(bad)
+        good = np.argwhere(~bad)
+        for i, j, k in idx:
+            d = np.abs(good - np.array([i, j, k])).sum(1)
+            gi = good[np.argmin(d)]
+            grid[i, j, k] = grid[tuple(gi)]
+    return grid
 
 
 @dataclass(frozen=True)
 class EffectTables:
-    """Delta tables per key: ``levels[key]`` (L,), ``deltas[key]`` (L, nv, nm, nu)."""
+    """Delta tables per key: ``levels[key]`` (L,), ``deltas[key]`` / ``deltas_t[key]`` (L, nv, nm, nu);
+    the stop-time baseline ``stop_log_t`` on ``stop_axes``."""
 
     axes: tuple[np.ndarray, np.ndarray, np.ndarray]
     levels: dict[str, np.ndarray]
     deltas: dict[str, np.ndarray]
     meta: dict
+    deltas_t: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    stop_axes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    stop_log_t: np.ndarray | None = None
 
     @cached_property
-    def _interp(self) -> dict[str, list[RegularGridInterpolator]]:
+    def _interp(self) -> dict[str, RegularGridInterpolator]:
+        """One interpolator per key over every level of both observables (values (nv, nm, nu, 2 L))."""
         v, m, u = self.axes
         pts = (v, np.log(m), np.log(u))
-        return {k: [RegularGridInterpolator(pts, d, method="cubic") for d in self.deltas[k]] for k in self.deltas}
+        out = {}
+        for k, d in self.deltas.items():
+            dt = self.deltas_t.get(k, np.zeros_like(d))
+            stacked = np.moveaxis(np.concatenate([d, dt]), 0, -1)
+            out[k] = RegularGridInterpolator(pts, stacked, method="cubic")
+        return out
 
-    def delta(self, key: str, v, m, mu, s) -> np.ndarray:
-        """Delta log d at points (v, m, mu) with per-point level s (clipped to the tabulated range)."""
+    @cached_property
+    def _stop_interp(self) -> RegularGridInterpolator | None:
+        if self.stop_log_t is None or self.stop_axes is None:
+            return None
+        v, m, u = self.stop_axes
+        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.stop_log_t, method="cubic",
+                                       solver_args={"atol": 1e-12, "rtol": 1e-12})  # fmt: skip
+
+    @cached_property
+    def _stop_linear(self) -> RegularGridInterpolator | None:
+        if self.stop_log_t is None or self.stop_axes is None:
+            return None
+        v, m, u = self.stop_axes
+        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.stop_log_t, method="linear")
+
+    def stop_interpolation_indicator(self, v, m, mu) -> np.ndarray:
+        """|cubic - linear| interpolation of the stop-time table: where its interpolation is unsure."""
+        v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
+        ax = self.stop_axes
+        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
+                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
+        return np.abs(self._stop_interp(pts) - self._stop_linear(pts)).reshape(v.shape)
+
+    def relative_error(self, key: str, which: str = "d") -> float:
+        """The key's table error relative to the effect's size, as measured when it was built (0 if not)."""
+        acc = (self.meta.get("keys", {}).get(key) or {}).get("accuracy") or {}
+        return float((acc.get("log_d" if which == "d" else "log_t") or {}).get("relative", 0.0))
+
+    @property
+    def has_stop_time(self) -> bool:
+        return self.stop_log_t is not None
+
+    def stop_log_time(self, v, m, mu) -> np.ndarray:
+        """Baseline log stop time at points (v, m, mu), clipped to the grid."""
+        interp = self._stop_interp
+        if interp is None:
+            raise ValueError("these effect tables hold no stop-time table")
+        v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
+        ax = self.stop_axes
+        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
+                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
+        return interp(pts).reshape(v.shape)
+
+    def delta_both(self, key: str, v, m, mu, s) -> tuple[np.ndarray, np.ndarray]:
+        """Delta log d and Delta log stop time at points (v, m, mu) with per-point level s (clipped to
+        the tabulated range; linear between the two bracketing levels)."""
         levels = self.levels[key]
         v, m, mu, s = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu, s)))
-        s = np.clip(s, levels[0], levels[-1])
+        s = np.clip(s, levels[0], levels[-1]).ravel()
         j = np.clip(np.searchsorted(levels, s, side="right") - 1, 0, levels.size - 2)
         w = (s - levels[j]) / (levels[j + 1] - levels[j])
-        pts = np.stack([v.ravel(), np.log(m).ravel(), np.log(mu).ravel()], axis=-1)
-        out = np.zeros(v.size)
-        jr, wr = j.ravel(), w.ravel()
-        for lev, interp in enumerate(self._interp[key]):
-            # weight of level `lev` for each point (linear blend of the two bracketing levels)
-            wt = np.where(jr == lev, 1.0 - wr, 0.0) + np.where(jr + 1 == lev, wr, 0.0)
-            used = wt != 0
-            if used.any() and np.any(self.deltas[key][lev] != 0):
-                out[used] += wt[used] * interp(pts[used])
-        return out.reshape(v.shape)
+        ax = self.axes
+        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
+                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
+        vals = self._interp[key](pts)  # (n, 2 L)
+        L = levels.size
+        rows = np.arange(s.size)
+        d = (1.0 - w) * vals[rows, j] + w * vals[rows, j + 1]
+        t = (1.0 - w) * vals[rows, L + j] + w * vals[rows, L + j + 1]
+        return d.reshape(v.shape), t.reshape(v.shape)
+
+    def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
+        """Delta log d (``which='d'``) or log stop time (``'t'``), see :meth:`delta_both`."""
+        d, t = self.delta_both(key, v, m, mu, s)
+        return d if which == "d" else t
 
 
-def model_floor(table: PushTable, scene: SceneConfig, n: int = 200, seed: int = 0, nthread: int = 0) -> dict:
-    """The table's own accuracy as a model of real pushes, RMS log d, and its two parts.
+CHECK_PUSHES = 24  # off-grid pushes per key for its table's accuracy
+
+
+def _key_accuracy(scene, key, levels, axes, delta, delta_t, pushes, base: PushObservables, nthread: int) -> dict:
+    """A key's table against off-grid pushes midway between its levels: error relative to the effect's size."""
+    v, m, mu = pushes
+    # midway between tabulated levels, where the interpolation in level is least sure
+    mids = 0.5 * (levels[1:] + levels[:-1])
+    s = mids[np.arange(v.size) % mids.size]
+    obs_d, obs_t = np.full(v.size, np.nan), np.full(v.size, np.nan)
+    for lev in np.unique(np.round(s, 12)):
+        sel = np.round(s, 12) == lev
+        res = simulate_observables(_spec_model(scene, key, float(lev)), v[sel], m[sel], mu[sel], nthread=nthread)
+        obs_d[sel], obs_t[sel] = res.log_d - base.log_d[sel], res.log_t - base.log_t[sel]
+    tmp = EffectTables(axes=axes, levels={key: levels}, deltas={key: delta}, meta={}, deltas_t={key: delta_t})
+    out = {}
+    for name, obs, which in (("log_d", obs_d, "d"), ("log_t", obs_t, "t")):
+        pred = tmp.delta(key, v, m, mu, s, which)
+        ok = np.isfinite(obs)
+        size = float(np.sqrt(np.mean(obs[ok] ** 2))) if ok.any() else 0.0
+        err = float(np.sqrt(np.mean((obs[ok] - pred[ok]) ** 2))) if ok.any() else 0.0
+        out[name] = {"rms_error": err, "rms_effect": size, "relative": err / size if size > 0 else 0.0}
+    return out
+
+
+def _random_pushes(table: PushTable, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range
+    return (rng.uniform(v0, v1, n), np.exp(rng.uniform(np.log(m0), np.log(m1), n)),
+            np.exp(rng.uniform(np.log(u0), np.log(u1), n)))  # fmt: skip
+
+
+def model_floor(
+    table: PushTable,
+    scene: SceneConfig,
+    stop: EffectTables | None = None,
+    n: int = 200,
+    seed: int = 0,
+    nthread: int = 0,
+) -> dict:
+    """The model's own accuracy as a model of real pushes (RMS), per observable, and its parts.
 
     interpolation_rms: simulated minus interpolated log d at random off-grid pushes (the
       same simulator, so this is the interpolation's error alone);
@@ -119,31 +343,43 @@ def model_floor(table: PushTable, scene: SceneConfig, n: int = 200, seed: int = 
     rms: the two combined in quadrature. An effect that changes log d by less than this
       cannot be told from the table's error, so the diagnostic does not attribute gaps
       that small.
+    stop_time: the same for log stop time against the stop-time table, its numerical part
+      the change of 40 of those pushes' stop times at a quarter of the scene's timestep.
     """
-    rng = np.random.default_rng(seed)
-    (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range
-    v = rng.uniform(v0, v1, n)
-    m = np.exp(rng.uniform(np.log(m0), np.log(m1), n))
-    mu = np.exp(rng.uniform(np.log(u0), np.log(u1), n))
-    res = simulate_pushes(v, m, mu, scene=scene, nthread=nthread)
-    ok = res.ok & (res.displacement > 0)
-    err = np.log(res.displacement[ok]) - table.log_displacement(v[ok], m[ok], mu[ok])
+    v, m, mu = _random_pushes(table, n, seed)
+    model = build_model(scene)
+    obs = simulate_observables(model, v, m, mu, nthread=nthread)
+    ok = obs.ok
+    err = obs.log_d[ok] - table.log_displacement(v[ok], m[ok], mu[ok])
     interpolation = float(np.sqrt(np.mean(err**2)))
     measured = table.meta.get("numerical_error") or {}
     numerical = measured.get("rms_log_d")
     if numerical is None:
         log.warning("the table records no measured numerical error; the model floor counts interpolation only")
     combined = float(np.hypot(interpolation, numerical or 0.0))
-    return {"rms": combined, "interpolation_rms": interpolation, "numerical_rms": numerical}
+    out = {"rms": combined, "interpolation_rms": interpolation, "numerical_rms": numerical}
+    if stop is not None and stop.has_stop_time:
+        err_t = obs.log_t[ok] - stop.stop_log_time(v[ok], m[ok], mu[ok])
+        interp_t = float(np.sqrt(np.mean(err_t**2)))
+        k = min(40, n)
+        finer = dataclasses.replace(scene, timestep=scene.timestep / 4)
+        fine = simulate_observables(build_model(finer), v[:k], m[:k], mu[:k], nthread=nthread)
+        both = ok[:k] & fine.ok
+        num_t = float(np.sqrt(np.mean((obs.log_t[:k][both] - fine.log_t[both]) ** 2))) if both.any() else 0.0
+        out["stop_time"] = {"rms": float(np.hypot(interp_t, num_t)), "interpolation_rms": interp_t,
+                            "numerical_rms": num_t, "stop_speed": STOP_SPEED}  # fmt: skip
+    return out
 
 
 def _digest(table: PushTable, grid: CoarseGrid, extra: dict) -> tuple[str, dict]:
     meta = {
+        "format": FORMAT,
         "scene": table.meta.get("scene", SceneConfig().to_dict()),
-        "coarse_grid": grid.to_dict(),
+        "coarse_grid": {k: getattr(grid, k) for k in ("n_speeds", "n_masses", "n_frictions")},
         "mujoco_version": mujoco.__version__,
         "baseline": table.meta.get("config_digest", config_digest(table.log_d.round(6).tolist())),
         "ranges": [table.speed_range, table.mass_range, table.friction_range],
+        "stop_speed": STOP_SPEED,
         **extra,
     }
     return config_digest(meta), meta
@@ -157,67 +393,98 @@ def load_or_build(
     *,
     nthread: int = 0,
     progress: bool = False,
+    across: bool = False,
+    stop_time: bool = True,
 ) -> EffectTables:
     """The effect tables for ``effects`` against ``table``, from the cache or simulated.
 
-    Each table key is cached in its own file (``effects-<key>-<digest>.npz``) and the
-    table's model floor in ``floor-<digest>.json``, so any subset of the library reuses
-    what was built before.
+    Each table key is cached in its own file (``effects-<key>-<digest>.npz``), the stop-time
+    baseline in ``stoptime-<digest>.npz`` and the model floor in ``floor-<digest>.json``, so
+    any subset of the library reuses what was built before. ``across``: also tabulate the
+    slope across the push (for the ``tilt`` candidate).
     """
-    levels = table_levels(effects)
+    levels = table_levels(effects, across=across)
     axes = grid.axes(table)
     cache = Path(cache_dir) if cache_dir else None
     scene = SceneConfig.from_dict(table.meta.get("scene", SceneConfig().to_dict()))
     v, m, mu = (x.ravel() for x in np.meshgrid(*axes, indexing="ij"))
     shape = tuple(a.size for a in axes)
-    base: np.ndarray | None = None
     deltas: dict[str, np.ndarray] = {}
-    meta: dict = {"keys": {}}
+    deltas_t: dict[str, np.ndarray] = {}
+    meta: dict = {"keys": {}, "stop_speed": STOP_SPEED}
     todo = []
     for key, lv in levels.items():
         digest, kmeta = _digest(table, grid, {"key": key, "levels": list(lv)})
         path = cache / f"effects-{key}-{digest}.npz" if cache else None
         if path is not None and path.is_file():
             with np.load(path, allow_pickle=False) as z:
-                deltas[key] = z["delta"]
+                deltas[key], deltas_t[key] = z["delta"], z["delta_t"]
                 meta["keys"][key] = json.loads(str(z["meta"]))
         else:
             todo.append((key, lv, path, kmeta))
+    work = sum(len(lv) - 1 for _, lv, _, _ in todo)
+    bar = tqdm(total=work + 2, desc="effect tables", unit="run", disable=not progress, leave=False)
     if todo:
         log.info(
             "building effect tables for %s (%d cells per level) in %s", ", ".join(k for k, *_ in todo), v.size, cache
         )
-        base = np.log(simulate_pushes(v, m, mu, scene=scene, nthread=nthread).displacement).reshape(shape)
-        bar = tqdm(total=sum(len(lv) - 1 for _, lv, _, _ in todo), desc="effect tables", unit="level",
-                   disable=not progress, leave=False)  # fmt: skip
+        base = simulate_observables(build_model(scene), v, m, mu, nthread=nthread)
+        base_d, base_t = _fill(base.log_d, shape), _fill(base.log_t, shape)
+        # off-grid pushes at random levels, to measure each table's own accuracy
+        cv, cm, cu = _random_pushes(table, CHECK_PUSHES, seed=1)
+        check_base = simulate_observables(build_model(scene), cv, cm, cu, nthread=nthread)
         for key, lv, path, kmeta in todo:
-            rows, failed = [], {}
+            rows, rows_t, failed = [], [], {}
             for s in lv:
                 if s == 0.0:
                     rows.append(np.zeros(shape))
+                    rows_t.append(np.zeros(shape))
                     continue
-                res = simulate_pushes(v, m, mu, model=effect_model(scene, key, s), nthread=nthread)
+                res = simulate_observables(_spec_model(scene, key, s), v, m, mu, nthread=nthread)
                 failed[f"{s:g}"] = int((~res.ok).sum())
-                rows.append(np.log(np.maximum(res.displacement, 1e-6)).reshape(shape) - base)
+                rows.append(_fill(res.log_d, shape) - base_d)
+                rows_t.append(_fill(res.log_t, shape) - base_t)
                 bar.update(1)
-            deltas[key] = np.stack(rows)
-            meta["keys"][key] = {**kmeta, "failed_cells": failed}
+            deltas[key], deltas_t[key] = np.stack(rows), np.stack(rows_t)
+            accuracy = _key_accuracy(scene, key, np.array(lv), axes, deltas[key], deltas_t[key], (cv, cm, cu),
+                                     check_base, nthread)  # fmt: skip
+            meta["keys"][key] = {**kmeta, "failed_cells": failed, "accuracy": accuracy}
             if path is not None:
-                write_npz(path, delta=deltas[key], meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)))
-        bar.close()
+                write_npz(path, delta=deltas[key], delta_t=deltas_t[key],
+                          meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)))  # fmt: skip
+    stop_axes = stop_log_t = None
+    if stop_time:
+        stop_axes = grid.axes(table, stop=True)
+        sgrid = {k: getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")}
+        digest, smeta = _digest(table, grid, {"stop_grid": sgrid})
+        spath = cache / f"stoptime-{digest}.npz" if cache else None
+        if spath is not None and spath.is_file():
+            with np.load(spath, allow_pickle=False) as z:
+                stop_log_t = z["log_t"]
+        else:
+            sv, sm, su = (x.ravel() for x in np.meshgrid(*stop_axes, indexing="ij"))
+            obs = simulate_observables(build_model(scene), sv, sm, su, nthread=nthread)
+            stop_log_t = _fill(obs.log_t, tuple(a.size for a in stop_axes))
+            if spath is not None:
+                write_npz(spath, log_t=stop_log_t, meta=np.array(json.dumps(smeta, sort_keys=True)))
+        bar.update(1)
+    tables = EffectTables(axes=axes, levels={k: np.array(x) for k, x in levels.items()}, deltas=deltas, meta=meta,
+                          deltas_t=deltas_t, stop_axes=stop_axes, stop_log_t=stop_log_t)  # fmt: skip
     digest, fmeta = _digest(
-        table,
-        CoarseGrid(),
-        {"model_floor": {"n": 200, "seed": 0}, "numerical_error": table.meta.get("numerical_error")},
-    )
+        table, grid,
+        {"model_floor": {"n": grid.floor_pushes, "seed": 0}, "numerical_error": table.meta.get("numerical_error"),
+         "stop_grid": [getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")] if stop_time else None},
+    )  # fmt: skip
     fpath = cache / f"floor-{digest}.json" if cache else None
     if fpath is not None and fpath.is_file():
         with open(fpath) as fh:
             floor = json.load(fh)["model_floor"]
     else:
-        floor = model_floor(table, scene, nthread=nthread)
+        floor = model_floor(table, scene, tables if stop_time else None, n=grid.floor_pushes, nthread=nthread)
         if fpath is not None:
             write_json(fpath, {**fmeta, "model_floor": floor})
+    bar.update(1)
+    bar.close()
     meta["model_floor_rms"] = floor["rms"]
     meta["model_floor"] = floor
-    return EffectTables(axes=axes, levels={k: np.array(v) for k, v in levels.items()}, deltas=deltas, meta=meta)
+    return tables

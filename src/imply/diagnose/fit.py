@@ -1,15 +1,25 @@
-"""Per-object (m, mu) fits of a push log under the baseline or an effect-augmented model.
+"""Joint fits of a push log: global effect parameters and every object's (mass, friction).
 
-The prediction for push p of object i is log d = f(v_p, m_i, mu_i) for the baseline
-table f, or that plus an effect (:mod:`imply.sim.effects`): the coarse Delta table of a
-``model`` effect at the push's direction-modulated level, or f at the actual speed
-(``speed`` effects) or friction (``friction`` effects). Each object's (log m, log mu) is
-started from :meth:`imply.score.Scorer.fit` on the baseline table (measured masses or
-frictions in the log replace the fitted ones and stay fixed) and refined by
-Levenberg-Marquardt steps, vectorised over objects (2 x 2 normal equations per
-object, finite-difference Jacobian), inside the table's range. A global effect
-magnitude is profiled: fitted at each point of a grid of magnitudes with every object's
-(m, mu) refitted, warm-started from the neighbouring magnitude.
+The prediction for a push of object i at logged speed v in direction phi under a model
+(:class:`imply.diagnose.candidates.Model`, parameters theta) is, for each observable,
+
+    log d = f(v', m_i, mu') + sum_k Delta_k(v', m_i, mu'; s_k)
+    log T = f_T(v', m_i, mu') + sum_k Delta_T,k(v', m_i, mu'; s_k)     (where the log has stop times)
+
+with v' the pusher's actual speed and mu' the friction the push sees under the model's
+speed and friction terms, f the push table, f_T the stop-time table and Delta the effect
+tables (:mod:`imply.diagnose.effect_tables`). Replicate pushes (same object, speed and
+direction) share one prediction. Residuals are whitened by each observable's noise sd
+and weighted (0 for a flagged outlier), so the sum of squares is a chi-square at the
+noise.
+
+Fits are Gauss-Newton / Levenberg-Marquardt with finite-difference Jacobians: per-object
+(log m, log mu) alone at fixed theta (:meth:`Problem.refine`, vectorised over objects:
+2 x 2 normal equations per object), or theta and every object's parameters jointly
+(:meth:`Problem.fit`), the objects' blocks eliminated by their Schur complement, bounds
+by projection. A measured mass or friction is held fixed. At a joint optimum each
+object's contribution to the profiled sum of squares is kept as a quadratic in theta
+(:class:`JointFit`), which gives leave-objects-out fits in closed form (one Newton step).
 """
 
 from __future__ import annotations
@@ -18,17 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imply.diagnose.candidates import Model, terms
 from imply.diagnose.effect_tables import EffectTables
 from imply.diagnose.pushlog import PushLog
-from imply.score import Scorer
-from imply.sim.effects import (
-    FRICTION,
-    MODEL,
-    SPEED,
-    Effect,
-    transform_friction,
-    transform_speed,
-)
 from imply.table import PushTable
 
 _H = 1e-4  # finite-difference step in log m and log mu
@@ -36,15 +38,64 @@ _H = 1e-4  # finite-difference step in log m and log mu
 
 @dataclass
 class ObjectFit:
-    """Per-object fit: (N,) log mass, log friction and sum of squared log residuals."""
+    """Per-object fit: (N,) log mass, log friction and weighted sum of squares (whitened)."""
 
     lm: np.ndarray
     lu: np.ndarray
     sse: np.ndarray
 
 
+@dataclass
+class JointFit:
+    """A model's joint fit: parameters, objects, and each object's quadratic in theta."""
+
+    model: Model
+    theta: np.ndarray
+    objects: ObjectFit
+    S: np.ndarray  # (N, p, p) each object's Schur-complemented Gauss-Newton Hessian (half)
+    b: np.ndarray  # (N, p) each object's profiled gradient (half)
+    iterations: int = 0
+
+    @property
+    def sse(self) -> float:
+        return float(self.objects.sse.sum())
+
+    def covariance(self) -> np.ndarray:
+        """Covariance of theta (whitened residuals: unit noise), from the summed Hessian."""
+        p = self.theta.size
+        if p == 0:
+            return np.zeros((0, 0))
+        H = self.S.sum(0)
+        return np.linalg.pinv(H + 1e-12 * np.eye(p))
+
+    def leave_out(self, folds: np.ndarray) -> dict[int, np.ndarray]:
+        """theta fitted without each fold's objects, by one Newton step from the joint optimum."""
+        out = {}
+        p = self.theta.size
+        H = self.S.sum(0)
+        for f in np.unique(folds):
+            keep = folds != f
+            Hk = self.S[keep].sum(0)
+            # the fold's own pull, taken away (at a bound the full gradient is held by the bound)
+            gf = self.b[~keep].sum(0)
+            step = np.linalg.lstsq(Hk + 1e-9 * np.trace(H) / max(p, 1) * np.eye(p), gf, rcond=None)[0]
+            out[int(f)] = self.model.project(self.theta + step) if p else self.theta
+        return out
+
+    def heldout_sse_quadratic(self, folds: np.ndarray) -> np.ndarray:
+        """Each object's sum of squares at the theta fitted without its fold (quadratic model)."""
+        if self.theta.size == 0:
+            return self.objects.sse.copy()
+        out = np.empty_like(self.objects.sse)
+        for f, th in self.leave_out(folds).items():
+            d = th - self.theta
+            sel = folds == f
+            out[sel] = self.objects.sse[sel] + 2 * self.b[sel] @ d + np.einsum("p,npq,q->n", d, self.S[sel], d)
+        return np.maximum(out, 0.0)
+
+
 class Problem:
-    """A push log against a baseline table and its effect tables."""
+    """A push log against a baseline table, its effect tables and its noise."""
 
     def __init__(
         self,
@@ -53,152 +104,389 @@ class Problem:
         etables: EffectTables | None,
         grid: int = 101,
         use_measured: bool = True,
+        use_stop_time: bool = True,
     ):
         self.log = pushlog
         self.table = table
         self.etables = etables
         self.grid = grid
+        self.obj = pushlog.obj
+        self.n_obj = len(pushlog.objects)
         self.v = pushlog.speed
         self.phi = pushlog.direction
-        self.obj = pushlog.obj
         self.y = pushlog.log_d
-        self.n_obj = len(pushlog.objects)
+        # replicate pushes share one prediction: unique (object, speed, direction)
+        key = np.stack([self.obj.astype(float), np.round(self.v, 9), np.round(np.mod(self.phi, 2 * np.pi), 6)], 1)
+        uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        self.cond = cond.ravel()
+        self.n_cond = uniq.shape[0]
+        self.c_obj = self.obj[first]
+        self.c_v = self.v[first]
+        self.c_phi = self.phi[first]
         self.counts = np.bincount(self.obj, minlength=self.n_obj).astype(float)
         self.lm_range = np.log(table.mass_range)
         self.lu_range = np.log(table.friction_range)
         self.v_range = table.speed_range
-        # measured mass / friction are held fixed (not fitted) when the log has them
         self.fixed_lm = np.log(pushlog.mass) if use_measured and pushlog.mass is not None else None
         self.fixed_lu = np.log(pushlog.friction) if use_measured and pushlog.friction is not None else None
         self.k_free = int(self.fixed_lm is None) + int(self.fixed_lu is None)
+        has_t = pushlog.stop_time is not None and etables is not None and etables.has_stop_time
+        self.use_t = bool(use_stop_time and has_t)
+        self.y_t = np.log(pushlog.stop_time) if self.use_t else None
+        self.noise_d = 1.0
+        self.noise_t = 1.0
+        self.sd_d: float | np.ndarray = 1.0  # per row: noise and model error together
+        self.sd_t: float | np.ndarray = 1.0
+        self.model_err_d = np.zeros(self.y.size)
+        self.model_err_t = np.zeros(self.y.size)
+        self.w_d = np.ones(self.y.size)
+        self.w_t = np.ones(self.y.size) if self.use_t else None
+
+    # -- setup -----------------------------------------------------------------------
+    def set_noise(self, sd_d: float, sd_t: float | None) -> None:
+        """Each observable's noise sd (the model's own error is added by :meth:`set_model_error`)."""
+        self.noise_d = float(sd_d)
+        if self.use_t:
+            self.noise_t = float(sd_t if sd_t else sd_d)
+        self._combine()
+
+    def set_model_error(self, err_d: np.ndarray, err_t: np.ndarray | None) -> None:
+        """The model's own error per row (RMS, log units), counted as variance beside the noise."""
+        self.model_err_d = np.asarray(err_d, float)
+        if self.use_t and err_t is not None:
+            self.model_err_t = np.asarray(err_t, float)
+        self._combine()
+
+    def _combine(self) -> None:
+        self.sd_d = np.sqrt(self.noise_d**2 + self.model_err_d**2)
+        self.sd_t = np.sqrt(self.noise_t**2 + self.model_err_t**2)
+
+    def interpolation_indicator(self, objs: ObjectFit, model: Model | None = None, theta=None):
+        """Per row, |cubic - linear| interpolation of the push table (and of the stop-time table) at
+        each push as the model sees it: large where the tables' interpolation is unsure."""
+        from scipy.interpolate import RegularGridInterpolator
+
+        if not hasattr(self, "_linear"):
+            t = self.table
+            self._linear = RegularGridInterpolator((t.speeds, np.log(t.masses), np.log(t.frictions)), t.log_d,
+                                                   method="linear")  # fmt: skip
+        v = self.c_v
+        lu = objs.lu[self.c_obj]
+        if model is not None and model.dim:
+            t = terms(model, theta, self.c_phi)
+            v = v * (1.0 + t.gain) + t.offset
+            lu = lu + np.log(np.maximum(t.friction, 1e-6))
+        v = np.clip(v, *self.v_range)
+        lm = np.clip(objs.lm[self.c_obj], *self.lm_range)
+        lu = np.clip(lu, *self.lu_range)
+        cubic = self.table.log_displacement(v, np.exp(lm), np.exp(lu))
+        ind_d = np.abs(cubic - self._linear(np.stack([v, lm, lu], 1)))[self.cond]
+        ind_t = None
+        if self.use_t:
+            ind_t = self.etables.stop_interpolation_indicator(v, np.exp(lm), np.exp(lu))[self.cond]
+        return ind_d, ind_t
+
+    def set_weights(self, w_d: np.ndarray, w_t: np.ndarray | None) -> None:
+        self.w_d = np.asarray(w_d, float)
+        if self.use_t:
+            self.w_t = np.asarray(w_t if w_t is not None else np.ones(self.y.size), float)
+
+    @property
+    def n_rows(self) -> int:
+        """Pushes (rows) that count in the fit (not flagged)."""
+        return int((self.w_d > 0).sum())
 
     # -- predictions -------------------------------------------------------------------
-    def _f0(self, v, lm, lu) -> np.ndarray:
-        v = np.clip(v, *self.v_range)
-        m = np.exp(np.clip(lm, *self.lm_range))
-        mu = np.exp(np.clip(lu, *self.lu_range))
-        return self.table.log_displacement(v, m, mu)
+    def predict(self, model: Model, theta, lm_c, lu_c, cond=None, extrapolation: bool = False):
+        """(log d, log T) at conditions ``cond`` (all by default) given per-condition log m, log mu,
+        and theta (p,) or per condition (n, p).
 
-    def predict_push(self, effect: Effect | None, value: float, lm_p, lu_p, idx=None) -> np.ndarray:
-        """log d of pushes ``idx`` (all by default) given per-push (log m, log mu)."""
-        sel = slice(None) if idx is None else idx
-        v, phi = self.v[sel], self.phi[sel]
-        if effect is None or value == 0.0:
-            return self._f0(v, lm_p, lu_p)
-        if effect.kind == MODEL:
-            s = effect.per_push(value, phi)
-            base = self._f0(v, lm_p, lu_p)
-            m = np.exp(np.clip(lm_p, *self.lm_range))
-            mu = np.exp(np.clip(lu_p, *self.lu_range))
-            return base + self.etables.delta(effect.table_key, v, m, mu, s)
-        if effect.kind == SPEED:
-            return self._f0(transform_speed(effect, value, v), lm_p, lu_p)
-        if effect.kind == FRICTION:
-            mu = transform_friction(effect, value, np.exp(lu_p), phi)
-            return self._f0(v, lm_p, np.log(np.maximum(mu, 1e-9)))
-        raise ValueError(f"unknown effect kind {effect.kind!r}")
+        A speed or friction that the model's effects carry outside the table's range is read at
+        the range's edge and extrapolated linearly (the edge's slope); with ``extrapolation`` the
+        size of that extrapolation is returned too, (|log d part|, |log T part|)."""
+        idx = np.arange(self.n_cond) if cond is None else cond
+        v, phi = self.c_v[idx], self.c_phi[idx]
+        m = np.exp(np.clip(lm_c, *self.lm_range))
+        lu = np.asarray(lu_c, float)
+        t = None
+        if model.dim:
+            t = terms(model, theta, phi)
+            v = v * (1.0 + t.gain) + t.offset
+            lu = lu + np.log(np.maximum(t.friction, 1e-6))
+        vc, luc = np.clip(v, *self.v_range), np.clip(lu, *self.lu_range)
+        mu = np.exp(luc)
+        pd = self.table.log_displacement(vc, m, mu)
+        pt = self.etables.stop_log_time(vc, m, mu) if self.use_t else None
+        ext_d = ext_t = None
+        out = (vc != v) | (luc != lu)
+        if out.any():
+            # linear extrapolation from the edge, slopes by one-sided differences inward
+            o = np.flatnonzero(out)
+            dv, dlu = (v - vc)[o], (lu - luc)[o]
+            hv = np.where(vc[o] > 0.5 * sum(self.v_range), -0.01, 0.01)
+            hu = np.where(luc[o] > 0.5 * sum(self.lu_range), -0.02, 0.02)
+            mo = m[o]
+            f0 = self.table.log_displacement(vc[o], mo, mu[o])
+            sv = (self.table.log_displacement(vc[o] + hv, mo, mu[o]) - f0) / hv
+            su = (self.table.log_displacement(vc[o], mo, np.exp(luc[o] + hu)) - f0) / hu
+            ext_d = np.zeros(v.size)
+            ext_d[o] = sv * dv + su * dlu
+            pd = pd + ext_d
+            if self.use_t:
+                g0 = self.etables.stop_log_time(vc[o], mo, mu[o])
+                tv = (self.etables.stop_log_time(vc[o] + hv, mo, mu[o]) - g0) / hv
+                tu = (self.etables.stop_log_time(vc[o], mo, np.exp(luc[o] + hu)) - g0) / hu
+                ext_t = np.zeros(v.size)
+                ext_t[o] = tv * dv + tu * dlu
+                pt = pt + ext_t
+        if t is not None:
+            for key, s in t.tables:
+                dd, dt = self.etables.delta_both(key, vc, m, mu, s)
+                pd = pd + dd
+                if self.use_t:
+                    pt = pt + dt
+        if extrapolation:
+            zeros = np.zeros(v.size)
+            return pd, pt, (np.abs(ext_d) if ext_d is not None else zeros,
+                            np.abs(ext_t) if ext_t is not None else (zeros if self.use_t else None))  # fmt: skip
+        return pd, pt
 
-    def predict(self, effect: Effect | None, value: float, fit: ObjectFit) -> np.ndarray:
-        return self.predict_push(effect, value, fit.lm[self.obj], fit.lu[self.obj])
+    def table_terms(self, model: Model, theta, lm_c, lu_c) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
+        """Each tabulated term of the model at every condition: (key, Delta log d, Delta log T)."""
+        if not model.dim:
+            return []
+        v, phi = self.c_v, self.c_phi
+        t = terms(model, theta, phi)
+        v = np.clip(v * (1.0 + t.gain) + t.offset, *self.v_range)
+        m = np.exp(np.clip(lm_c, *self.lm_range))
+        mu = np.exp(np.clip(lu_c + np.log(np.maximum(t.friction, 1e-6)), *self.lu_range))
+        out = []
+        for key, s in t.tables:
+            dd, dt = self.etables.delta_both(key, v, m, mu, s)
+            out.append((key, dd, dt if self.use_t else None))
+        return out
 
-    def sse(self, pred: np.ndarray) -> np.ndarray:
-        return np.bincount(self.obj, (pred - self.y) ** 2, minlength=self.n_obj)
+    def row_residuals(self, pd_c: np.ndarray, pt_c: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Raw (unwhitened, unweighted) residuals observed minus predicted per row."""
+        rd = self.y - pd_c[self.cond]
+        rt = self.y_t - pt_c[self.cond] if self.use_t else None
+        return rd, rt
+
+    def _row_obj(self) -> np.ndarray:
+        return np.concatenate([self.obj, self.obj]) if self.use_t else self.obj
+
+    def object_sse(self, r: np.ndarray) -> np.ndarray:
+        return np.bincount(self._row_obj(), r * r, minlength=self.n_obj)
+
+    def residuals(self, model: Model, thetas: np.ndarray, lms: np.ndarray, lus: np.ndarray) -> np.ndarray:
+        """Whitened residuals (K, rows) of K settings at once: thetas (K, p), lms and lus (K, N)."""
+        lms, lus = np.atleast_2d(lms), np.atleast_2d(lus)
+        k = lms.shape[0]
+        C = self.n_cond
+        cond = np.tile(np.arange(C), k)
+        lm_c = lms[:, self.c_obj].ravel()
+        lu_c = lus[:, self.c_obj].ravel()
+        th = np.repeat(np.atleast_2d(thetas), C, axis=0) if model.dim else np.zeros(0)
+        pd, pt = self.predict(model, th, lm_c, lu_c, cond)
+        pd = pd.reshape(k, C)
+        pt = None if pt is None else pt.reshape(k, C)
+        rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
+        if not self.use_t:
+            return rd
+        rt = self.w_t * (pt[:, self.cond] - self.y_t) / self.sd_t
+        return np.concatenate([rd, rt], axis=1)
+
+    def _eval_many(self, model: Model, thetas: list, lms: list, lus: list) -> list[np.ndarray]:
+        th = np.stack([np.asarray(t, float) for t in thetas]) if model.dim else np.zeros((len(thetas), 0))
+        r = self.residuals(model, th, np.stack(lms), np.stack(lus))
+        return list(r)
+
+    def stacked_sse(self, r: np.ndarray) -> np.ndarray:
+        """Per-object sums of squares (K, N) of stacked residuals (K, rows)."""
+        k = r.shape[0]
+        ro = self._row_obj()
+        idx = (np.arange(k)[:, None] * self.n_obj + ro[None, :]).ravel()
+        return np.bincount(idx, (r * r).ravel(), minlength=k * self.n_obj).reshape(k, self.n_obj)
 
     # -- fits --------------------------------------------------------------------------
-    def initial_fit(self) -> ObjectFit:
-        """Baseline fit: Scorer's grid search (plus its polish), then refined here."""
-        width = int(self.counts.max())
-        V = np.full((self.n_obj, width), self.v[0])
-        D = np.full((self.n_obj, width), np.nan)
-        slot = np.zeros(self.obj.size, dtype=int)
-        seen = np.zeros(self.n_obj, dtype=int)
-        for p, i in enumerate(self.obj):
-            slot[p] = seen[i]
-            seen[i] += 1
-        V[self.obj, slot] = self.v
-        D[self.obj, slot] = self.log.displacement
-        f = Scorer(self.table, grid=self.grid).fit(V, D)
-        start = ObjectFit(np.log(f.mass), np.log(f.friction), np.full(self.n_obj, np.inf))
-        if self.fixed_lm is not None:
-            start.lm = self.fixed_lm.copy()
-        if self.fixed_lu is not None:
-            start.lu = self.fixed_lu.copy()
-        if self.k_free == 1:
-            # the 2-D grid optimum's free coordinate is no start for a 1-D fit at the
-            # measured value: search the free axis on a grid first (global, like Scorer)
-            free_m = self.fixed_lm is None
-            axis = np.linspace(*(self.lm_range if free_m else self.lu_range), self.grid)
-            best = np.full(self.n_obj, np.inf)
-            for x in axis:
-                lm = np.full(self.n_obj, x) if free_m else start.lm
-                lu = start.lu if free_m else np.full(self.n_obj, x)
-                sse = self.sse(self.predict_push(None, 0.0, lm[self.obj], lu[self.obj]))
-                take = sse < best
-                best = np.where(take, sse, best)
-                if free_m:
-                    start.lm = np.where(take, x, start.lm)
-                else:
-                    start.lu = np.where(take, x, start.lu)
-        return self.refine(None, 0.0, start)
+    def initial_fit(self, model: Model | None = None, theta=None, n_grid: int | None = None) -> ObjectFit:
+        """Every object's (log m, log mu): a global grid search over the table's range (measured values held)
+        on the weighted sum of squares of all observables, then refined."""
+        model = model or Model()
+        theta = np.zeros(0) if theta is None else np.asarray(theta, float)
+        n = min(self.grid if n_grid is None else n_grid, 61)
+        lm_axis = np.linspace(*self.lm_range, n) if self.fixed_lm is None else None
+        lu_axis = np.linspace(*self.lu_range, n) if self.fixed_lu is None else None
+        best = np.full(self.n_obj, np.inf)
+        lm = self.fixed_lm.copy() if self.fixed_lm is not None else np.zeros(self.n_obj)
+        lu = self.fixed_lu.copy() if self.fixed_lu is not None else np.zeros(self.n_obj)
+        rows = lm_axis if lm_axis is not None else [None]
+        for a in rows:
+            k = lu_axis.size if lu_axis is not None else 1
+            L = np.repeat((lm if a is None else np.full(self.n_obj, a))[None, :], k, 0)
+            U = np.repeat(lu_axis[:, None], self.n_obj, 1) if lu_axis is not None else lu[None, :]
+            th = np.repeat(theta[None, :], k, 0) if model.dim else np.zeros((k, 0))
+            sse = self.stacked_sse(self.residuals(model, th, L, U))
+            j = np.argmin(sse, axis=0)
+            val = sse[j, np.arange(self.n_obj)]
+            take = val < best
+            best = np.where(take, val, best)
+            if a is not None:
+                lm = np.where(take, a, lm)
+            if lu_axis is not None:
+                lu = np.where(take, lu_axis[j], lu)
+        return self.refine(model, theta, ObjectFit(lm, lu, best), iters=15)
 
-    def refine(self, effect: Effect | None, value: float, start: ObjectFit, iters: int = 8) -> ObjectFit:
-        """Levenberg-Marquardt on every object's (log m, log mu) at a fixed effect magnitude."""
-        lm, lu = start.lm.copy(), start.lu.copy()
-        n, P, obj = self.n_obj, self.obj.size, self.obj
-        idx3 = np.concatenate([np.arange(P)] * 3)
-        lam = np.full(n, 1e-3)
+    def _free_columns(self, jm: np.ndarray, ju: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.fixed_lm is not None:
+            jm = np.zeros_like(jm)
+        if self.fixed_lu is not None:
+            ju = np.zeros_like(ju)
+        return jm, ju
+
+    def refine(self, model: Model, theta, start: ObjectFit, iters: int = 8) -> ObjectFit:
+        """Levenberg-Marquardt on every object's (log m, log mu) at fixed theta."""
+        out = self.refine_many(model, np.atleast_2d(np.asarray(theta, float)) if model.dim else np.zeros((1, 0)),
+                               start.lm[None, :], start.lu[None, :], iters=iters)  # fmt: skip
+        return ObjectFit(out[0][0], out[1][0], out[2][0])
+
+    def refine_many(self, model: Model, thetas: np.ndarray, lm: np.ndarray, lu: np.ndarray, iters: int = 8):
+        """Per-object fits at K parameter settings at once: thetas (K, p), starts (K, N) or (1, N).
+
+        Returns (lm, lu, sse), each (K, N)."""
+        K = thetas.shape[0]
+        lm = np.broadcast_to(lm, (K, self.n_obj)).copy()
+        lu = np.broadcast_to(lu, (K, self.n_obj)).copy()
+        n = K * self.n_obj
+        ro = self._row_obj()
+        idx = (np.arange(K)[:, None] * self.n_obj + ro[None, :]).ravel()
+        lam = np.full((K, self.n_obj), 1e-3)
+        th3 = np.concatenate([thetas, thetas, thetas])
+
+        def binc(x):
+            return np.bincount(idx, x.ravel(), minlength=n).reshape(K, self.n_obj)
+
         for _ in range(iters):
-            lmp, lup = lm[obj], lu[obj]
-            pred3 = self.predict_push(
-                effect,
-                value,
-                np.concatenate([lmp, lmp + _H, lmp]),
-                np.concatenate([lup, lup, lup + _H]),
-                idx3,
-            )
-            pred, jm, ju = (
-                pred3[:P],
-                (pred3[P : 2 * P] - pred3[:P]) / _H,
-                (pred3[2 * P :] - pred3[:P]) / _H,
-            )
-            r = pred - self.y
-            if self.fixed_lm is not None:
-                jm = np.zeros_like(jm)
-            if self.fixed_lu is not None:
-                ju = np.zeros_like(ju)
-            sse = np.bincount(obj, r * r, minlength=n)
-            a11 = np.bincount(obj, jm * jm, minlength=n)
-            a12 = np.bincount(obj, jm * ju, minlength=n)
-            a22 = np.bincount(obj, ju * ju, minlength=n)
-            b1 = np.bincount(obj, jm * r, minlength=n)
-            b2 = np.bincount(obj, ju * r, minlength=n)
-            # a fixed parameter has a zero column; a unit diagonal keeps its step at 0
+            r3 = self.residuals(model, th3, np.concatenate([lm, lm + _H, lm]), np.concatenate([lu, lu, lu + _H]))
+            r, rm, ru = r3[:K], r3[K : 2 * K], r3[2 * K :]
+            jm, ju = self._free_columns((rm - r) / _H, (ru - r) / _H)
+            sse = binc(r * r)
+            a11, a12, a22 = binc(jm * jm), binc(jm * ju), binc(ju * ju)
+            b1, b2 = binc(jm * r), binc(ju * r)
             a11 = np.where(a11 > 0, a11, 1.0)
             a22 = np.where(a22 > 0, a22, 1.0)
             d11, d22 = a11 * (1 + lam) + 1e-12, a22 * (1 + lam) + 1e-12
             det = d11 * d22 - a12 * a12
             det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-            sm = -(d22 * b1 - a12 * b2) / det
-            su = -(d11 * b2 - a12 * b1) / det
-            tm = np.clip(lm + sm, *self.lm_range)
-            tu = np.clip(lu + su, *self.lu_range)
-            trial = self.sse(self.predict_push(effect, value, tm[obj], tu[obj]))
+            tm = np.clip(lm - (d22 * b1 - a12 * b2) / det, *self.lm_range)
+            tu = np.clip(lu - (d11 * b2 - a12 * b1) / det, *self.lu_range)
+            trial = self.stacked_sse(self.residuals(model, thetas, tm, tu))
             better = trial < sse
             lm = np.where(better, tm, lm)
             lu = np.where(better, tu, lu)
             lam = np.where(better, lam * 0.3, lam * 10.0)
-        final = self.sse(self.predict_push(effect, value, lm[obj], lu[obj]))
-        return ObjectFit(lm, lu, final)
+            if np.all(np.where(better, sse - trial, 0.0) < 1e-10 * (1 + sse)):
+                break
+        final = self.stacked_sse(self.residuals(model, thetas, lm, lu))
+        return lm, lu, final
 
-    def profile(self, effect: Effect, values: np.ndarray, start: ObjectFit) -> tuple[np.ndarray, list[ObjectFit]]:
-        """Per-object SSE (len(values), N) over a sorted grid of magnitudes containing 0."""
-        values = np.asarray(values, float)
-        zero = int(np.argmin(np.abs(values)))
-        fits: list[ObjectFit | None] = [None] * values.size
-        fits[zero] = self.refine(effect, float(values[zero]), start, iters=3)
-        for order in (range(zero + 1, values.size), range(zero - 1, -1, -1)):
-            prev = fits[zero]
-            for j in order:
-                fits[j] = self.refine(effect, float(values[j]), prev, iters=5)
-                prev = fits[j]
-        return np.stack([f.sse for f in fits]), fits  # type: ignore[union-attr]
+    def fit(self, model: Model, theta0, start: ObjectFit, iters: int = 25, tol: float = 1e-8) -> JointFit:
+        """theta and every object's (log m, log mu) jointly (Levenberg-Marquardt, Schur complement)."""
+        p = model.dim
+        theta = model.project(np.asarray(theta0, float)) if p else np.zeros(0)
+        objs = self.refine(model, theta, start, iters=4 if p else 10)
+        lo, hi = model.lo(), model.hi()
+        hstep = 1e-3 * np.maximum(model.scale(), 1e-12)
+        lam = 1e-3
+        it = 0
+        fm, fu = float(self.fixed_lm is None), float(self.fixed_lu is None)
+        blocks = self._normal(model, theta, objs, hstep)
+        for step_no in range(1, iters + 1):
+            it = step_no
+            if p == 0:
+                break
+            A, B, C, g_u, g_t, r0 = blocks
+            sse = float(r0 @ r0)
+            Ad = A + lam * A * np.eye(2)[None]  # damped object blocks
+            Ainv = np.linalg.inv(Ad + 1e-12 * np.eye(2))
+            S = (C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)).sum(0)
+            rhs = (g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)).sum(0)
+            # bounds: components at a bound whose step would leave the box are held
+            free = np.ones(p, bool)
+            step = np.zeros(p)
+            for _ in range(p + 1):
+                Sd = S[np.ix_(free, free)] + lam * np.diag(np.diag(S)[free] + 1e-12)
+                step = np.zeros(p)
+                step[free] = -np.linalg.solve(Sd, rhs[free])
+                leaving = free & (((theta <= lo + 1e-12) & (step < 0)) | ((theta >= hi - 1e-12) & (step > 0)))
+                if not leaving.any():
+                    break
+                free &= ~leaving
+            new_theta = model.project(theta + step)
+            du = -np.einsum("nij,nj->ni", Ainv, g_u + np.einsum("nij,j->ni", B, new_theta - theta))
+            lm_new = np.clip(objs.lm + du[:, 0] * fm, *self.lm_range)
+            lu_new = np.clip(objs.lu + du[:, 1] * fu, *self.lu_range)
+            trial = self.stacked_sse(self.residuals(model, new_theta[None, :], lm_new[None, :], lu_new[None, :]))[0]
+            if trial.sum() < sse:
+                gain = sse - trial.sum()
+                theta, objs = new_theta, ObjectFit(lm_new, lu_new, trial)
+                lam = max(lam * 0.2, 1e-9)
+                if gain < tol * (1.0 + sse):
+                    break
+                blocks = self._normal(model, theta, objs, hstep)
+            else:
+                lam *= 10.0
+                if lam > 1e8:
+                    break
+        objs = self.refine(model, theta, objs, iters=3)
+        A, B, C, g_u, g_t, _ = self._normal(model, theta, objs, hstep)
+        Ainv = np.linalg.inv(A + 1e-12 * np.eye(2))
+        S_i = C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)
+        b_i = g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)
+        return JointFit(model, theta, objs, S_i, b_i, it)
+
+    def _normal(self, model: Model, theta, objs: ObjectFit, hstep: np.ndarray):
+        """Per-object normal-equation blocks at (theta, objects): A (N,2,2), B (N,2,p), C (N,p,p),
+        the gradients g_u (N,2), g_t (N,p), and the residuals."""
+        p = model.dim
+        lm, lu = objs.lm, objs.lu
+        thetas = [theta, theta, theta]
+        signs = []
+        for j in range(p):
+            # a step along component j alone (forward, or backward where forward leaves the range)
+            e = hstep[j] * np.eye(p)[j]
+            up = theta + e
+            if not np.allclose(model.project(up), up):
+                up = theta - e
+            thetas.append(up)
+            signs.append(up[j] - theta[j])
+        th = np.stack(thetas) if p else np.zeros((3, 0))
+        rs = self.residuals(model, th, np.stack([lm, lm + _H, lm] + [lm] * p),
+                            np.stack([lu, lu, lu + _H] + [lu] * p))  # fmt: skip
+        r0 = rs[0]
+        jm, ju = self._free_columns((rs[1] - r0) / _H, (rs[2] - r0) / _H)
+        jt = (
+            np.stack([(rs[3 + j] - r0) / signs[j] if signs[j] != 0 else np.zeros_like(r0) for j in range(p)], 1)
+            if p
+            else np.zeros((r0.size, 0))
+        )
+        ro = self._row_obj()
+        n = self.n_obj
+        Ju = np.stack([jm, ju], 1)
+        A = np.zeros((n, 2, 2))
+        for a in range(2):
+            for c in range(2):
+                A[:, a, c] = np.bincount(ro, Ju[:, a] * Ju[:, c], minlength=n)
+        for a in range(2):
+            A[:, a, a] = np.where(A[:, a, a] > 0, A[:, a, a], 1.0)
+        g_u = np.stack([np.bincount(ro, Ju[:, a] * r0, minlength=n) for a in range(2)], 1)
+        B = np.zeros((n, 2, p))
+        C = np.zeros((n, p, p))
+        g_t = np.zeros((n, p))
+        for j in range(p):
+            for a in range(2):
+                B[:, a, j] = np.bincount(ro, Ju[:, a] * jt[:, j], minlength=n)
+            g_t[:, j] = np.bincount(ro, jt[:, j] * r0, minlength=n)
+            for k in range(j, p):
+                C[:, j, k] = C[:, k, j] = np.bincount(ro, jt[:, j] * jt[:, k], minlength=n)
+        return A, B, C, g_u, g_t, r0

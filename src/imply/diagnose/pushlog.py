@@ -2,7 +2,8 @@
 
 Columns (CSV or parquet): ``object_id,speed,displacement`` are required (speed in
 m/s, displacement in metres, both positive); optional ``direction`` (push direction
-in the table plane, radians, within [-2 pi, 2 pi]), ``stop_time`` (s, >= 0),
+in the table plane, radians, within [-2 pi, 2 pi]), ``stop_time`` (s, > 0: from the
+start of the push until the box's speed falls below 1 cm/s),
 ``size_x,size_y,size_z`` (box half-extents, m, > 0; all three or none), ``mass`` (kg,
 > 0) and ``friction`` (> 0) where measured, and ``ok`` (true/false, as written by
 ``imply sim pushes``). Other columns are kept and ignored.
@@ -46,6 +47,7 @@ class PushLog:
     has_direction: bool
     mass: np.ndarray | None = None  # measured mass per object, where the log has it
     friction: np.ndarray | None = None  # measured friction per object, where the log has it
+    stop_time: np.ndarray | None = None  # (n,) seconds from the start of the push to the stop, where logged
 
     @property
     def n(self) -> int:
@@ -104,6 +106,11 @@ def read_pushlog(
             "stop_time",
             lambda x: f"{x:g} is negative",
         )
+        first_bad(
+            frame["stop_time"].to_numpy() == 0,
+            "stop_time",
+            lambda x: "is 0; stop times must be positive (their log is fitted)",
+        )
     for col in [*SIZE_COLUMNS, "mass", "friction"]:
         if col in frame:
             first_bad(frame[col].to_numpy() <= 0, col, lambda x: f"{x:g} must be positive")
@@ -158,4 +165,5 @@ def read_pushlog(
         path=str(path), frame=frame, objects=objects, obj=obj, speed=v.astype(float), displacement=d.astype(float),
         direction=frame["direction"].to_numpy(float) if has_dir else np.zeros(v.size), has_direction=has_dir,
         mass=measured["mass"], friction=measured["friction"],
+        stop_time=frame["stop_time"].to_numpy(float) if "stop_time" in frame else None,
     )  # fmt: skip

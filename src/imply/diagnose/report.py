@@ -1,14 +1,19 @@
 """The diagnose report directory: ``summary.json``, ``report.md`` and its plots.
 
 ``summary.json`` (machine-readable, keys sorted, floats unrounded): ``verdict`` (the
-cause: an effect class, or ``none``), ``localisation`` (residual bands with intervals,
-objects, the regions beyond noise), ``aliasing`` (identifiability, projected cosines,
-classes), ``ranking`` (every candidate: magnitude, 95% interval, likelihood-ratio
-statistic, delta BIC, held-out improvement, explained RMS, share of the gap closed),
-``shrinkage`` (held-out RMS gap and anchored disagreement before/after, noise floor,
-shares closed), ``noise`` and ``options``. ``residuals.csv`` holds every push's
-residual before and after the top effect. The plots: ``residuals_vs_speed.png``,
-``before_after.png`` and ``ranking.png``.
+accepted effects, or ``none``, with the one-sentence ``sentence`` the report leads with),
+``effects`` (every accepted effect: magnitude, azimuth for a tilt or an anisotropy, 95%
+intervals, alias class, aliasing with the per-object fit), ``observables`` (displacement,
+and stop time where used), ``outliers`` (the gross outliers left out), ``localisation``
+(residual bands with intervals, objects, the regions beyond noise), ``aliasing``
+(identifiability, projected cosines, classes, what the per-object fit absorbs),
+``ranking`` (every candidate on its own: magnitude, 95% interval, likelihood-ratio
+statistic and its critical value, delta BIC, held-out gain, whether it qualifies and why
+not), ``selection`` (every step of the forward selection), ``shrinkage`` (held-out RMS
+gap, stop times and anchored disagreement before/after, noise floor, shares closed),
+``noise`` and ``options``. ``residuals.csv`` holds every push's residual before and after
+the accepted effects (held out) and whether it was flagged. The plots:
+``residuals_vs_speed.png``, ``before_after.png`` and ``ranking.png``.
 """
 
 from __future__ import annotations
@@ -46,6 +51,11 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
                           "resid_before": r["resid_before"]})  # fmt: skip
     if r["resid_after"] is not None:
         frame["resid_after"] = r["resid_after"]
+    if r.get("stop_resid_before") is not None:
+        frame["stop_resid_before"] = r["stop_resid_before"]
+        if r.get("stop_resid_after") is not None:
+            frame["stop_resid_after"] = r["stop_resid_after"]
+    frame["outlier"] = np.asarray(r.get("flagged", np.zeros(len(frame), bool)), bool)
     write_csv(out / "residuals.csv", frame)
     _plots(diag, out)
     write_text(out / "report.md", markdown(s))
@@ -60,7 +70,11 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     s, r = diag.summary, diag.residuals
     floor = s["noise"]["sd"]
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    ax.scatter(r["speed"], r["resid_before"], s=6, alpha=0.4, color="0.4", label="pushes")
+    flagged = np.asarray(r.get("flagged", np.zeros(len(r["speed"]), bool)), bool)
+    ax.scatter(r["speed"][~flagged], r["resid_before"][~flagged], s=6, alpha=0.4, color="0.4", label="pushes")
+    if flagged.any():
+        ax.scatter(r["speed"][flagged], r["resid_before"][flagged], s=18, marker="x", color="C1",
+                   label="gross outliers (left out)")  # fmt: skip
     bands = s["localisation"]["speed"]
     xs = [float(b["band"]) if b["band"].replace(".", "", 1).isdigit() else i for i, b in enumerate(bands)]
     means = [b["mean"] for b in bands]
@@ -72,23 +86,24 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     ax.set_xlabel("commanded speed (m/s)")
     ax.set_ylabel("log d residual (baseline fit)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.15, top=0.95)  # fixed margins: no extra draw
     _save(fig, out / "residuals_vs_speed.png")
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
     sp = np.unique(r["speed"])
-    rms_b = [np.sqrt(np.mean(r["resid_before"][r["speed"] == v] ** 2)) for v in sp]
+    keep = ~flagged
+    rms_b = [np.sqrt(np.mean(r["resid_before"][(r["speed"] == v) & keep] ** 2)) for v in sp]
     ax.plot(sp, rms_b, "o-", label="baseline table")
     if r["resid_after"] is not None:
-        rms_a = [np.sqrt(np.mean(r["resid_after"][r["speed"] == v] ** 2)) for v in sp]
-        ax.plot(sp, rms_a, "s-", label=f"with {s['shrinkage']['effect']}")
+        rms_a = [np.sqrt(np.mean(r["resid_after"][(r["speed"] == v) & keep] ** 2)) for v in sp]
+        ax.plot(sp, rms_a, "s-", label=f"with {s['shrinkage']['effect']} (held out)")
     if floor:
         ax.axhline(floor, ls="--", color="0.5", label="noise sd")
     ax.set_xlabel("commanded speed (m/s)")
     ax.set_ylabel("RMS log d residual")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.15, top=0.95)  # fixed margins: no extra draw
     _save(fig, out / "before_after.png")
     plt.close(fig)
 
@@ -98,15 +113,17 @@ def _plots(diag: Diagnosis, out: Path) -> None:
 def ranking_colours(summary: dict) -> list[str]:
     """Bar colour per ranked candidate: green only for the verdict's effect.
 
-    Blue: identifiable and improves the held-out fit; red: makes it worse; grey: not
-    identifiable from these pushes. Green must never mark a candidate that hurts.
+    Green: an effect of the verdict; blue: identifiable and improves the held-out fit
+    (alone, at the first step); red: makes it worse; grey: not identifiable from these
+    pushes. Green must never mark a candidate that is not in the verdict.
     """
-    chosen = summary["verdict"].get("effect")
+    chosen = set(summary["verdict"].get("effects") or ([summary["verdict"]["effect"]] if summary["verdict"].get("effect")
+                                                          else []))  # fmt: skip
     out = []
     for r in summary["ranking"]:
         if not r["identifiable"]:
             out.append("0.75")
-        elif r["effect"] == chosen:
+        elif r["effect"] in chosen:
             out.append("C2")
         elif (r["heldout_improvement"] or 0.0) > 0:
             out.append("C0")
@@ -135,14 +152,14 @@ def _ranking_plot(plt, s: dict, path: Path) -> None:
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("held-out improvement (share of baseline SSE)")
     ax.set_title("green: verdict; blue: helps; red: hurts; grey: not identifiable", fontsize=8)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.3, right=0.95, bottom=0.5 / fig.get_figheight() + 0.05, top=0.9)
     _save(fig, path)
     plt.close(fig)
 
 
 def _save(fig, path: Path) -> None:
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png", metadata={"Software": None})
+        fig.savefig(tmp, dpi=90, format="png", metadata={"Software": None})
 
 
 def _floor_parts(parts: dict | None) -> str:
@@ -155,16 +172,30 @@ def _floor_parts(parts: dict | None) -> str:
     )
 
 
+def _effect_line(e: dict) -> str:
+    az = ""
+    if e.get("azimuth_deg") is not None:
+        lo, hi = e["azimuth_ci95_deg"]
+        az = f", toward {e['azimuth_deg']:.0f} deg (95% CI {lo:.0f} to {hi:.0f} deg, table frame)"
+    return (f"- **{e['effect']}** ({e['title']}): {_fmt(e['magnitude'])} {e['unit']} (95% CI {_fmt(e['ci95'][0])} to "
+            f"{_fmt(e['ci95'][1])}){az}" + (f"; alias class {e['class']}" if "+" in (e.get("class") or "") else "")
+            + (" (at the edge of the searched range)" if e.get("at_bound") else ""))  # fmt: skip
+
+
 def markdown(s: dict) -> str:
     v, sh, noise = s["verdict"], s["shrinkage"], s["noise"]
     lines = [
         "# Sim-to-real gap diagnosis",
         "",
+        f"**{v['sentence']}**",
+        "",
         f"Push log: `{s['pushlog']}` ({s['n_pushes']} pushes, {s['n_objects']} objects"
         f"{', with directions' if s['has_direction'] else ', no directions'}"
-        f"{''.join(f', measured {k} held fixed' for k, on in s.get('measured', {}).items() if on)}).",
-        f"Noise: sd {_fmt(noise['sd'])} in log d ({noise['source']}). Table model floor: "
-        f"{_fmt(s['options'].get('model_floor'))} RMS log d{_floor_parts(s.get('model_floor'))}.",
+        f"{''.join(f', measured {k} held fixed' for k, on in s.get('measured', {}).items() if on)}). "
+        f"Observables used: {s['observables_note']}.",
+        f"Noise: sd {_fmt(noise['sd'])} in log d ({noise['source']})"
+        + (f", {_fmt(noise.get('stop_time_sd'))} in log stop time" if noise.get("stop_time_sd") else "")
+        + f". Table model floor: {_fmt(s['options'].get('model_floor'))} RMS log d{_floor_parts(s.get('model_floor'))}.",
         "",
         "## Verdict",
         "",
@@ -173,11 +204,30 @@ def markdown(s: dict) -> str:
         lines.append(f"**None of the candidates** ({v['reason']}). Unexplained residual above the noise floor: "
                      f"{_fmt(sh['unexplained_rms_above_floor'])} RMS log d.")  # fmt: skip
     else:
-        top = next(r for r in s["ranking"] if r["effect"] == v["effect"])
-        lines.append(
-            f"**{v['class']}** explains the gap: {top['effect']} = {_fmt(top['magnitude'])} {top['unit']} "
-            f"(95% CI {_fmt(top['ci95'][0])} to {_fmt(top['ci95'][1])})."
-        )
+        lines.append("Accepted effects (fitted jointly, with every object's mass and friction):")
+        lines.append("")
+        lines += [_effect_line(e) for e in s["effects"]]
+    notes = [e["fit_alias"] for e in s["effects"] if e.get("fit_alias")]
+    if notes:
+        lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
+    lines += [
+        "",
+        f"Held-out RMS gap in log d: {_fmt(sh['before_rms'])} with the table alone, {_fmt(sh['after_rms'])} with "
+        f"{' + '.join(sh['effects']) or 'no effect added'} (each object's mass and friction refitted at the effects "
+        f"fitted without it); noise floor {_fmt(sh['noise_floor_rms'])}; share of the gap above the floor closed: "
+        f"{_fmt(sh['gap_share_closed'], '.2f')}"
+        + (f" (stop times: {_fmt(sh['stop_time_share_closed'], '.2f')})" if sh.get("stop_time_share_closed") is not None
+           else "") + ".",
+    ]  # fmt: skip
+    outl = s.get("outliers") or {}
+    n_out = sum(len(x) for x in outl.values())
+    if n_out:
+        lines += ["", f"**Gross outliers** ({n_out}, left out of every fit so they cannot decide the verdict; "
+                  "their replicates were set aside with them):", ""]  # fmt: skip
+        for obs, rows in outl.items():
+            for r in rows:
+                lines.append(f"- {obs}: row {r['row'] + 1} (object {r['object_id']}, speed {r['speed']:g} m/s, "
+                             f"direction {r['direction']:.3g} rad)")  # fmt: skip
     lines += [
         "",
         "## Where (baseline fit residuals)",
@@ -205,24 +255,35 @@ def markdown(s: dict) -> str:
     lines += [
         "## Which (candidate effects)",
         "",
-        "Ranked by held-out improvement (objects left out in folds). LR: likelihood-ratio statistic at the "
-        f"noise variance (critical value {_fmt(v['lr_critical'], '.3g')}); dBIC < 0 favours the effect.",
+        "Forward selection: each step adds every candidate in turn to the effects already accepted and refits "
+        "them all jointly; a candidate qualifies when its likelihood-ratio statistic (at the noise and the model's "
+        "own error) beats the Bonferroni-corrected chi-square quantile, it lowers the leave-one-object-out held-out "
+        "sum of squares, and it explains more than the model's own error could. The best qualifying one is accepted.",
         "",
-        "| effect | class | magnitude | 95% CI | LR | dBIC | held-out | explained RMS | share closed |",
-        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in s["ranking"]:
-        lines.append(
-            f"| {r['effect']} | {r['class']} | {_fmt(r['magnitude'])} {r['unit']} | [{_fmt(r['ci95'][0])}, "
-            f"{_fmt(r['ci95'][1])}] | {_fmt(r['lr_stat'], '.1f')} | {_fmt(r['delta_bic'], '.1f')} | "
-            f"{_fmt(r['heldout_improvement'], '+.3f')} | {_fmt(r['explained_rms'], '.4f')} | {_fmt(r['share_closed'], '.2f')} |"
-        )
+    for step in s.get("selection", []):
+        lines += [f"**Step {step['step']}** (on top of: {', '.join(step['model_before']) or 'the table alone'}; "
+                  f"accepted: {step['accepted'] or 'none'})", "",
+                  "| effect | class | magnitude | 95% CI | LR (critical) | held-out gain | qualifies |",
+                  "|---|---|---|---|---|---|---|"]  # fmt: skip
+        for r in step["candidates"]:
+            az = f" @ {r['azimuth_deg']:.0f} deg" if r.get("azimuth_deg") is not None else ""
+            lines.append(f"| {r['effect']} | {r['class']} | {_fmt(r['magnitude'])} {r['unit']}{az} | "
+                         f"[{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}] | {_fmt(r['lr_stat'], '.1f')} "
+                         f"({_fmt(r['lr_critical'], '.1f')}) | {_fmt(r['heldout_gain'], '.1f')} | "
+                         f"{'yes' if r['qualifies'] else '; '.join(r['reasons'])} |")  # fmt: skip
+        lines.append("")
     al = s["aliasing"]
     lines += [
-        "",
         f"Not identifiable from these pushes (projected effect below {s['options']['min_visible']} RMS at the "
         f"largest magnitude): {', '.join(al['not_identifiable']) or 'none'}. Alias classes: "
         f"{'; '.join(al['classes'])}.",
+    ]
+    fit_alias = [f"{n}: {al['effects'][n]['fit_alias']}" for n in al.get("aliased_with_fit", [])]
+    if fit_alias:
+        lines += ["", "Candidates largely absorbed by the per-object (mass, friction) fit:", ""]
+        lines += [f"- {x}" for x in fit_alias]
+    lines += [
         "",
         "![ranking](ranking.png)",
         "",

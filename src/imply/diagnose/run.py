@@ -14,12 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from imply.diagnose.analysis import DiagnosisConfig, diagnose
+from imply.diagnose.candidates import Candidate, library_effects, needs_across
 from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
 from imply.diagnose.pushlog import PushLog, read_pushlog
 from imply.diagnose.report import REPORT_FILES, write_report
 from imply.io import check_folder, write_folder
-from imply.sim.effects import Effect
 from imply.table import PushTable
 
 log = logging.getLogger("imply.diagnose")
@@ -30,14 +30,31 @@ class Session:
     """What the diagnoses of one run share."""
 
     table: PushTable
-    effects: list[Effect]
+    candidates: list[Candidate]
     options: DiagnosisConfig
     effect_tables: EffectTables
 
 
+def effect_tables(
+    table: PushTable,
+    candidates: list[Candidate],
+    options: DiagnosisConfig,
+    grid: CoarseGrid,
+    cache_dir: str | os.PathLike | None,
+    *,
+    nthread: int = 0,
+    progress: bool = True,
+) -> EffectTables:
+    """The effect tables the candidates need (from the cache, or simulated into it)."""
+    return load_or_build(
+        table, library_effects(candidates), grid, cache_dir, nthread=nthread, progress=progress,
+        across=needs_across(candidates), stop_time=options.use_stop_time,
+    )  # fmt: skip
+
+
 def prepare(
     table: PushTable,
-    effects: list[Effect],
+    candidates: list[Candidate],
     options: DiagnosisConfig,
     grid: CoarseGrid,
     cache_dir: str | os.PathLike | None,
@@ -45,11 +62,14 @@ def prepare(
     nthread: int = 0,
     progress: bool = True,
 ) -> Session:
-    """Load (or simulate and cache) the effect tables; the model floor defaults to the tables' measured one."""
-    etables = load_or_build(table, effects, grid, cache_dir, nthread=nthread, progress=progress)
+    """Load (or simulate and cache) the effect tables; the floors default to the tables' measured ones."""
+    etables = effect_tables(table, candidates, options, grid, cache_dir, nthread=nthread, progress=progress)
+    floor = etables.meta.get("model_floor") or {}
     if options.model_floor is None:
-        options = options.replace(model_floor=etables.meta.get("model_floor_rms"))
-    return Session(table, effects, options, etables)
+        options = options.replace(model_floor=floor.get("rms"))
+    if options.stop_time_floor is None and floor.get("stop_time"):
+        options = options.replace(stop_time_floor=floor["stop_time"]["rms"])
+    return Session(table, candidates, options, etables)
 
 
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable) -> PushLog:
@@ -69,8 +89,11 @@ def diagnose_file(
     check_report_folder(output, force, [pushlog_path])
     pushlog = read_checked_pushlog(pushlog_path, session.table)
     opts = session.options
-    problem = Problem(pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured)
-    diag = diagnose(problem, session.effects, opts)
+    problem = Problem(
+        pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
+        use_stop_time=opts.use_stop_time,
+    )  # fmt: skip
+    diag = diagnose(problem, session.candidates, opts)
     write_folder(Path(output), lambda tmp: write_report(diag, tmp), force=force)
     v = diag.summary["verdict"]
     log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], output)

@@ -1,0 +1,21 @@
+"""A converged stand-in for the real world: the gap benchmark's push logs, on a code path of its own.
+
+The sim-to-real diagnostic (:mod:`imply.diagnose`) reads the push table and effect
+tables built by :mod:`imply.sim.pushes`. A benchmark that made its "real" pushes the
+same way would share the diagnostic's numerical mistakes. This package does not import
+:mod:`imply.diagnose`, reads no table and interpolates nothing:
+
+- :mod:`~imply.realworld.world` steps the push scene with MuJoCo's ``RK4`` integrator on
+  uniform steps (no shortened slide steps, no travel correction: the table's
+  semi-implicit Euler stepping is not used), and injects every effect through its own
+  mechanism: a tilted table rotates gravity in full, viscous friction and air drag are
+  applied forces, anisotropic, speed-dependent (Stribeck) and position-dependent
+  friction are friction laws evaluated at every step;
+- :mod:`~imply.realworld.effects` lists the effects the world can carry, those the
+  diagnostic has candidates for and those it has not;
+- :mod:`~imply.realworld.cases` draws the benchmark's logs (objects, magnitudes,
+  azimuths, noise, outliers, what was measured) and writes each log and, apart, its
+  sealed label;
+- :mod:`~imply.realworld.accuracy` measures the world's own numerical error against a
+  much finer run of itself and against :mod:`imply.sim.reference`.
+"""

@@ -1,0 +1,364 @@
+"""The gap benchmark's push logs: what each log holds, drawn at random, simulated in the world, noise added.
+
+Each log is one lab's session: ``n_objects`` boxes of the canonical size, masses and
+frictions drawn log-uniformly over the push table's whole range, each pushed once at every
+speed of ``speeds`` in a direction drawn uniformly on the table (radians), every push
+recorded ``replicates`` times with independent readout noise. The world carries no
+effect (null logs: ``null_gaussian`` and ``null_heavy``), one effect, or two at once; magnitudes are drawn log-uniformly over
+each effect's range (signed effects of either sign), directional effects at a random
+azimuth. What the lab recorded is drawn too: the objects' weighed masses (share
+``measured_mass_share`` of the logs) and the stop time of every push (share
+``stop_time_share``). Readout noise is multiplicative and log-normal (sd ``noise.sd``
+on displacement, ``noise.stop_time_sd`` on stop time), or, in heavy-tailed logs (all
+``null_heavy`` logs and share ``heavy_share`` of the others), Student-t with
+``noise.heavy_df`` degrees of freedom and sd ``noise.heavy_sd``, plus a few gross
+outliers (a displacement read off by a factor exp(+-U(``noise.outlier_size``)), and its
+stop time too in half of them).
+
+Logs are named ``log-000``, ``log-001``, ... in a shuffled order, so neither the name nor
+the position tells what a log carries. The label of every log (its effects and
+magnitudes, the objects' true masses and frictions, the noise, the outliers, the
+noise-free observables, and for two-effect logs each effect's noise-free observables on
+its own) goes to a sealed file the diagnostic never reads.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from imply.io import write_csv, write_json
+from imply.options import Config
+from imply.realworld.accuracy import measure_error
+from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
+from imply.realworld.world import WorldPushes, WorldStepping, simulate_world
+from imply.sim.scene import SceneConfig
+
+log = logging.getLogger("imply.realworld")
+
+GROUPS = ("null_gaussian", "null_heavy", "single", "single_unidentifiable", "double", "outside")
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoiseModel(Config):
+    """Readout noise of the logs (config ``gap.benchmark.noise``)."""
+
+    config_key: ClassVar[str] = "gap.benchmark.noise"
+
+    sd: float = 0.02
+    stop_time_sd: float = 0.02
+    heavy_sd: float = 0.03
+    heavy_df: float = 3.0
+    outliers: tuple[int, int] = (2, 4)
+    outlier_size: tuple[float, float] = (0.3, 1.0)
+
+    def __post_init__(self) -> None:
+        for name in ("outliers", "outlier_size"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"{name} must be [low, high] with 0 <= low <= high, not {[lo, hi]}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class AccuracyCheck(Config):
+    """How the world's own numerical error is measured (config ``gap.benchmark.accuracy``): ``pushes``
+    of the benchmark's own and ``nominal`` effect-free ones, stepped ``factor`` times finer."""
+
+    config_key: ClassVar[str] = "gap.benchmark.accuracy"
+
+    pushes: int = 48
+    nominal: int = 16
+    factor: int = 4
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchmarkConfig(Config):
+    """The gap benchmark (config ``gap.benchmark``): what its logs hold, and how the diagnoses are judged."""
+
+    config_key: ClassVar[str] = "gap.benchmark"
+
+    seed: int
+    logs: dict[str, int] = field(
+        default_factory=lambda: {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12,
+                                 "double": 40, "outside": 48}
+    )  # fmt: skip
+    n_objects: int = 8
+    speeds: tuple[float, ...] = (0.2, 0.34, 0.48, 0.62, 0.76, 0.9)
+    masses: tuple[float, float] = (0.2, 2.0)
+    frictions: tuple[float, float] = (0.1, 0.6)
+    replicates: int = 2
+    measured_mass_share: float = 0.7
+    stop_time_share: float = 0.6
+    heavy_share: float = 0.2
+    double_range: tuple[float, float] = (0.3, 1.0)  # two-effect logs: share of each effect's largest magnitude
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)  # |magnitude| ranges, by effect
+    stribeck_speed: tuple[float, float] = (0.05, 0.2)
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    stepping: WorldStepping = field(default_factory=WorldStepping)
+    # how the diagnoses are judged (imply.diagnose.benchmark.score_cases)
+    accuracy: AccuracyCheck = field(default_factory=AccuracyCheck)
+    min_size_sd: float = 2.0  # effects at least this many noise sd (visible RMS) count for the targets
+    targets: dict[str, float] = field(
+        default_factory=lambda: {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8,
+                                 "magnitude_error": 0.10, "shrinkage": 0.8}
+    )  # fmt: skip
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.logs) - set(GROUPS))
+        if unknown:
+            raise ValueError(f"logs: unknown group(s) {', '.join(unknown)} (known: {', '.join(GROUPS)})")
+        unknown = sorted(set(self.ranges) - set(EFFECTS))
+        if unknown:
+            raise ValueError(f"ranges: unknown effect(s) {', '.join(unknown)}")
+        pairs = {"masses": self.masses, "frictions": self.frictions, "double_range": self.double_range,
+                 "stribeck_speed": self.stribeck_speed, **{f"ranges.{k}": v for k, v in self.ranges.items()}}  # fmt: skip
+        for name, (lo, hi) in pairs.items():
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                raise ValueError(f"{name} must be [low, high] with low <= high, not {[lo, hi]}")
+
+    def range_of(self, name: str) -> tuple[float, float]:
+        return self.ranges.get(name, EFFECTS[name].default_range)
+
+    @property
+    def n_logs(self) -> int:
+        return int(sum(self.logs.values()))
+
+
+def case_ids(design: BenchmarkConfig) -> list[str]:
+    """The logs' names (they say nothing about what a log carries)."""
+    width = max(3, len(str(design.n_logs - 1)))
+    return [f"log-{k:0{width}d}" for k in range(design.n_logs)]
+
+
+def _round_robin(names: tuple[str, ...], count: int, rng: np.random.Generator) -> list[str]:
+    order = list(names)
+    rng.shuffle(order)
+    return [order[k % len(order)] for k in range(count)]
+
+
+def draw_cases(design: BenchmarkConfig) -> list[dict]:
+    """Every log's draw (effects, objects, directions, what was measured, noise), in the logs' order."""
+    rng = np.random.default_rng(design.seed)
+    plans: list[tuple[str, list[str]]] = []
+    plans += [("null_gaussian", [])] * design.logs.get("null_gaussian", 0)
+    plans += [("null_heavy", [])] * design.logs.get("null_heavy", 0)
+    plans += [("single", [e]) for e in _round_robin(IDENTIFIABLE, design.logs.get("single", 0), rng)]
+    unident = tuple(n for n in LIBRARY if n not in IDENTIFIABLE)
+    plans += [
+        ("single_unidentifiable", [e]) for e in _round_robin(unident, design.logs.get("single_unidentifiable", 0), rng)
+    ]
+    for _ in range(design.logs.get("double", 0)):
+        plans.append(("double", sorted(rng.choice(IDENTIFIABLE, size=2, replace=False).tolist())))
+    plans += [("outside", [e]) for e in _round_robin(OUTSIDE, design.logs.get("outside", 0), rng)]
+    order = rng.permutation(len(plans))
+    ids = case_ids(design)
+    cases = []
+    n_obj, n_sp = design.n_objects, len(design.speeds)
+    for cid, k in zip(ids, order, strict=True):
+        group, names = plans[k]
+        crng = np.random.default_rng([design.seed, int(k)])
+        effects = []
+        for name in names:
+            hi = design.range_of(name)[1]
+            lo, hi = (
+                (design.double_range[0] * hi, design.double_range[1] * hi)
+                if group == "double"
+                else design.range_of(name)
+            )
+            e = {"name": name, "magnitude": draw_magnitude(crng, name, lo, hi),
+                 "azimuth": float(crng.uniform(0, 2 * np.pi)) if EFFECTS[name].directional else None,
+                 "in_library": EFFECTS[name].in_library}  # fmt: skip
+            if name == "stribeck":
+                e["stribeck_speed"] = float(np.exp(crng.uniform(*np.log(design.stribeck_speed))))
+            effects.append(e)
+        heavy = group == "null_heavy" or (group != "null_gaussian" and crng.random() < design.heavy_share)
+        cases.append({
+            "id": cid, "group": group, "effects": effects,
+            "mass": np.exp(crng.uniform(*np.log(design.masses), n_obj)).tolist(),
+            "friction": np.exp(crng.uniform(*np.log(design.frictions), n_obj)).tolist(),
+            "direction": crng.uniform(0, 2 * np.pi, n_obj * n_sp).tolist(),
+            "measured_mass": bool(crng.random() < design.measured_mass_share),
+            "stop_time": bool(crng.random() < design.stop_time_share),
+            "noise": "heavy" if heavy else "gaussian",
+            "noise_seed": int(crng.integers(2**31)),
+        })  # fmt: skip
+    return cases
+
+
+def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effects: list[dict]) -> WorldPushes:
+    n_obj, sp = design.n_objects, np.asarray(design.speeds, float)
+    obj = np.repeat(np.arange(n_obj), sp.size)
+    p = WorldPushes.nominal(np.tile(sp, n_obj), np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
+                            np.asarray(case["direction"]), scene)  # fmt: skip
+    for e in effects:
+        apply_effect(p, e["name"], e["magnitude"], e["azimuth"] or 0.0, e)
+    return p
+
+
+def _noise(rng: np.random.Generator, kind: str, sd: float, heavy_sd: float, df: float, shape) -> np.ndarray:
+    if kind == "heavy":
+        return rng.standard_t(df, shape) * heavy_sd * np.sqrt((df - 2.0) / df)
+    return rng.normal(0.0, sd, shape)
+
+
+def simulate_cases(
+    cases: list[dict],
+    design: BenchmarkConfig,
+    scene: SceneConfig,
+    *,
+    nthread: int = 0,
+    chunk: int = 2400,
+    progress: bool = False,
+) -> dict[str, dict]:
+    """Noise-free observables of every case (and of each effect alone in two-effect cases)."""
+    runs: list[tuple[str, str, WorldPushes]] = []  # (case id, what, pushes)
+    for case in cases:
+        runs.append((case["id"], "all", _world_pushes(case, design, scene, case["effects"])))
+        if len(case["effects"]) > 1:
+            for e in case["effects"]:
+                runs.append((case["id"], e["name"], _world_pushes(case, design, scene, [e])))
+    sizes = [r[2].n for r in runs]
+    allp = WorldPushes.concat([r[2] for r in runs])
+    bounds = np.concatenate([[0], np.cumsum(sizes)])
+    disp, stop, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
+    starts = range(0, allp.n, chunk)
+    for a in tqdm(starts, desc="world pushes", unit="batch", disable=not progress):
+        idx = np.arange(a, min(a + chunk, allp.n))
+        res = simulate_world(allp.subset(idx), scene, design.stepping, nthread=nthread)
+        disp[idx], stop[idx], ok[idx] = res.displacement, res.stop_time, res.ok
+    out: dict[str, dict] = {}
+    for k, (cid, what, _) in enumerate(runs):
+        sl = slice(bounds[k], bounds[k + 1])
+        out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl]}
+    return out
+
+
+def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig) -> tuple[pd.DataFrame, dict]:
+    """The push log a lab would have written for ``case`` (noise added), and its sealed label."""
+    rng = np.random.default_rng(case["noise_seed"])
+    n_obj, sp = design.n_objects, np.asarray(design.speeds, float)
+    obj = np.repeat(np.arange(n_obj), sp.size)
+    v = np.tile(sp, n_obj)
+    phi = np.asarray(case["direction"])
+    res = sim["all"]
+    ok = res["ok"].copy()
+    # a lab drops a push whose box tipped or never settled; an object left with too few
+    # pushes to fit is dropped whole
+    for i in range(n_obj):
+        mine = (obj == i) & ok
+        if mine.sum() < 3 or np.unique(v[mine]).size < 2:
+            ok[obj == i] = False
+    nm = design.noise
+    reps = design.replicates
+    shape = (reps, v.size)
+    e_d = _noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df, shape)
+    e_t = _noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd, nm.heavy_df, shape)
+    outliers: list[list[int]] = []
+    if case["noise"] == "heavy":
+        k = int(rng.integers(nm.outliers[0], nm.outliers[1] + 1))
+        flat = rng.choice(np.flatnonzero(np.tile(ok, reps)), size=min(k, int(ok.sum()) * reps), replace=False)
+        for f in flat:
+            r, j = divmod(int(f), v.size)
+            size = rng.uniform(*nm.outlier_size) * rng.choice([-1.0, 1.0])
+            e_d[r, j] += size
+            if rng.random() < 0.5:
+                e_t[r, j] += rng.uniform(*nm.outlier_size) * rng.choice([-1.0, 1.0])
+            outliers.append([r, j])
+    names = [f"obj{i:02d}" for i in range(n_obj)]
+    he = scene.box_half_extents
+    size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
+    rows = []
+    for r in range(reps):
+        cols = {"object_id": [names[i] for i in obj], "speed": v, "direction": np.round(phi, 9),
+                "displacement": res["displacement"] * np.exp(e_d[r])}  # fmt: skip
+        if case["stop_time"]:
+            cols["stop_time"] = res["stop_time"] * np.exp(e_t[r])
+        cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
+        if case["measured_mass"]:
+            cols["mass"] = np.round(np.asarray(case["mass"])[obj], 3)
+        frame = pd.DataFrame(cols)
+        frame["_push"] = np.arange(v.size)
+        frame["_rep"] = r
+        rows.append(frame[ok])
+    frame = pd.concat(rows, ignore_index=True).sort_values(["object_id", "speed", "_rep"], kind="stable")
+    kept = frame[["_push", "_rep"]].to_numpy()
+    frame = frame.drop(columns=["_push", "_rep"]).reset_index(drop=True)
+
+    def observables(r: dict) -> dict:
+        return {"log_d": np.log(np.maximum(r["displacement"], 1e-9)).tolist(),
+                "log_t": np.log(np.maximum(r["stop_time"], 1e-9)).tolist(), "ok": r["ok"].tolist()}  # fmt: skip
+
+    label = {
+        "id": case["id"], "group": case["group"], "effects": case["effects"],
+        "noise": {"kind": case["noise"], "sd": nm.heavy_sd if case["noise"] == "heavy" else nm.sd,
+                  "stop_time_sd": nm.heavy_sd if case["noise"] == "heavy" else nm.stop_time_sd,
+                  "df": nm.heavy_df if case["noise"] == "heavy" else None},
+        "measured_mass": case["measured_mass"], "stop_time": case["stop_time"],
+        "objects": {names[i]: {"mass": case["mass"][i], "friction": case["friction"][i]} for i in range(n_obj)},
+        "pushes": {"object": [names[i] for i in obj], "speed": v.tolist(), "direction": phi.tolist(),
+                   "kept": ok.tolist()},
+        "noise_free": {what: observables(r) for what, r in sim.items()},
+        "outliers": outliers,  # [replicate, push] of every gross outlier
+        "rows_kept": kept.tolist(),  # [push, replicate] of every row of the log, in its order
+        "dropped_pushes": int((~ok).sum()),
+    }  # fmt: skip
+    return frame, label
+
+
+def write_benchmark_logs(
+    design: BenchmarkConfig,
+    scene: SceneConfig,
+    *,
+    logs: Path,
+    sealed: Path,
+    accuracy: Path,
+    table_error: dict | None = None,
+    nthread: int = 0,
+    progress: bool = True,
+) -> dict:
+    """Simulate every log into ``logs/<id>.csv``, seal the labels in ``sealed``, and measure the world's
+    own numerical error into ``accuracy`` (beside the table's, ``table_error``). Returns that error."""
+    cases = draw_cases(design)
+    log.info("simulating %d logs (%d objects x %d speeds each) in the world", len(cases), design.n_objects,
+             len(design.speeds))  # fmt: skip
+    sims = simulate_cases(cases, design, scene, nthread=nthread, progress=progress)
+    labels = {}
+    for case in cases:
+        frame, label = make_log(case, sims[case["id"]], design, scene)
+        write_csv(logs / f"{case['id']}.csv", frame)
+        labels[case["id"]] = label
+    check = design.accuracy
+    log.info("measuring the world's numerical error on %d of its pushes", check.pushes + check.nominal)
+    sample, nominal = accuracy_sample(cases, design, scene, check.pushes, check.nominal)
+    error = measure_error(sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread,
+                          progress=progress)  # fmt: skip
+    error["table_numerical_error"] = table_error
+    error["stepping"] = design.stepping.to_dict()
+    write_json(accuracy, error)
+    write_json(sealed, labels)
+    return error
+
+
+def accuracy_sample(
+    cases: list[dict], design: BenchmarkConfig, scene: SceneConfig, n: int, n_nominal: int, seed: int = 0
+) -> tuple[WorldPushes, WorldPushes]:
+    """Pushes drawn from the benchmark's own logs (effects and all), and pushes of the nominal world."""
+    rng = np.random.default_rng([design.seed, seed])
+    picks = []
+    for k in rng.choice(len(cases), size=n, replace=len(cases) < n):
+        case = cases[int(k)]
+        p = _world_pushes(case, design, scene, case["effects"])
+        picks.append(p.subset(np.array([int(rng.integers(p.n))])))
+    n_obj = n_nominal
+    sp = np.asarray(design.speeds, float)
+    nominal = WorldPushes.nominal(
+        rng.choice(sp, n_obj), np.exp(rng.uniform(*np.log(design.masses), n_obj)),
+        np.exp(rng.uniform(*np.log(design.frictions), n_obj)), rng.uniform(0, 2 * np.pi, n_obj), scene,
+    )  # fmt: skip
+    return WorldPushes.concat(picks), nominal

@@ -1,0 +1,28 @@
+"""Stand-in result documents for every registered number of a stage (tests of parts, tables, claims)."""
+
+from __future__ import annotations
+
+
+def fake_results(reg, stage: str, value: float = 0.5) -> dict:
+    """Result documents holding ``value`` at every registered path of a stage (and what its claims read)."""
+    results: dict = {}
+    for e in reg.of_stage(stage):
+        node = results.setdefault(e.source, {})
+        *keys, last = e.path.split(".")
+        for key in keys:
+            node = node.setdefault(key, {})
+        node[last] = value
+    if stage == "section5":  # paths index the seed list
+        doc = results["imply.study.section5.scoring.section5_results"]
+        doc["seeds"] = [doc["seeds"]["0"], doc["seeds"]["1"]]
+    extra = {
+        "clips": {"r2_threshold": 0.95, "heldout_clips": 1, "features": "f.npz"},
+        "gap": {"targets": {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8,
+                            "magnitude_error": 0.1, "shrinkage": 0.8},
+                "min_size_sd": 2.0, "n_shrinkage": 3},
+    }.get(stage, {})  # fmt: skip
+    for doc in results.values():
+        doc.update(extra)
+    if stage == "gap":
+        doc["world_error"]["table_rms"] = value
+    return results
