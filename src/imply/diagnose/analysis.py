@@ -665,7 +665,10 @@ def verdict_sentence(effects: list[dict], share: float | None) -> str:
             parts.append(f"{e['title']} of {m:.3g} {e['unit']}")
     text = "; ".join(parts)
     text = text[0].upper() + text[1:]
-    if share is not None:
+    if share is not None and share >= 1.0:
+        # held out, the residual can land a little below the noise floor: the whole gap is closed
+        text += f"; adding {'it' if len(effects) == 1 else 'them'} closes the whole gap, down to the noise."
+    elif share is not None:
         text += f"; adding {'it' if len(effects) == 1 else 'them'} closes {max(share, 0.0):.0%} of the gap."
     else:
         text += "."
