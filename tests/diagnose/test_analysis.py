@@ -73,7 +73,7 @@ def test_oblique_tilt_is_one_effect_with_its_azimuth(tmp_path, tiny_table, tiny_
     assert s["observables"] == ["displacement", "stop_time"]
     # the report leads with the verdict in one sentence, then the evidence
     first = report.split("\n")[2]
-    assert first.startswith("**The table slopes") and "toward" in first and "of the gap" in first
+    assert first.startswith("**The table slopes") and "toward" in first and "closes" in first
     assert "Observables used: displacement and stop time" in report
     assert s["shrinkage"]["gap_share_closed"] > 0.6
 

@@ -643,12 +643,26 @@ def effect_report(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
 def verdict_sentence(effects: list[dict], share: float | None) -> str:
     """The verdict in one sentence a lab engineer can act on."""
     parts = []
+    by_name = {e["effect"]: e["magnitude"] for e in effects}
     for e in effects:
         m, name = e["magnitude"], e["effect"]
-        if name == "tilt":
-            parts.append(f"the table slopes {m:.3g} rad toward {e['azimuth_deg']:.0f} degrees (table frame)")
+        if name in ("speed_gain", "speed_offset") and {"speed_gain", "speed_offset"} <= set(by_name):
+            if name == "speed_offset":
+                continue  # said once, with the gain
+            g, c = by_name["speed_gain"], by_name["speed_offset"]
+            text = f"the pusher's speed is (1 {g:+.1%}) times the command {c:+.3g} m/s"
+            if g * c < 0:  # the two cross: slower on one side of a speed, faster on the other
+                cross = -c / g
+                below, above = ("slower", "faster") if g > 0 else ("faster", "slower")
+                text += f" ({below} than commanded below {cross:.2g} m/s, {above} above)"
+            parts.append(text)
+        elif name == "tilt":
+            parts.append(
+                f"the table slopes {m:.3g} rad toward {round(e['azimuth_deg']) % 360:.0f} degrees (table frame)"
+            )
         elif name == "anisotropic":
-            parts.append(f"friction is {m:.0%} higher along {e['azimuth_deg']:.0f} degrees than across it")
+            # an axis: 0 and 180 degrees are the same direction
+            parts.append(f"friction is {m:.0%} higher along {round(e['azimuth_deg']) % 180:.0f} degrees than across it")
         elif name == "speed_gain":
             parts.append(f"the pusher runs {abs(m):.1%} {'faster' if m > 0 else 'slower'} than commanded")
         elif name == "speed_offset":
@@ -770,7 +784,8 @@ def diagnose(prob: Problem, candidates: list[Candidate], opts: DiagnosisConfig) 
 
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1
     if verdict["verdict"] != NONE:
-        sentence = verdict_sentence(reported, gap_share)
+        # the share the verdict was judged on (both observables, whitened), as the "none" sentences quote it
+        sentence = verdict_sentence(reported, judged if judged is not None else gap_share)
     elif verdict["partial"]:
         sentence = (f"None of the candidate effects explains the gap: the best combination "
                     f"({' + '.join(final.model.names)}) closes only {max(judged or 0, 0):.0%} of it, and "
