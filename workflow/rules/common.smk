@@ -77,6 +77,23 @@ def variant_json(wildcards):
     return as_json(config["model"]["variants"][wildcards.variant])
 
 
+def token_grid_option(wildcards=None):
+    """--token-grid ROWS COLS for the predictor's pooled tokens (empty: the encoder's own grid)."""
+    grid = config["model"].get("token_grid")
+    return f"--token-grid {grid[0]} {grid[1]}" if grid else ""
+
+
+def rollout_readout(wildcards):
+    """The readout a model's rollouts are read with: its own (fit on its rollouts) or the real-token one."""
+    if config["model"]["readout"] == "rollouts":
+        return f"results/model/{wildcards.variant}/seed{wildcards.seed}/readout.npz"
+    return "results/model/readout_ln.npz"
+
+
+def training_histories():
+    return expand("results/model/{variant}/seed{seed}/training.json", variant=MODEL_VARIANTS, seed=MODEL_SEEDS)
+
+
 def rollout_features(wildcards):
     return f"results/features/{ROLLOUT_SPLIT[wildcards.variant]}.npz"
 
@@ -138,6 +155,7 @@ def final_outputs():
         out += ["results/readout/ridge.npz", "results/readout/metrics.json"]
     if "section5" in stages:
         out += ["results/paper/tables/table3.tex", *expand("results/paper/figures/figure2.{ext}", ext=["pdf", "png"])]
+        out += ["results/model/training.png"]
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
     out += paper_parts()

@@ -19,6 +19,8 @@ rule model_readout:
     output:
         readout="results/model/readout_ln.npz",
         report="results/model/readout_ln.json",
+    params:
+        token_grid=token_grid_option,
     threads: 1
     resources:
         mem_mb=6000,
@@ -27,7 +29,7 @@ rule model_readout:
         "results/logs/model_readout.log",
     shell:
         "imply model readout --features {input.features} --clips {input.clips} --heldout {input.calib}"
-        " --heldout {input.nocalib} -o {output.readout} --report {output.report} > {log} 2>&1"
+        " --heldout {input.nocalib} {params.token_grid} -o {output.readout} --report {output.report} > {log} 2>&1"
 
 
 rule model_train:
@@ -36,15 +38,19 @@ rule model_train:
     input:
         features="results/features/train.npz",
         clips="results/clips/train.csv",
+        readout="results/model/readout_ln.npz",
     output:
-        "results/model/{variant}/seed{seed}/model.pt",
+        model="results/model/{variant}/seed{seed}/model.pt",
+        history="results/model/{variant}/seed{seed}/training.json",
+        readout="results/model/{variant}/seed{seed}/readout.npz",
     params:
         preset=preset_json,
+        token_grid=token_grid_option,
         variant=variant_json,
         train=as_json(config["model"]["train"]),
         rest_state=config["model"]["rest_state"],
         device=config["model"]["device"],
-    threads: config["threads"]
+    threads: config["model"]["train_threads"]
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
         runtime=config["model"]["resources"]["train_runtime"],
@@ -53,9 +59,28 @@ rule model_train:
         "results/logs/model_train_{variant}_seed{seed}.log",
     shell:
         # a killed run leaves checkpoint.pt beside the model; rerunning resumes from it
-        "imply model train --features {input.features} --clips {input.clips} --preset-json {params.preset}"
-        " --variant-json {params.variant} --train-json {params.train} --rest-state {params.rest_state}"
-        " --seed {wildcards.seed} --threads {threads} --device {params.device} -o {output} > {log} 2>&1"
+        "imply model train --features {input.features} --clips {input.clips} --readout {input.readout}"
+        " --preset-json {params.preset} {params.token_grid} --variant-json {params.variant}"
+        " --train-json {params.train} --rest-state {params.rest_state} --seed {wildcards.seed}"
+        " --threads {threads} --device {params.device} -o {output.model} --history {output.history}"
+        " --rollout-readout {output.readout} > {log} 2>&1"
+
+
+rule model_training_plot:
+    conda:
+        IMPLY_ENV
+    input:
+        training_histories(),
+    output:
+        "results/model/training.png",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    log:
+        "results/logs/model_training_plot.log",
+    shell:
+        "imply model plot {input} -o {output} > {log} 2>&1"
 
 
 rule model_rollout:
@@ -65,7 +90,7 @@ rule model_rollout:
         model="results/model/{variant}/seed{seed}/model.pt",
         features=rollout_features,
         clips=rollout_clips,
-        readout="results/model/readout_ln.npz",
+        readout=rollout_readout,
     output:
         "results/model/{variant}/seed{seed}/rollouts.csv",
     params:

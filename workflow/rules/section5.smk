@@ -8,6 +8,7 @@ rule section5:
     input:
         rollouts=model_rollouts(),
         table="results/table/table.npz",
+        train_clips="results/clips/train.csv",
     output:
         metrics="results/section5/metrics.json",
         per_object="results/section5/per_object.csv",
@@ -22,6 +23,7 @@ rule section5:
     log:
         "results/logs/section5.log",
     shell:
-        "imply section5 {params.rollouts} --table {input.table} --score-json {params.score}"
+        "imply section5 {params.rollouts} --table {input.table} --train-clips {input.train_clips}"
+        " --score-json {params.score}"
         " --selection-seed {params.selection_seed} --metrics {output.metrics} --per-object {output.per_object}"
         " > {log} 2>&1"

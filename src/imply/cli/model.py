@@ -42,6 +42,23 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--rest-state", type=float, default=1.0, help="state token of the last frame (config model.rest_state)"
     )
     tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
+    tr.add_argument(
+        "--token-grid",
+        type=int_range(1),
+        nargs=2,
+        metavar=("ROWS", "COLS"),
+        help="pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)",
+    )
+    tr.add_argument(
+        "--readout",
+        type=existing_file,
+        help="the latent readout (imply model readout), needed for per-epoch validation",
+    )
+    tr.add_argument("--history", help="also write the per-epoch losses and validation metrics here (.json)")
+    tr.add_argument(
+        "--rollout-readout",
+        help="also fit the model's own readout on its rollouts of the training objects and write it here",
+    )
     tr.add_argument("--threads", type=int_range(1), default=2)
     tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
     tr.add_argument("--device", default="cpu", help="torch device (cpu, cuda)")
@@ -60,6 +77,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=existing_file,
         help="held-out split to report R^2 on (repeatable)",
     )
+    rd.add_argument(
+        "--token-grid",
+        type=int_range(1),
+        nargs=2,
+        metavar=("ROWS", "COLS"),
+        help="pool the patch tokens to this grid first, as the predictor sees them",
+    )
     rd.add_argument("-o", "--output", required=True, help="the fitted readout (.npz)")
     rd.add_argument("--report", required=True, help="its alpha, range and held-out R^2 (.json)")
     rd.set_defaults(func=cmd_readout)
@@ -76,6 +100,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     ro.add_argument("--threads", type=int_range(1), default=2)
     ro.add_argument("-o", "--output", required=True)
     ro.set_defaults(func=cmd_rollout)  # fmt: skip
+
+    pl = msub.add_parser("plot", help="plot the per-epoch validation of trained predictors")
+    pl.add_argument(
+        "histories", nargs="+", type=existing_file, help="training.json files (imply model train --history)"
+    )
+    pl.add_argument("-o", "--output", required=True, help="the figure (.png)")
+    pl.set_defaults(func=cmd_plot)
 
 
 def _setup_torch(threads: int) -> None:
@@ -94,7 +125,17 @@ def _feature_split(features: Path, clips: Path):
         raise UserError(str(exc)) from exc
 
 
+def _readout(path: Path):
+    from imply.models.rollout import load_latent_readout
+
+    try:
+        return load_latent_readout(path)
+    except (ValueError, KeyError) as exc:
+        raise UserError(f"--readout: {exc}") from exc
+
+
 def cmd_train(args: argparse.Namespace) -> int:
+    from imply.io import write_json
     from imply.models.ac_predictor import PredictorPreset
     from imply.models.sequences import Layout
     from imply.models.train import TrainConfig, train_variant
@@ -104,26 +145,34 @@ def cmd_train(args: argparse.Namespace) -> int:
     layout = config_from_json(Layout, args.variant_json, "--variant-json")
     config = config_from_json(TrainConfig, args.train_json, "--train-json")
     split = _feature_split(args.features, args.clips)
+    readout = _readout(args.readout) if args.readout else None
     out = Path(args.output)
     t0 = time.perf_counter()
     try:
-        train_variant(
+        payload = train_variant(
             split, preset=preset, layout=layout, config=config, rest_state=args.rest_state, data_seed=args.seed,
             out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
-            device=args.device,
+            token_grid=tuple(args.token_grid) if args.token_grid else None, readout=readout,
+            rollout_readout=args.rollout_readout, device=args.device,
         )  # fmt: skip
     except ValueError as exc:
         raise UserError(str(exc)) from exc
+    if args.history:
+        write_json(args.history, {"seed": args.seed, "layout": layout.to_dict(), "history": payload["history"]})
     log.info("trained seed %d in %.1f s -> %s", args.seed, time.perf_counter() - t0, out)
     return 0
 
 
 def cmd_readout(args: argparse.Namespace) -> int:
     from imply.io import write_json
-    from imply.models.rollout import fit_latent_readout, latent_readout_report
+    from imply.models.rollout import fit_latent_readout, latent_readout_report, pool_tokens
 
-    readout = fit_latent_readout(_feature_split(args.features, args.clips))
-    heldout = {Path(feats).stem: _feature_split(feats, clips) for feats, clips in args.heldout}
+    grid = tuple(args.token_grid) if args.token_grid else None
+    try:
+        readout = fit_latent_readout(pool_tokens(_feature_split(args.features, args.clips), grid))
+        heldout = {Path(f).stem: pool_tokens(_feature_split(f, c), grid) for f, c in args.heldout}
+    except ValueError as exc:
+        raise UserError(f"--token-grid: {exc}") from exc
     report = latent_readout_report(readout, heldout)
     readout.save(args.output)
     write_json(args.report, report)
@@ -132,7 +181,7 @@ def cmd_readout(args: argparse.Namespace) -> int:
 
 def cmd_rollout(args: argparse.Namespace) -> int:
     from imply.io import write_csv
-    from imply.models.rollout import CONTEXTS, load_latent_readout, rollout_split
+    from imply.models.rollout import CONTEXTS, pool_tokens, rollout_split
     from imply.models.train import load_model
 
     _setup_torch(args.threads)
@@ -143,11 +192,14 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     model, layout, payload = load_model(args.model)
     if not layout.calib and any(c != "none" for c in contexts):
         raise UserError("--contexts: a model trained without calibration context only takes 'none'")
-    split = _feature_split(args.features, args.clips)
-    try:
-        readout = load_latent_readout(args.readout)
-    except (ValueError, KeyError) as exc:
-        raise UserError(f"--readout: {exc}") from exc
+    grid = payload.get("token_grid")
+    split = pool_tokens(_feature_split(args.features, args.clips), tuple(grid) if grid else None)
+    readout = _readout(args.readout)
+    if (readout.ridge.n_patches, readout.ridge.dim) != split.tokens.shape[2:]:
+        raise UserError(
+            f"--readout: it reads {readout.ridge.n_patches} tokens of width {readout.ridge.dim}, the model's"
+            f" tokens are {split.tokens.shape[2]} of width {split.tokens.shape[3]} (fit it with the model's --token-grid)"
+        )
     rest = args.rest_state if args.rest_state is not None else float(payload.get("rest_state", 1.0))
     t0 = time.perf_counter()
     table = rollout_split(
@@ -156,4 +208,22 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     )  # fmt: skip
     write_csv(args.output, table)
     log.info("rollouts written to %s in %.1f s", args.output, time.perf_counter() - t0)
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    import json
+
+    from imply.paper.figures import training_figure
+
+    docs = []
+    for path in args.histories:
+        try:
+            doc = json.loads(Path(path).read_text())
+            if not doc["history"] or "layout" not in doc:
+                raise KeyError("history")
+        except (ValueError, KeyError) as exc:
+            raise UserError(f"{path}: not a training history of imply model train --history ({exc})") from exc
+        docs.append(doc)
+    training_figure(docs, png_path=args.output)
     return 0

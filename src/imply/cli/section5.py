@@ -22,6 +22,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     s5.add_argument("--rollouts", action="append", required=True, metavar="MODEL:SEED:PATH",
                     help="a rollout table of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
     s5.add_argument("--table", type=existing_file, required=True)
+    s5.add_argument(
+        "--train-clips",
+        type=existing_file,
+        required=True,
+        help="results/clips/train.csv: the training slides that define the object-blind baseline",
+    )
     s5.add_argument("--score-json", type=json_arg, required=True, help="the config's score section (grid, floor)")
     s5.add_argument("--selection-seed", type=int_range(0), default=0)
     s5.add_argument("--metrics", required=True, help="the result document (results/section5/metrics.json)")
@@ -30,7 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_section5(args: argparse.Namespace) -> int:
+    import pandas as pd
+
     from imply.io import write_csv
+    from imply.models.object_blind import typical_slide_of_clips
     from imply.paper.results import write_result
     from imply.score import ScoreConfig
     from imply.study.section5.scoring import read_rollout_tables, section5_results
@@ -42,7 +51,13 @@ def cmd_section5(args: argparse.Namespace) -> int:
         raise UserError(f"--rollouts: {exc}") from exc
     seeds = sorted({s for _, s in tables})
     scorer = config_from_json(ScoreConfig, args.score_json, "--score-json").scorer(PushTable.load(args.table))
-    result, per_object = section5_results(tables, scorer, seeds=seeds, selection_seed=args.selection_seed)
+    try:
+        typical = typical_slide_of_clips(pd.read_csv(args.train_clips))
+    except (ValueError, KeyError) as exc:
+        raise UserError(f"--train-clips: {exc}") from exc
+    result, per_object = section5_results(
+        tables, scorer, seeds=seeds, selection_seed=args.selection_seed, typical=typical
+    )
     write_result(args.metrics, section5_results, result)
     write_csv(args.per_object, per_object)
     log.info("section 5 scores of seeds %s -> %s", seeds, Path(args.metrics))

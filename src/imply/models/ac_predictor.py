@@ -14,7 +14,10 @@ the predictor width; actions and states have their own linear encoders.
   each head's channels have a time, a height and a width part, each rotated by its
   coordinate. Action and state tokens sit at their step's time but have no place on the
   image, so they are rotated in time only.
-* Outputs at patch tokens are normalised and projected back to ``embed_dim``; the
+* Outputs at patch tokens are normalised and projected back to ``embed_dim``. With
+  ``residual`` the projection is added to the step's own input tokens, so the model
+  predicts how the frame changes rather than the whole frame: most of a frame (table,
+  background) does not change, and a plain output must relearn it at every step. The
   targets are the encoder tokens passed through a parameter-free layer norm
   (:func:`normalise_tokens`), and the inputs are normalised the same way, so a
   rollout can feed its own predictions back in.
@@ -60,6 +63,7 @@ class PredictorConfig(Config):
     state_dim: int = 1
     max_steps: int = 32
     rope_theta: float = 10000.0
+    residual: bool = False
 
     def __post_init__(self) -> None:
         if self.width % self.heads:
@@ -86,6 +90,7 @@ class PredictorPreset(Config):
     heads: int = 4
     mlp_ratio: float = 4.0
     rope_theta: float = 10000.0
+    residual: bool = False
 
     def predictor(self, *, embed_dim: int, grid: tuple[int, int], max_steps: int) -> PredictorConfig:
         """The full :class:`PredictorConfig` for features of width ``embed_dim`` on a ``grid`` of patches."""
@@ -181,7 +186,8 @@ class ACPredictor(nn.Module):
             tok, kv = blk(tok, rope, mask, None if cache is None else cache[i])
             new_cache.append(kv)
         tok = self.norm(tok).reshape(b, t, tps, cfg.width)[:, :, 2:]
-        return self.out(tok), new_cache
+        out = self.out(tok)
+        return (out + frames if cfg.residual else out), new_cache
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())

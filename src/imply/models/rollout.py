@@ -77,6 +77,27 @@ def load_feature_split(features: str | Path, metadata: str | Path) -> FeatureSpl
     return FeatureSplit(tokens=tokens, meta=meta, grid=grid)
 
 
+def pool_tokens(split: FeatureSplit, grid: tuple[int, int] | None) -> FeatureSplit:
+    """The split with its patch tokens average-pooled to ``grid`` (rows, columns); None keeps them.
+
+    Each pooled token is the mean of a block of the encoder's patches, so every side of
+    the encoder's grid must be a multiple of the pooled one. The box moves along the
+    image's width, so a one-row grid keeps where it is and drops what the predictor does
+    not need to carry from step to step (the table's rows above and below it).
+    """
+    if grid is None or tuple(grid) == tuple(split.grid):
+        return split
+    (gh, gw), (th, tw) = split.grid, (int(grid[0]), int(grid[1]))
+    if th < 1 or tw < 1 or gh % th or gw % tw:
+        raise ValueError(f"token grid {th}x{tw} does not divide the encoder's {gh}x{gw} patch grid")
+    n, t, _, d = split.tokens.shape
+    pooled = np.empty((n, t, th * tw, d), dtype=split.tokens.dtype)
+    for lo in range(0, n, 256):  # in chunks: the float32 copy of a whole split would double its memory
+        block = split.tokens[lo : lo + 256].astype(np.float32).reshape(-1, t, th, gh // th, tw, gw // tw, d)
+        pooled[lo : lo + 256] = block.mean(axis=(3, 5)).reshape(-1, t, th * tw, d)
+    return FeatureSplit(tokens=pooled, meta=split.meta, grid=(th, tw))
+
+
 def _square_grid(p: int) -> tuple[int, int]:
     g = int(round(p**0.5))
     if g * g != p:
@@ -116,18 +137,66 @@ def _ok_objects(meta: pd.DataFrame) -> np.ndarray:
     return np.array([o for o in meta["object_id"].unique() if o not in bad])
 
 
-def training_sequences(split: FeatureSplit, layout: Layout, rest_state: float) -> Sequences:
-    """One sequence per training object (its query clip; calibration clips in context)."""
+@dataclass
+class TrainingObjects:
+    """The training split's objects with every push ok: clip ids per object, in object order."""
+
+    object_ids: np.ndarray  # (N,)
+    query: np.ndarray  # (N,) clip id
+    calib: np.ndarray  # (N, 2) clip ids
+
+    def subset(self, rows: np.ndarray) -> TrainingObjects:
+        return TrainingObjects(self.object_ids[rows], self.query[rows], self.calib[rows])
+
+    def every_push_as_query(self, speed: np.ndarray) -> TrainingObjects:
+        """Three examples per object: each of its three pushes predicted from the other two.
+
+        ``speed``: (n_clips,) commanded speed of every clip; each example's context pair
+        is put in order of speed, as the calibration pushes (slow, then fast) are.
+        """
+        clips = np.concatenate([self.query[:, None], self.calib], axis=1)  # (N, 3)
+        queries, contexts = [], []
+        for j in range(3):
+            ctx = np.delete(clips, j, axis=1)
+            swap = speed[ctx[:, 0]] > speed[ctx[:, 1]]
+            ctx[swap] = ctx[swap][:, ::-1]
+            queries.append(clips[:, j])
+            contexts.append(ctx)
+        return TrainingObjects(np.tile(self.object_ids, 3), np.concatenate(queries), np.concatenate(contexts, axis=0))
+
+
+def training_objects(split: FeatureSplit) -> TrainingObjects:
+    """The objects of a training split (objects with a push that failed the simulator's checks left out)."""
     meta = _clip_table(split.meta)
     keep = set(_ok_objects(meta))
     if len(keep) < meta["object_id"].nunique():
         log.info("training: leaving out %d object(s) with a failed push", meta["object_id"].nunique() - len(keep))
     meta = meta[meta["object_id"].isin(keep)]
     by_role = meta.pivot_table(index="object_id", columns="role", values="clip_id", aggfunc="first", sort=True)
-    query = by_role["query"].to_numpy(dtype=np.int64)
-    calib = by_role[["calibration_0", "calibration_1"]].to_numpy(dtype=np.int64)
+    return TrainingObjects(
+        object_ids=by_role.index.to_numpy(),
+        query=by_role["query"].to_numpy(dtype=np.int64),
+        calib=by_role[["calibration_0", "calibration_1"]].to_numpy(dtype=np.int64),
+    )
+
+
+def training_sequences(
+    split: FeatureSplit,
+    layout: Layout,
+    rest_state: float,
+    objects: TrainingObjects | None = None,
+    *,
+    calib_of: np.ndarray | None = None,
+) -> Sequences:
+    """One sequence per training object: its query clip, with calibration clips in context for a calibrated layout.
+
+    ``objects`` defaults to all of :func:`training_objects`; ``calib_of`` (N,) takes
+    object ``calib_of[i]``'s calibration clips for object i (the swap condition).
+    """
+    objects = training_objects(split) if objects is None else objects
+    calib = objects.calib if calib_of is None else objects.calib[calib_of]
     states = np.broadcast_to(frame_states(split, rest_state), (len(split.meta), split.n_frames))
-    return build_sequences(split.tokens, query, calib, split.meta["speed"].to_numpy(), states, layout)
+    return build_sequences(split.tokens, objects.query, calib, split.meta["speed"].to_numpy(), states, layout)
 
 
 @dataclass
@@ -232,25 +301,50 @@ def load_latent_readout(path: str | Path) -> LatentReadout:
     return LatentReadout(ridge, lo, hi)
 
 
-def fit_latent_readout(split: FeatureSplit, margin: float = float(np.log(2.0))) -> LatentReadout:
-    """:class:`LatentReadout` fit on the layer-normed last-frame tokens of every ok clip."""
+def _ridge_readout(tokens: np.ndarray, log_d: np.ndarray, margin: float) -> LatentReadout:
+    """:class:`LatentReadout` of (N, P, D) tokens to log slides (alpha by cross-validation)."""
     from sklearn.linear_model import RidgeCV
 
     from imply.readout import ALPHAS, RidgeReadout
 
-    meta = split.meta
-    ok = meta["ok"].to_numpy() == 1 if "ok" in meta.columns else np.ones(len(meta), bool)
-    ok &= meta["displacement"].to_numpy() > 0
-    last = normalise_tokens(torch.from_numpy(split.tokens[ok, -1].astype(np.float32))).numpy().astype(np.float64)
-    n, p, k = last.shape
-    flat = last.reshape(n, p * k)
+    n, p, k = tokens.shape
+    flat = tokens.reshape(n, p * k).astype(np.float64)
     mean = flat.mean(axis=0)
-    y = np.log(meta["displacement"].to_numpy()[ok])
-    fit = RidgeCV(alphas=ALPHAS).fit(flat - mean, y)
+    fit = RidgeCV(alphas=ALPHAS).fit(flat - mean, log_d)
     ridge = RidgeReadout(
         mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_), p, k
     )
-    return LatentReadout(ridge, float(y.min() - margin), float(y.max() + margin))
+    return LatentReadout(ridge, float(log_d.min() - margin), float(log_d.max() + margin))
+
+
+def fit_latent_readout(split: FeatureSplit, margin: float = float(np.log(2.0))) -> LatentReadout:
+    """:class:`LatentReadout` fit on the layer-normed last-frame tokens of every ok clip."""
+    meta = split.meta
+    ok = meta["ok"].to_numpy() == 1 if "ok" in meta.columns else np.ones(len(meta), bool)
+    ok &= meta["displacement"].to_numpy() > 0
+    last = normalise_tokens(torch.from_numpy(split.tokens[ok, -1].astype(np.float32))).numpy()
+    return _ridge_readout(last, np.log(meta["displacement"].to_numpy()[ok]), margin)
+
+
+def fit_rollout_readout(
+    model: ACPredictor, seqs: Sequences, displacement: np.ndarray, *, batch_size: int = 200,
+    margin: float = float(np.log(2.0)),
+) -> LatentReadout:  # fmt: skip
+    """:class:`LatentReadout` fit on the model's own rolled-out last-frame tokens of ``seqs`` (its training sequences).
+
+    ``displacement``: (N,) true slide of each sequence's query push (m, > 0). A readout fit
+    on real tokens reads a predicted rest frame as if it were real, and a predicted frame is
+    not: where the model cannot tell where the box stops it predicts a blend of the places
+    it might, and the real-token readout reads that blend as a shorter slide (and its own
+    small errors as object differences). Fit on the model's predictions, the readout maps
+    what the model actually says to a slide, still a fixed linear map of the predicted
+    tokens: it cannot see the context.
+    """
+    displacement = np.asarray(displacement, dtype=float)
+    if displacement.shape != (len(seqs),) or not np.all(displacement > 0):
+        raise ValueError("the rollout readout needs one positive slide per training sequence")
+    tokens = final_tokens(model, seqs, batch_size, desc="rollout readout")
+    return _ridge_readout(tokens, np.log(displacement), margin)
 
 
 def latent_readout_report(readout: LatentReadout, heldout: dict[str, FeatureSplit]) -> dict:
@@ -314,11 +408,7 @@ def rollout_split(
             raise ValueError(f"unknown context {ctx!r} (one of {', '.join(CONTEXTS)})")
         if ctx != "none" and not layout.calib:
             raise ValueError(f"context {ctx!r} needs a model trained with calibration context")
-        ctx_layout = (
-            layout
-            if ctx != "none"
-            else Layout(calib=False, query_context=layout.query_context, n_frames=layout.n_frames)
-        )
+        ctx_layout = layout if ctx != "none" else layout.without_calibration()
         calib_obj = np.arange(n) if ctx == "own" else partner
         calib = np.repeat(held.calib[calib_obj], k, axis=0) if ctx != "none" else None
         seqs = build_sequences(split.tokens, held.query.reshape(-1), calib, speed, states, ctx_layout)

@@ -2,11 +2,15 @@
 
 A *sequence* is a list of (clip, frame) steps with an action and a state per step:
 
-* ``nocalib`` layout: the query clip's 8 frames (T = 8); the first
-  ``query_context`` (2) are context, the rest are predicted.
+* ``nocalib`` layout: the query clip's ``query_frames`` (default all 8; the config
+  takes 0, 1, 4, 7: two frames of the push, one of the slide, the box at rest); the
+  first ``query_context`` (2) are context, the rest are predicted.
 * ``calib`` layout: ``calib_frames`` (3 frames, default 0, 3, 7) of each of the
-  object's 2 calibration clips, then the query clip's 8 frames (T = 6 + 8 = 14);
-  context is the 6 calibration steps and the query's first 2 frames.
+  object's 2 calibration clips, then the query frames (T = 6 + 4 = 10); context is
+  the 6 calibration steps and the query's first 2 frames.
+
+The last query frame must be the clip's last (the box at rest): that is the frame the
+latent readout reads.
 
 The action of a step is its push's commanded speed (m/s); the state is the frame's
 time divided by the clip's last frame time (see :mod:`imply.models.ac_predictor`).
@@ -36,10 +40,29 @@ class Layout(Config):
     calib_frames: tuple[int, ...] = (0, 3, 7)
     query_context: int = 2
     n_frames: int = 8
+    query_frames: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
             raise ValueError("a layout needs query_context >= 1, n_frames >= 2 and, with calib, calib_frames")
+        q = self.query_frame_indices
+        if list(q) != sorted(set(q)) or q[0] < 0 or q[-1] != self.n_frames - 1:
+            raise ValueError(
+                f"query_frames {list(q)} must increase and end at the clip's last frame ({self.n_frames - 1})"
+            )
+        if self.query_context >= len(q):
+            raise ValueError(f"query_context {self.query_context} leaves none of the {len(q)} query frames to predict")
+
+    @property
+    def query_frame_indices(self) -> tuple[int, ...]:
+        """Frames of the query clip in the sequence, in order."""
+        return tuple(range(self.n_frames)) if self.query_frames is None else tuple(self.query_frames)
+
+    def without_calibration(self) -> Layout:
+        """The same query steps with no calibration steps (the context-free condition)."""
+        return Layout(
+            calib=False, query_context=self.query_context, n_frames=self.n_frames, query_frames=self.query_frames
+        )
 
     @property
     def n_calib_steps(self) -> int:
@@ -47,7 +70,7 @@ class Layout(Config):
 
     @property
     def n_steps(self) -> int:
-        return self.n_calib_steps + self.n_frames
+        return self.n_calib_steps + len(self.query_frame_indices)
 
     @property
     def n_context(self) -> int:
@@ -116,7 +139,7 @@ def build_sequences(
             for f in layout.calib_frames:
                 clips.append(calib_clips[:, j])
                 frames.append(np.full(n, f))
-    for f in range(n_frames):
+    for f in layout.query_frame_indices:
         clips.append(query_clip)
         frames.append(np.full(n, f))
     clip = np.stack(clips, axis=1)

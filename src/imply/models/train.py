@@ -9,6 +9,18 @@ Objective (as V-JEPA 2-AC's): an L1 loss on layer-normed encoder tokens, the sum
   predictions back, for ``rollout_steps`` steps; each predicted frame is compared
   with the true one. The gradient flows through the whole rollout.
 
+In both terms the last query frame (the box at rest, the frame the readout reads) is
+weighted ``final_weight`` times the other frames: it is the only frame whose content
+depends on the object's friction over the whole slide, and a plain mean over frames
+lets the easy frames (the push, the pusher) dominate the loss.
+
+With ``every_push_as_query`` each training object gives three examples, each of its
+pushes predicted with the other two in context (calibration pushes are ordinary pushes
+at fixed speeds), which triples the examples of inferring an object from two pushes.
+
+Validation: with ``val_objects`` > 0 that many training objects are left out and
+scored after every epoch (:mod:`imply.models.validation`); the history keeps it.
+
 Optimiser: AdamW; learning rate warms up linearly from ``start_lr`` to ``lr`` over the
 first ``warmup`` fraction of steps, stays constant, and anneals linearly to
 ``final_lr`` over the last ``anneal`` fraction; gradients clipped at ``grad_clip``.
@@ -30,6 +42,7 @@ import json
 import logging
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -40,8 +53,15 @@ from tqdm import tqdm
 
 from imply.io import atomic_path
 from imply.models.ac_predictor import ACPredictor, PredictorConfig, PredictorPreset
-from imply.models.rollout import FeatureSplit, training_sequences
+from imply.models.rollout import (
+    FeatureSplit,
+    LatentReadout,
+    fit_rollout_readout,
+    pool_tokens,
+    training_sequences,
+)
 from imply.models.sequences import Layout, Sequences
+from imply.models.validation import split_validation, validator
 from imply.options import Config
 
 log = logging.getLogger("imply.models.train")
@@ -66,7 +86,11 @@ class TrainConfig(Config):
     grad_clip: float = 1.0
     rollout_weight: float = 1.0
     rollout_steps: int = 6
+    final_weight: float = 1.0
+    every_push_as_query: bool = False
     init_seed: int = 0
+    val_objects: int = 0
+    val_seed: int = 0
 
 
 def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
@@ -83,6 +107,15 @@ def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
     return cfg.lr
 
 
+def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, last_is_final: bool, final_weight: float) -> torch.Tensor:
+    """Mean L1 over (B, S, P, D), the last of the S steps weighted ``final_weight`` when it is the final frame."""
+    per_step = (pred - target).abs().mean(dim=(0, 2, 3))
+    w = torch.ones_like(per_step)
+    if last_is_final:
+        w[-1] = final_weight
+    return (per_step * w).sum() / w.sum()
+
+
 def losses(model: ACPredictor, frames, actions, states, n_context: int, q0: int, cfg: TrainConfig):
     """(teacher-forcing L1, rollout L1) for one batch; q0 is the query's first step.
 
@@ -92,7 +125,7 @@ def losses(model: ACPredictor, frames, actions, states, n_context: int, q0: int,
     through the fed-back predictions).
     """
     pred, cache = model._run(frames, actions, states, 0, None)
-    tf = (pred[:, q0:-1] - frames[:, q0 + 1 :]).abs().mean()
+    tf = _weighted_l1(pred[:, q0:-1], frames[:, q0 + 1 :], True, cfg.final_weight)
     t = frames.shape[1]
     steps = min(cfg.rollout_steps, t - n_context)
     if cfg.rollout_weight == 0 or steps <= 0:
@@ -105,7 +138,8 @@ def losses(model: ACPredictor, frames, actions, states, n_context: int, q0: int,
         out, cache = model._run(nxt[:, None], actions[:, s : s + 1], states[:, s : s + 1], s, cache)
         nxt = out[:, -1]
         rolled.append(nxt)
-    ar = (torch.stack(rolled, dim=1) - frames[:, n_context : n_context + steps]).abs().mean()
+    target = frames[:, n_context : n_context + steps]
+    ar = _weighted_l1(torch.stack(rolled, dim=1), target, n_context + steps == t, cfg.final_weight)
     return tf, ar
 
 
@@ -142,11 +176,15 @@ def train(
     stop_after_epoch: int | None = None,
     device: str = "cpu",
     rest_state: float = 1.0,
+    validate: Callable[[ACPredictor], dict[str, float]] | None = None,
+    extra: dict | None = None,
 ) -> dict:
     """Train (or resume) and write the final model to ``out``; returns its payload.
 
     ``checkpoint`` is rewritten after every epoch. ``stop_after_epoch`` ends the run
     after that epoch without writing ``out`` (how tests simulate a killed run).
+    ``validate``, when given, is run on the model after every epoch and its metrics
+    join the epoch's history; ``extra`` entries are stored in the payload.
     """
     checkpoint = Path(checkpoint)
     digest = run_digest(pred_cfg, cfg, layout, data_seed, data_key)
@@ -194,9 +232,14 @@ def train(
                 torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
             opt.step()
             sums += [tf.item(), ar.item()]
-            bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}")
-        history.append({"epoch": epoch + 1, "teacher_forcing": sums[0] / per_epoch, "rollout": sums[1] / per_epoch})
-        log.info("epoch %d: teacher-forcing L1 %.4f, rollout L1 %.4f", epoch + 1, *(sums / per_epoch))
+            bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}", refresh=False)
+        entry = {"epoch": epoch + 1, "teacher_forcing": sums[0] / per_epoch, "rollout": sums[1] / per_epoch}
+        if validate is not None:
+            model.eval()
+            entry.update(validate(model))
+            model.train()
+        history.append(entry)
+        log.info("epoch %d: %s", epoch + 1, ", ".join(f"{k} {v:.4f}" for k, v in entry.items() if k != "epoch"))
         _save(
             checkpoint,
             {
@@ -217,6 +260,7 @@ def train(
         "data_seed": data_seed,
         "rest_state": rest_state,
         "history": history,
+        **(extra or {}),
         "model": {k: v.cpu() for k, v in model.state_dict().items()},
     }
     _save(Path(out), payload)
@@ -233,20 +277,48 @@ def train_variant(
     data_seed: int,
     out: str | os.PathLike,
     checkpoint: str | os.PathLike,
+    token_grid: tuple[int, int] | None = None,
+    readout: LatentReadout | None = None,
+    rollout_readout: str | os.PathLike | None = None,
     device: str = "cpu",
 ) -> dict:
     """Train (or resume) one variant on a training split's cached features: one sequence per object.
 
-    The predictor's width comes from ``preset``, its token width and patch grid from the
-    features. Returns the saved payload (see :func:`train`).
+    The features are pooled to ``token_grid`` (:func:`imply.models.rollout.pool_tokens`;
+    None keeps the encoder's grid). The predictor's width comes from ``preset``, its
+    token width and patch grid from the pooled features. With ``config.val_objects`` > 0
+    those objects are left out and validated after every epoch, which needs ``readout``
+    (fit on tokens pooled the same way). With ``rollout_readout`` the trained model's own
+    readout (:func:`imply.models.rollout.fit_rollout_readout`, on its rollouts of the
+    training objects) is written there. Returns the saved payload (see :func:`train`).
     """
-    seqs = training_sequences(split, layout, rest_state)
+    split = pool_tokens(split, token_grid)
+    objects, val = split_validation(split, layout, rest_state, n_objects=config.val_objects, seed=config.val_seed)
+    if val is not None and readout is None:
+        raise ValueError("validation (val_objects > 0) needs the latent readout")
+    examples = objects
+    if config.every_push_as_query:
+        examples = objects.every_push_as_query(split.meta["speed"].to_numpy(dtype=float))
+    seqs = training_sequences(split, layout, rest_state, examples)
     pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
     data_key = f"{split.tokens.shape}:{len(seqs)}:{rest_state}"
-    return train(
+    payload = train(
         seqs, layout, pred_cfg, config, data_seed, out, checkpoint, data_key=data_key, device=device,
-        rest_state=rest_state,
+        rest_state=rest_state, validate=None if val is None else validator(val, readout),
+        extra={"token_grid": list(split.grid)},
     )  # fmt: skip
+    if rollout_readout is not None and payload:
+        model = ACPredictor(pred_cfg)
+        model.load_state_dict(payload["model"])
+        model.eval()
+        own = training_sequences(split, layout, rest_state, objects)
+        slide = split.meta["displacement"].to_numpy(dtype=float)[objects.query]
+        fitted = fit_rollout_readout(model, own, slide)
+        fitted.save(rollout_readout)
+        log.info(
+            "rollout readout: alpha %.3g on %d training rollouts -> %s", fitted.ridge.alpha, len(own), rollout_readout
+        )
+    return payload
 
 
 def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:

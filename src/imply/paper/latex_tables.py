@@ -44,6 +44,8 @@ TABLE3_CALIB_ROWS = (
     ("other object's calibration $+$ query start", "vjSTrack", "vjSErr", "vjSSelf", "vjSAnch", "vjSCorrSelf",
      "vjSCorrAnch"),
     ("query start only", "vjCQTrack", "vjCQErr", "vjCQSelf", "vjCQAnch", "vjCQCorrSelf", "vjCQCorrAnch"),
+    ("object-blind baseline: typical slide for the speed", None, "vjBErr", "vjBSelf", "vjBAnch", "vjBCorrSelf",
+     "vjBCorrAnch"),
 )  # fmt: skip
 
 

@@ -56,6 +56,25 @@ def section5_claims(v: Values, results: Mapping[str, Any] | None = None) -> list
             f"(paper {paper('vjCTrack')}; {paper('vjCErr')} vs {paper('vjQErr')})",
         ),
         Claim(
+            "s5-own-beats-blind",
+            "5",
+            "With its own calibration in context the model's error is below the object-blind baseline's "
+            "(the training set's typical slide for the speed, on the same objects).",
+            bool(v["vjCErr"] < v["vjBErr"] and ("vjSOneCErr" not in v or v["vjSOneCErr"] < v["vjBErr"])),
+            f"error {_f(v['vjCErr'], '.3f')}"
+            + (f" (second seed {_f(v['vjSOneCErr'], '.3f')})" if "vjSOneCErr" in v else "")
+            + f" vs baseline {_f(v['vjBErr'], '.3f')} (not in the paper)",
+        ),
+        Claim(
+            "s5-nocalib-as-blind",
+            "5",
+            f"Trained without calibration context, the model is as good as the object-blind baseline and no "
+            f"better at telling objects apart: |r| < {BLIND} and error no worse than the baseline's.",
+            bool(abs(v["vjQTrack"]) < BLIND and v["vjQErr"] <= v["vjBQErr"]),
+            f"r = {_f(v['vjQTrack'])}, error {_f(v['vjQErr'], '.3f')} vs baseline {_f(v['vjBQErr'], '.3f')} "
+            "on the same objects (not in the paper)",
+        ),
+        Claim(
             "s5-swap-collapses",
             "5",
             f"With another object's calibration, tracking collapses (|r| < {BLIND}) and error rises above own.",

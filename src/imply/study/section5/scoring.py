@@ -15,6 +15,12 @@ Per model and context (rows of Table 3):
   averaged over objects, and each one's Pearson correlation across objects with the
   log error.
 
+The object-blind baseline (row ``B``): every held-out object of the calibrated model
+predicted at the training set's typical slide for the speed
+(:mod:`imply.models.object_blind`), scored the same way; row ``BQ`` is the same on the
+held-out objects of the model trained without calibration. A model that uses its
+calibration should beat it; a model without calibration can at best match it.
+
 Own against swapped calibration (calibrated model): the percentage of objects whose
 disagreement is lower with their own calibration in context than with another
 object's, for self and for anchored disagreement. Selection among the three candidate
@@ -31,6 +37,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from imply.models.object_blind import TypicalSlide
 from imply.score import Scorer
 from imply.study import metrics
 from imply.study.section5.selection import CANDIDATES, select_candidates
@@ -144,13 +151,23 @@ def read_rollout_tables(specs: list[str]) -> dict[tuple[str, int], pd.DataFrame]
     return tables
 
 
+def object_blind_group(g: Group, typical: TypicalSlide) -> Group:
+    """The held-out objects of ``g`` predicted at the typical slide for each speed (the object-blind baseline)."""
+    return Group(g.object_ids, g.speeds, typical.slide(g.speeds), g.true, g.calib_speeds, g.calib_disp)
+
+
 def section5_results(
-    tables: dict[tuple[str, int], pd.DataFrame], scorer: Scorer, *, seeds: list[int], selection_seed: int
+    tables: dict[tuple[str, int], pd.DataFrame],
+    scorer: Scorer,
+    *,
+    seeds: list[int],
+    selection_seed: int,
+    typical: TypicalSlide,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """All Section 5 results. ``tables``: (model, data-order seed) -> rollout table.
 
     Returns the result -- ``seeds``, a list in the order given, each with its ``seed``,
-    ``rows.<Q|C|S|CQ>`` (n, track, error, self, anchored, corr_self, corr_anchored),
+    ``rows.<Q|C|S|CQ|B|BQ>`` (n, track, error, self, anchored, corr_self, corr_anchored),
     ``own_lt_swap`` (self, anchored: percent of objects) and ``selection``
     (:func:`imply.study.section5.selection.select_candidates`) -- and the per-object scores
     with seed, model and context columns.
@@ -170,9 +187,20 @@ def section5_results(
                 f.insert(0, "model", model)
                 f.insert(0, "seed", seed)
                 frames.append(f)
+        blind = {
+            key: score_group(object_blind_group(groups[model]["own" if model == "calib" else "none"], typical), scorer)
+            for key, model in (("B", "calib"), ("BQ", "nocalib"))
+        }
+        for key, b in blind.items():
+            f = b.copy()
+            f.insert(0, "context", "typical")
+            f.insert(0, "model", "blind" if key == "B" else "blind_nocalib_objects")
+            f.insert(0, "seed", seed)
+            frames.append(f)
         for key, model, ctx in ROWS:
             if (model, ctx) in scored:
                 res["rows"][key] = summary(scored[(model, ctx)])
+        res["rows"].update({key: summary(b) for key, b in blind.items()})
         res["own_lt_swap"] = own_lt_swap(scored[("calib", "own")], scored[("calib", "swap")])
         res["selection"] = select_candidates(
             groups["calib"], {c: scored[("calib", c)] for c in CANDIDATES}, floor=scorer.floor, seed=selection_seed

@@ -1,0 +1,123 @@
+"""Section 5 ablation: train the predictor under one recipe and score it on the held-out objects.
+
+Runs one data-order seed of the calibrated and the context-free model on the cached
+features of a finished ``snakemake`` run (results/features, results/clips,
+results/table) and prints one line: tracking r and log error per context, the share of
+objects whose anchored / self disagreement prefers their own calibration, the
+object-blind baseline's error, and the seconds per model. Each recipe is the config's
+``model`` section with ``--set`` overrides, so a line of the README's ablation table is
+one command::
+
+    python benchmarks/s5_ablation.py --name "final weight 1" --set train.final_weight=1.0
+
+Lines are appended to ``--out`` (JSON lines) as well as printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+
+from imply.models.ac_predictor import PredictorPreset
+from imply.models.object_blind import typical_slide_of_clips
+from imply.models.rollout import (
+    fit_latent_readout,
+    load_feature_split,
+    load_latent_readout,
+    pool_tokens,
+    rollout_split,
+)
+from imply.models.sequences import Layout
+from imply.models.train import TrainConfig, train_variant
+from imply.score import ScoreConfig
+from imply.study.section5.scoring import groups_of, own_lt_swap, score_group, summary
+from imply.table import PushTable
+
+
+def _set(cfg: dict, assignment: str) -> None:
+    key, _, text = assignment.partition("=")
+    node = cfg
+    *parents, leaf = key.split(".")
+    for p in parents:
+        node = node[p]
+    node[leaf] = yaml.safe_load(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--name", required=True)
+    ap.add_argument("--config", default="config.yaml")
+    ap.add_argument("--results", default="results")
+    ap.add_argument("--set", action="append", default=[], help="override in config.model, e.g. train.epochs=10")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--models", default="calib,nocalib")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--out", default="results/benchmarks/s5_ablation.jsonl")
+    args = ap.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    config = yaml.safe_load(Path(args.config).read_text())
+    model_cfg = config["model"]
+    for a in args.set:
+        _set(model_cfg, a)
+    res = Path(args.results)
+    grid = tuple(model_cfg["token_grid"]) if model_cfg.get("token_grid") else None
+    train = pool_tokens(load_feature_split(res / "features/train.npz", res / "clips/train.csv"), grid)
+    readout = fit_latent_readout(train)
+    preset = PredictorPreset.from_dict(model_cfg["presets"][model_cfg["preset"]])
+    scorer = ScoreConfig.from_dict(config["score"]).scorer(PushTable.load(res / "table/table.npz"))
+    typical = typical_slide_of_clips(train.meta)
+    line: dict = {"name": args.name, "set": args.set, "seed": args.seed}
+    for variant in args.models.split(","):
+        layout = Layout.from_dict(model_cfg["variants"][variant])
+        split_name = "heldout_calib" if layout.calib else "heldout_nocalib"
+        held = pool_tokens(
+            load_feature_split(res / f"features/{split_name}.npz", res / f"clips/{split_name}.csv"), grid
+        )
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            payload = train_variant(
+                train, preset=preset, layout=layout, config=TrainConfig.from_dict(model_cfg["train"]),
+                rest_state=model_cfg["rest_state"], data_seed=args.seed, out=Path(tmp) / "m.pt",
+                checkpoint=Path(tmp) / "c.pt", readout=readout, rollout_readout=Path(tmp) / "r.npz",
+            )  # fmt: skip
+            reader = load_latent_readout(Path(tmp) / "r.npz") if model_cfg["readout"] == "rollouts" else readout
+        line[f"{variant}_seconds"] = round(time.perf_counter() - t0, 1)
+        line[f"{variant}_history"] = payload["history"][-1]
+        line["readout"] = model_cfg["readout"]
+        from imply.models.train import ACPredictor, PredictorConfig
+
+        model = ACPredictor(PredictorConfig.from_dict(payload["predictor"]))
+        model.load_state_dict(payload["model"])
+        model.eval()
+        contexts = ("own", "swap", "none") if layout.calib else ("none",)
+        table = rollout_split(
+            model, layout, held, reader, contexts, rest_state=model_cfg["rest_state"],
+            derangement_seed=model_cfg["derangement_seed"],
+        )  # fmt: skip
+        scored = {ctx: score_group(g, scorer) for ctx, g in groups_of(table).items()}
+        for ctx, f in scored.items():
+            s = summary(f)
+            line[f"{variant}_{ctx}"] = {k: round(s[k], 3) for k in ("track", "error", "self", "anchored")}
+        if layout.calib:
+            line["own_lt_swap"] = own_lt_swap(scored["own"], scored["swap"])
+            g = groups_of(table)["own"]
+            blind = np.broadcast_to(typical.slide(g.speeds[0]), g.pred.shape)
+            line["blind_error"] = round(float(np.mean(np.sqrt(np.mean((np.log(blind) - np.log(g.true)) ** 2, 1)))), 3)
+    print(json.dumps(line), flush=True)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("a") as fh:
+        fh.write(json.dumps(line) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
