@@ -238,6 +238,8 @@ def check_rules(config: dict[str, Any]) -> None:
             f"model.preset: {model['preset']!r} is not one of model.presets ({', '.join(model['presets'])})"
             f"{_suggest(model['preset'], list(model['presets']))}"
         )
+    if model is not None:
+        _check_model_inputs(model, config.get("clips"), enc)
     paper = config.get("paper")
     if paper is not None:
         for stage in paper.get("stages", []):
@@ -247,6 +249,35 @@ def check_rules(config: dict[str, Any]) -> None:
                     f"known: {', '.join(PAPER_STAGES)}"
                 )
     check_scene(config["scene"], compile_model=True, where="scene")
+
+
+def _check_model_inputs(model: dict[str, Any], clips: dict[str, Any] | None, enc: dict[str, Any] | None) -> None:
+    """The predictor's sequence layouts, and its token grid against the CPU encoder's patch grid."""
+    from imply.models.sequences import Layout
+
+    for name, variant in model["variants"].items():
+        try:
+            Layout.from_dict(variant, f"model.variants.{name}")
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+    grid = model.get("token_grid")
+    if grid and clips is not None and enc is not None and enc["kind"] == "cpu" and not enc.get("pool_grid"):
+        from imply.models.vision_transformer import PRESETS, ViTConfig
+
+        arch = enc.get("cpu_arch")
+        patch = (
+            arch.get("patch_size", ViTConfig.patch_size)
+            if isinstance(arch, dict)
+            else (PRESETS[arch].patch_size if arch in PRESETS else None)
+        )
+        cam = clips.get("camera", {})
+        if patch and "height" in cam and "width" in cam:
+            rows, cols = cam["height"] // patch, cam["width"] // patch
+            if rows % grid[0] or cols % grid[1]:
+                raise ConfigError(
+                    f"model.token_grid: {grid[0]} x {grid[1]} does not divide the CPU encoder's {rows} x {cols}"
+                    f" patch grid (clips.camera {cam['height']} x {cam['width']} px, {patch} px patches)"
+                )
 
 
 def check_config(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:

@@ -139,3 +139,15 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
                "--train-json", json.dumps({"epochs": 1}), "--seed", "0", "--token-grid", "3", "2",
                "-o", str(tmp_path / "m3.pt")])  # fmt: skip
     assert rc == 2 and "does not divide" in capsys.readouterr().err and not (tmp_path / "m3.pt").exists()
+
+
+def test_cli_train_checks_every_output_before_training(synth, tmp_path, capsys):
+    d = synth
+    (tmp_path / "a_folder").mkdir()
+    rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+               "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS["nocalib"]),
+               "--train-json", json.dumps({"epochs": 1}), "--seed", "0", "--token-grid", "1", "2",
+               "-o", str(tmp_path / "m.pt"), "--history", str(tmp_path / "a_folder")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "--history" in err and "folder" in err
+    assert not (tmp_path / "m.pt").exists() and not (tmp_path / "checkpoint.pt").exists()

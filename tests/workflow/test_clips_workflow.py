@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from snakemake.utils import update_config
 
 from imply.data.clips import load_clips
 from imply.models.encoder import load_features
@@ -21,7 +22,7 @@ from workflow_helpers import copy_workflow
 def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):
     copy_workflow(tmp_path)
     cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
-    cfg.update(yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
+    update_config(cfg, yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     # targets go before --configfile, which takes every value after it
     run = subprocess.run(

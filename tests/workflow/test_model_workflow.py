@@ -42,6 +42,7 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
         "results/paper/parts/section5.json",
         "results/paper/tables/table3.tex",
         "results/paper/figures/figure2.png",
+        "results/model/training.png",
     ]
     cmd = [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(work), "--snakefile",
            str(work / "Snakefile"), "--configfile", str(work / "config.yaml"), str(work / "small.yaml"),
@@ -52,6 +53,10 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
     part = json.loads((work / target[0]).read_text())
     assert part["numbers"]["vjNTwo"] == 8 and part["numbers"]["vjNOne"] == 10
     assert "vjCTrack" in part["numbers"] and "vjSOneCTrack" not in part["numbers"]  # one seed configured
-    for f in ("model/calib/seed0/checkpoint.pt", "paper/tables/table3.tex", "paper/figures/figure2.png",
+    history = json.loads((work / "results/model/calib/seed0/training.json").read_text())["history"]
+    assert [h["epoch"] for h in history] == [1, 2] and {"own_track_r", "swap_track_r"} <= set(history[0])
+    assert "vjBErr" in part["numbers"] and "vjBQErr" in part["numbers"]
+    for f in ("model/calib/seed0/checkpoint.pt", "model/calib/seed0/readout.npz", "model/training.png",
+              "paper/tables/table3.tex", "paper/figures/figure2.png",
               "logs/model_train_calib_seed0.log", "section5/metrics.json"):  # fmt: skip
         assert (work / "results" / f).exists(), f

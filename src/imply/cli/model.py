@@ -21,7 +21,7 @@ import logging
 import time
 from pathlib import Path
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, output_file
 
 log = logging.getLogger("imply.model")
 
@@ -42,13 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--rest-state", type=float, default=1.0, help="state token of the last frame (config model.rest_state)"
     )
     tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
-    tr.add_argument(
-        "--token-grid",
-        type=int_range(1),
-        nargs=2,
-        metavar=("ROWS", "COLS"),
-        help="pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)",
-    )
+    _add_token_grid(tr, "pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)")
     tr.add_argument(
         "--readout",
         type=existing_file,
@@ -77,13 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=existing_file,
         help="held-out split to report R^2 on (repeatable)",
     )
-    rd.add_argument(
-        "--token-grid",
-        type=int_range(1),
-        nargs=2,
-        metavar=("ROWS", "COLS"),
-        help="pool the patch tokens to this grid first, as the predictor sees them",
-    )
+    _add_token_grid(rd, "pool the patch tokens to this grid first, as the predictor sees them")
     rd.add_argument("-o", "--output", required=True, help="the fitted readout (.npz)")
     rd.add_argument("--report", required=True, help="its alpha, range and held-out R^2 (.json)")
     rd.set_defaults(func=cmd_readout)
@@ -107,6 +95,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     pl.add_argument("-o", "--output", required=True, help="the figure (.png)")
     pl.set_defaults(func=cmd_plot)
+
+
+def _add_token_grid(parser: argparse.ArgumentParser, help: str) -> None:
+    parser.add_argument("--token-grid", type=int_range(1), nargs=2, metavar=("ROWS", "COLS"), help=help)
 
 
 def _setup_torch(threads: int) -> None:
@@ -146,7 +138,12 @@ def cmd_train(args: argparse.Namespace) -> int:
     config = config_from_json(TrainConfig, args.train_json, "--train-json")
     split = _feature_split(args.features, args.clips)
     readout = _readout(args.readout) if args.readout else None
-    out = Path(args.output)
+    # every output checked before training: a bad path found after minutes of training loses them
+    inputs = [args.features, args.clips, args.readout]
+    out = output_file(args.output, inputs)
+    for option, path in (("--history", args.history), ("--rollout-readout", args.rollout_readout)):
+        if path:
+            output_file(path, [*inputs, out], option=option)
     t0 = time.perf_counter()
     try:
         payload = train_variant(

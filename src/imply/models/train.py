@@ -301,7 +301,7 @@ def train_variant(
         examples = objects.every_push_as_query(split.meta["speed"].to_numpy(dtype=float))
     seqs = training_sequences(split, layout, rest_state, examples)
     pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
-    data_key = f"{split.tokens.shape}:{len(seqs)}:{rest_state}"
+    data_key = f"{split.tokens.shape}:{split.grid}:{len(seqs)}:{rest_state}"
     payload = train(
         seqs, layout, pred_cfg, config, data_seed, out, checkpoint, data_key=data_key, device=device,
         rest_state=rest_state, validate=None if val is None else validator(val, readout),

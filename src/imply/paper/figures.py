@@ -130,12 +130,13 @@ def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> No
     fig, (ax_err, ax_r) = plt.subplots(1, 2, figsize=(9.5, 3.6))
     colours = {"own": "C0", "swap": "C3", "none": "C7"}
     styles = ["-", "--", ":", "-."]
+    seeds = sorted({int(doc["seed"]) for doc in histories})
     blind_drawn = False
-    for i, doc in enumerate(histories):
+    for doc in histories:
         hist = doc["history"]
         epochs = [h["epoch"] for h in hist]
         variant = "calib" if doc["layout"].get("calib") else "nocalib"
-        ls = styles[i % len(styles)] if variant == "calib" else ":"
+        ls = styles[seeds.index(int(doc["seed"])) % len(styles)]
         for ctx, colour in colours.items():
             if f"{ctx}_log_error" not in hist[0]:
                 continue
@@ -145,11 +146,15 @@ def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> No
         if not blind_drawn and "blind_log_error" in hist[0]:
             ax_err.axhline(hist[0]["blind_log_error"], color="k", lw=0.8, ls="--", label="object-blind baseline")
             blind_drawn = True
-    ax_err.set(xlabel="epoch", ylabel="mean |log error| (held-out training objects)")
+    ax_err.set(xlabel="epoch", ylabel="mean |log error|, real-token readout")
     ax_r.set(xlabel="epoch", ylabel="tracking r (relative to the typical slide)")
     ax_r.axhline(0.0, color="k", lw=0.5)
     ax_err.legend(fontsize=6, ncol=1)
-    fig.suptitle("Predictor validation per epoch: own vs swapped calibration, and no calibration", fontsize=9)
+    fig.suptitle(
+        "Predictor validation per epoch on held-out training objects: own vs swapped calibration, and none"
+        " (colour: context; line: data-order seed)",
+        fontsize=8,
+    )
     fig.tight_layout()
     with atomic_path(png_path) as tmp:
         fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
