@@ -1,15 +1,18 @@
-"""``imply model train|readout|rollout``: the action-conditioned predictor of Section 5 on cached encoder features.
+"""``imply model train|readout|rollout|plot``: the action-conditioned predictor of Section 5 on cached encoder features.
 
 Typical use (what ``workflow/rules/model.smk`` runs)::
 
-    imply model train --features results/features/train.npz --clips results/clips/train.csv \\
-        --preset-json '{"width": 64, ...}' --variant-json '{"calib": true, ...}' --train-json '{...}' \\
-        --rest-state 1.0 --seed 0 -o results/model/calib/seed0/model.pt
     imply model readout --features results/features/train.npz --clips results/clips/train.csv \\
-        -o results/model/readout_ln.npz --report results/model/readout_ln.json
+        --token-grid 1 8 -o results/model/readout_ln.npz --report results/model/readout_ln.json
+    imply model train --features results/features/train.npz --clips results/clips/train.csv \\
+        --readout results/model/readout_ln.npz --preset-json '{"width": 64, ...}' --token-grid 1 8 \\
+        --variant-json '{"calib": true, ...}' --train-json '{...}' --rest-state 1.0 --seed 0 \\
+        -o results/model/calib/seed0/model.pt --history results/model/calib/seed0/training.json \\
+        --rollout-readout results/model/calib/seed0/readout.npz
     imply model rollout --model results/model/calib/seed0/model.pt --features results/features/heldout_calib.npz \\
-        --clips results/clips/heldout_calib.csv --readout results/model/readout_ln.npz \\
+        --clips results/clips/heldout_calib.csv --readout results/model/calib/seed0/readout.npz \\
         --contexts own,swap,none --derangement-seed 11 -o results/model/calib/seed0/rollouts.csv
+    imply model plot results/model/*/seed*/training.json -o results/model/training.png
 
 A training run with a checkpoint beside its output resumes from it.
 """

@@ -4,10 +4,11 @@ A *sequence* is a list of (clip, frame) steps with an action and a state per ste
 
 * ``nocalib`` layout: the query clip's ``query_frames`` (default all 8; the config
   takes 0, 1, 4, 7: two frames of the push, one of the slide, the box at rest); the
-  first ``query_context`` (2) are context, the rest are predicted.
+  first ``query_context`` are context (the config: 1, the box before the push; a
+  second frame already shows the box sliding), the rest are predicted.
 * ``calib`` layout: ``calib_frames`` (3 frames, default 0, 3, 7) of each of the
   object's 2 calibration clips, then the query frames (T = 6 + 4 = 10); context is
-  the 6 calibration steps and the query's first 2 frames.
+  the 6 calibration steps and the query's first ``query_context`` frames.
 
 The last query frame must be the clip's last (the box at rest): that is the frame the
 latent readout reads.
