@@ -22,7 +22,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 import yaml
 
@@ -36,9 +35,9 @@ from imply.models.rollout import (
     rollout_split,
 )
 from imply.models.sequences import Layout
-from imply.models.train import TrainConfig, train_variant
+from imply.models.train import TrainConfig, load_model, train_variant
 from imply.score import ScoreConfig
-from imply.study.section5.scoring import groups_of, own_lt_swap, score_group, summary
+from imply.study.section5.scoring import groups_of, object_blind_group, own_lt_swap, score_group, summary
 from imply.table import PushTable
 
 
@@ -89,28 +88,24 @@ def main(argv: list[str] | None = None) -> int:
                 checkpoint=Path(tmp) / "c.pt", readout=readout, rollout_readout=Path(tmp) / "r.npz",
             )  # fmt: skip
             reader = load_latent_readout(Path(tmp) / "r.npz") if model_cfg["readout"] == "rollouts" else readout
+            model, _, _ = load_model(Path(tmp) / "m.pt")
         line[f"{variant}_seconds"] = round(time.perf_counter() - t0, 1)
         line[f"{variant}_history"] = payload["history"][-1]
         line["readout"] = model_cfg["readout"]
-        from imply.models.train import ACPredictor, PredictorConfig
-
-        model = ACPredictor(PredictorConfig.from_dict(payload["predictor"]))
-        model.load_state_dict(payload["model"])
-        model.eval()
         contexts = ("own", "swap", "none") if layout.calib else ("none",)
         table = rollout_split(
             model, layout, held, reader, contexts, rest_state=model_cfg["rest_state"],
             derangement_seed=model_cfg["derangement_seed"],
         )  # fmt: skip
-        scored = {ctx: score_group(g, scorer) for ctx, g in groups_of(table).items()}
+        groups = groups_of(table)
+        scored = {ctx: score_group(g, scorer) for ctx, g in groups.items()}
         for ctx, f in scored.items():
             s = summary(f)
             line[f"{variant}_{ctx}"] = {k: round(s[k], 3) for k in ("track", "error", "self", "anchored")}
         if layout.calib:
             line["own_lt_swap"] = own_lt_swap(scored["own"], scored["swap"])
-            g = groups_of(table)["own"]
-            blind = np.broadcast_to(typical.slide(g.speeds[0]), g.pred.shape)
-            line["blind_error"] = round(float(np.mean(np.sqrt(np.mean((np.log(blind) - np.log(g.true)) ** 2, 1)))), 3)
+            blind = summary(score_group(object_blind_group(groups["own"], typical), scorer))
+            line["blind_error"] = round(blind["error"], 3)
     print(json.dumps(line), flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

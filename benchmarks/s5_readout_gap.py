@@ -7,8 +7,9 @@ objects. It then reads the predictions with the real-token readout
 (``results/model/readout_ln.npz``) and with the model's own readout (``readout.npz``
 beside the model) and prints each one's mean log bias, mean |log error|, and the
 spread of its reading around the typical slide for the speed, beside the object-blind
-baseline's error. The model's own readout was fit on these same rollouts, so its
-numbers here are in-sample; Table 3 gives the held-out ones::
+baseline's error. The objects are the whole training split: the model was trained, and its own
+readout fit, on all of them but the validation slice, so these numbers are nearly
+in-sample; Table 3 gives the held-out ones::
 
     python benchmarks/s5_readout_gap.py --model results/model/nocalib/seed0/model.pt
 """
@@ -22,13 +23,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from imply.models.ac_predictor import normalise_tokens
 from imply.models.object_blind import typical_slide_of_clips
 from imply.models.rollout import (
     final_tokens,
     load_feature_split,
     load_latent_readout,
     pool_tokens,
+    real_last_tokens,
     training_objects,
     training_sequences,
 )
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     objects = training_objects(split)
     predicted = final_tokens(model, training_sequences(split, layout, payload["rest_state"], objects), 200)
-    real = normalise_tokens(torch.from_numpy(split.tokens[objects.query, -1].astype(np.float32))).numpy()
+    real = real_last_tokens(split, objects.query)
     speed = split.meta["speed"].to_numpy(dtype=float)[objects.query]
     truth = np.log(split.meta["displacement"].to_numpy(dtype=float)[objects.query])
     typical = typical_slide_of_clips(split.meta).log_slide(speed)

@@ -23,7 +23,6 @@ class TypicalSlide:
     """log d = polynomial in log v (coefficients highest power first, numpy.polyval's order)."""
 
     coef: np.ndarray
-    speed_range: tuple[float, float]
 
     def log_slide(self, speeds) -> np.ndarray:
         """Typical log slide (log metres) at each speed (m/s); same shape as ``speeds``."""
@@ -41,7 +40,7 @@ def fit_typical_slide(speeds, displacements, *, degree: int = DEGREE) -> Typical
         raise ValueError(f"the typical slide needs more than {degree} pushes with one displacement each")
     if not (np.all(v > 0) and np.all(d > 0)):
         raise ValueError("speeds and displacements must be positive")
-    return TypicalSlide(np.polyfit(np.log(v), np.log(d), degree), (float(v.min()), float(v.max())))
+    return TypicalSlide(np.polyfit(np.log(v), np.log(d), degree))
 
 
 def typical_slide_of_clips(meta: pd.DataFrame) -> TypicalSlide:

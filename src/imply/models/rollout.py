@@ -301,6 +301,18 @@ def load_latent_readout(path: str | Path) -> LatentReadout:
     return LatentReadout(ridge, lo, hi)
 
 
+READOUT_MARGIN = float(np.log(2.0))  # log units the read slide may leave the training range by
+
+
+def real_last_tokens(split: FeatureSplit, clips: np.ndarray) -> np.ndarray:
+    """Layer-normed last-frame tokens of the given clips (row indices or a mask): (N, P, D) float32.
+
+    What the predictor's rest-frame predictions are compared with and the real-token
+    readout is fit on.
+    """
+    return normalise_tokens(torch.from_numpy(split.tokens[clips, -1].astype(np.float32))).numpy()
+
+
 def _ridge_readout(tokens: np.ndarray, log_d: np.ndarray, margin: float) -> LatentReadout:
     """:class:`LatentReadout` of (N, P, D) tokens to log slides (alpha by cross-validation)."""
     from sklearn.linear_model import RidgeCV
@@ -317,18 +329,17 @@ def _ridge_readout(tokens: np.ndarray, log_d: np.ndarray, margin: float) -> Late
     return LatentReadout(ridge, float(log_d.min() - margin), float(log_d.max() + margin))
 
 
-def fit_latent_readout(split: FeatureSplit, margin: float = float(np.log(2.0))) -> LatentReadout:
+def fit_latent_readout(split: FeatureSplit, margin: float = READOUT_MARGIN) -> LatentReadout:
     """:class:`LatentReadout` fit on the layer-normed last-frame tokens of every ok clip."""
     meta = split.meta
     ok = meta["ok"].to_numpy() == 1 if "ok" in meta.columns else np.ones(len(meta), bool)
     ok &= meta["displacement"].to_numpy() > 0
-    last = normalise_tokens(torch.from_numpy(split.tokens[ok, -1].astype(np.float32))).numpy()
-    return _ridge_readout(last, np.log(meta["displacement"].to_numpy()[ok]), margin)
+    return _ridge_readout(real_last_tokens(split, ok), np.log(meta["displacement"].to_numpy()[ok]), margin)
 
 
 def fit_rollout_readout(
     model: ACPredictor, seqs: Sequences, displacement: np.ndarray, *, batch_size: int = 200,
-    margin: float = float(np.log(2.0)),
+    margin: float = READOUT_MARGIN,
 ) -> LatentReadout:  # fmt: skip
     """:class:`LatentReadout` fit on the model's own rolled-out last-frame tokens of ``seqs`` (its training sequences).
 
@@ -355,8 +366,7 @@ def latent_readout_report(readout: LatentReadout, heldout: dict[str, FeatureSpli
     for name, split in heldout.items():
         meta = split.meta
         ok = (meta["ok"].to_numpy() == 1) if "ok" in meta.columns else np.ones(len(meta), bool)
-        last = normalise_tokens(torch.from_numpy(split.tokens[ok, -1].astype(np.float32))).numpy()
-        r2 = r2_log(meta["displacement"].to_numpy()[ok], readout.predict(last))
+        r2 = r2_log(meta["displacement"].to_numpy()[ok], readout.predict(real_last_tokens(split, ok)))
         report["heldout_r2_log"][name] = r2
         log.info("latent readout on %s: held-out R^2 (log slide) %.4f", name, r2)
     return report

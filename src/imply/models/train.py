@@ -311,7 +311,7 @@ def train_variant(
         model = ACPredictor(pred_cfg)
         model.load_state_dict(payload["model"])
         model.eval()
-        own = training_sequences(split, layout, rest_state, objects)
+        own = seqs if examples is objects else training_sequences(split, layout, rest_state, objects)
         slide = split.meta["displacement"].to_numpy(dtype=float)[objects.query]
         fitted = fit_rollout_readout(model, own, slide)
         fitted.save(rollout_readout)
