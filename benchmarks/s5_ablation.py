@@ -37,7 +37,8 @@ from imply.models.rollout import (
 from imply.models.sequences import Layout
 from imply.models.train import TrainConfig, load_model, train_variant
 from imply.score import ScoreConfig
-from imply.study.section5.scoring import groups_of, object_blind_group, own_lt_swap, score_group, summary
+from imply.study.section5.rollouts import object_blind_rollouts, rollouts_by_context
+from imply.study.section5.scoring import context_scores, own_lt_swap, score_context
 from imply.table import PushTable
 
 
@@ -97,15 +98,19 @@ def main(argv: list[str] | None = None) -> int:
             model, layout, held, reader, contexts, rest_state=model_cfg["rest_state"],
             derangement_seed=model_cfg["derangement_seed"],
         )  # fmt: skip
-        groups = groups_of(table)
-        scored = {ctx: score_group(g, scorer) for ctx, g in groups.items()}
+        rollouts = rollouts_by_context(table)
+        scored = {ctx: score_context(r, scorer) for ctx, r in rollouts.items()}
         for ctx, f in scored.items():
-            s = summary(f)
-            line[f"{variant}_{ctx}"] = {k: round(s[k], 3) for k in ("track", "error", "self", "anchored")}
+            s = context_scores(f)
+            line[f"{variant}_{ctx}"] = {
+                "track": round(s.track, 3), "error": round(s.error, 3),
+                "self": round(s.self_disagreement, 3), "anchored": round(s.anchored_disagreement, 3),
+            }  # fmt: skip
         if layout.calib:
-            line["own_lt_swap"] = own_lt_swap(scored["own"], scored["swap"])
-            blind = summary(score_group(object_blind_group(groups["own"], typical), scorer))
-            line["blind_error"] = round(blind["error"], 3)
+            prefers_own = own_lt_swap(scored["own"], scored["swap"])
+            line["own_lt_swap"] = {"self": prefers_own.self_disagreement, "anchored": prefers_own.anchored_disagreement}
+            blind = context_scores(score_context(object_blind_rollouts(rollouts["own"], typical), scorer))
+            line["blind_error"] = round(blind.error, 3)
     print(json.dumps(line), flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -6,12 +6,14 @@ import json
 
 import pytest
 
+from imply.diagnose.benchmark_report import benchmark_claims
 from imply.paper.latex_tables import table1_tex, table2_tex
 from imply.paper.macros import macros_tex, merge_parts, numbers_json
-from imply.paper.parts import Claim, build_part, read_part, stage_numbers, write_part
-from imply.paper.registry import NOT_PRODUCED, UnknownNumberError, load_registry
+from imply.paper.parts import build_part, read_part, stage_numbers, write_part
+from imply.paper.registry import load_registry
 from imply.paper.report import reproduction_frame, reproduction_md
 from imply.paper.results import read_results, write_result
+from imply.results import NOT_PRODUCED, Claim, UnknownNumberError
 from imply.study.section4.scoring import standin_metrics
 from registry_helpers import fake_results
 
@@ -46,8 +48,15 @@ def test_paths_resolve_and_missing_levels_are_not_produced():
 
 def test_merge_and_report(tmp_path):
     a, b = tmp_path / "section4.json", tmp_path / "gap.json"
-    write_part(a, "section4", {"OrSelf": 0.0051234, "selK": 4}, [Claim("c1", "4", "oracle small", True, "0.005")])
-    write_part(b, "gap", {"gapFalseAlarm": float("nan")}, [Claim("c2", "gap", "x fails", False, "d")])
+    write_part(
+        a,
+        stage="section4",
+        numbers={"OrSelf": 0.0051234, "selK": 4},
+        claims=[Claim("c1", "4", "oracle small", True, "0.005")],
+    )
+    write_part(
+        b, stage="gap", numbers={"gapFalseAlarm": float("nan")}, claims=[Claim("c2", "gap", "x fails", False, "d")]
+    )
     merged = merge_parts([b, a])
     assert merged.stages == ["gap", "section4"]
     tex = macros_tex(merged)
@@ -62,7 +71,7 @@ def test_merge_and_report(tmp_path):
     assert "oracle small" in md and "FAILS" in md and "gapFalseAlarm" in md
     assert "hold: 1; fail: 1" in md
     with pytest.raises(ValueError, match="registered to stage 'section4'"):
-        write_part(tmp_path / "dup.json", "gap", {"OrSelf": 0.1}, [])
+        write_part(tmp_path / "dup.json", stage="gap", numbers={"OrSelf": 0.1}, claims=[])
     (tmp_path / "dup.json").write_text(json.dumps({"stage": "gap", "numbers": {"OrSelf": 0.1}, "claims": []}))
     with pytest.raises(ValueError, match="registered to stage"):
         merge_parts([a, tmp_path / "dup.json"])
@@ -70,7 +79,7 @@ def test_merge_and_report(tmp_path):
     with pytest.raises(UnknownNumberError, match="gapNewThing"):
         merge_parts([tmp_path / "unknown.json"])
     with pytest.raises(UnknownNumberError):
-        write_part(tmp_path / "u.json", "gap", {"gapNewThing": 1}, [])
+        write_part(tmp_path / "u.json", stage="gap", numbers={"gapNewThing": 1}, claims=[])
 
 
 def test_tables_print_registered_formats_and_refuse_missing_cells():
@@ -96,8 +105,8 @@ def test_tables_print_registered_formats_and_refuse_missing_cells():
 
 
 def test_build_part_reads_every_number_of_a_stage(tmp_path):
-    numbers, claims = build_part("gap", fake_results(load_registry(), "gap", value=13))
+    numbers, claims = build_part("gap", fake_results(load_registry(), "gap", value=13), claims=benchmark_claims)
     assert set(numbers) == {e.name for e in load_registry().of_stage("gap")}
     assert numbers["gapTopOneN"] == 13 and {c.id for c in claims} >= {"gap-null", "gap-top1", "gap-both"}
-    write_part(tmp_path / "g.json", "gap", numbers, claims)
+    write_part(tmp_path / "g.json", stage="gap", numbers=numbers, claims=claims)
     assert read_part(tmp_path / "g.json")["numbers"]["gapTopOneN"] == 13

@@ -42,7 +42,8 @@ def cmd_section5(args: argparse.Namespace) -> int:
     from imply.models.object_blind import typical_slide_of_clips
     from imply.paper.results import write_result
     from imply.score import ScoreConfig
-    from imply.study.section5.scoring import read_rollout_tables, section5_results
+    from imply.study.section5.rollouts import read_rollout_tables
+    from imply.study.section5.scoring import section5_results
     from imply.table import PushTable
 
     try:

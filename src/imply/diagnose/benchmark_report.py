@@ -13,8 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from imply.io import write_text
-from imply.paper.parts import Claim
-from imply.paper.registry import Values
+from imply.results import Claim, Values
 
 RESULT = "imply.diagnose.benchmark.score_cases"
 

@@ -37,7 +37,7 @@ from imply.models.rollout import (
     training_sequences,
 )
 from imply.models.sequences import Layout, Sequences
-from imply.study.metrics import pearson
+from imply.stats import pearson
 
 
 @dataclass

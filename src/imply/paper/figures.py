@@ -12,6 +12,7 @@ against swapped disagreement, (c, d) self and anchored disagreement against true
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 
 import matplotlib
 
@@ -20,21 +21,28 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from imply import stats  # noqa: E402
 from imply.io import atomic_path  # noqa: E402
-from imply.study import metrics  # noqa: E402
-from imply.study.section4.standins import STANDINS  # noqa: E402
 
 NAMES = {"oracle": "oracle", "jitter": "jitter", "blind": "object-blind", "collapse": "collapse"}
 COLORS = {"oracle": "#4d4d4d", "jitter": "#1f77b4", "blind": "#d62728", "collapse": "#2ca02c"}
 
 
-def figure1(scores: pd.DataFrame, noise: dict, *, pdf_path: str | os.PathLike, png_path: str | os.PathLike) -> None:
-    """Draw Figure 1 from per-object scores (``scores.csv``) and the noise sweep's result (``noise.json``)."""
+def figure1(
+    scores: pd.DataFrame, noise: dict, *, standins: Sequence[str], pdf_path: str | os.PathLike,
+    png_path: str | os.PathLike,
+) -> None:  # fmt: skip
+    """Draw Figure 1 from per-object scores (``scores.csv``) and the noise sweep's result (``noise.json``).
+
+    ``standins``: the stand-ins in the order drawn, the oracle first (the study's
+    ``imply.study.section4.standins.STANDINS``; the caller passes it so that this module
+    plots without importing the study).
+    """
     plt.rcParams.update({"font.size": 8, "svg.hashsalt": "imply"})
     fig, (ax_a, ax_b) = plt.subplots(1, 2, figsize=(7.0, 2.8), gridspec_kw={"width_ratios": [1.3, 1]})
     rng = np.random.default_rng(0)  # horizontal jitter of the dots only
     width = 0.35
-    for i, name in enumerate(STANDINS):
+    for i, name in enumerate(standins):
         sub = scores[scores["standin"] == name]
         for j, (col, marker) in enumerate((("self_disagreement", "o"), ("anchored_disagreement", "s"))):
             x = i + (j - 0.5) * width
@@ -45,13 +53,13 @@ def figure1(scores: pd.DataFrame, noise: dict, *, pdf_path: str | os.PathLike, p
             )  # fmt: skip
             ax_a.hlines(y.mean(), x - 0.15, x + 0.15, color="black", lw=1.2)
     ax_a.set_yscale("log")
-    ax_a.set_xticks(range(len(STANDINS)))
-    ax_a.set_xticklabels([f"{NAMES[s]}\nself | anch." for s in STANDINS])
+    ax_a.set_xticks(range(len(standins)))
+    ax_a.set_xticklabels([f"{NAMES[s]}\nself | anch." for s in standins])
     ax_a.set_ylabel("disagreement (RMS log residual)")
     ax_a.set_title("(a) self vs anchored disagreement", loc="left")
 
     sds = [level["sd"] for level in noise["levels"]]
-    for name in STANDINS[1:]:
+    for name in standins[1:]:
         auroc = [level["standins"][name]["auroc_anchored"] for level in noise["levels"]]
         ax_b.plot(sds, auroc, marker="o", ms=3, color=COLORS[name], label=NAMES[name])
     ax_b.axhline(0.5, color="grey", lw=0.8, ls=":")
@@ -106,7 +114,7 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
     pooled = pd.concat([own, swap])
     for i, (col, name) in enumerate((("self_disagreement", "self"), ("anchored_disagreement", "anchored")), start=2):
         ax[i].scatter(pooled[col], pooled["log_error"], s=6, alpha=0.6, color="tab:purple")
-        r = metrics.pearson(pooled[col], pooled["log_error"])
+        r = stats.pearson(pooled[col], pooled["log_error"])
         ax[i].set_xlabel(f"{name} disagreement")
         ax[i].set_ylabel("true log error")
         ax[i].set_title(f"({'cd'[i - 2]}) {name} vs error, r = {_f(r)}")

@@ -9,7 +9,7 @@ AUROC against itself) or a value is undefined (NaN). Row labels live here alone.
 
 from __future__ import annotations
 
-from imply.paper.registry import Values
+from imply.results import Values
 
 # Table 1: (label, self, anchored, log error, AUROC self, AUROC anchored, corr) per stand-in
 TABLE1_ROWS = (

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from imply.io import write_json, write_text
-from imply.paper.parts import Claim, read_part
-from imply.paper.registry import Registry, format_value, load_registry
+from imply.paper.parts import read_part
+from imply.paper.registry import load_registry
+from imply.results import Claim, Registry, format_value
 
 
 @dataclass(frozen=True)

@@ -10,41 +10,27 @@ Each study stage has one part, ``results/paper/parts/<stage>.json``, built by
 
 Every registered number of the stage (:mod:`imply.paper.registry`) is read from the
 result of its ``source`` function at its ``path``, unrounded; the stage's claims are
-checked on those values by the stage's claims function (:data:`STAGE_CLAIMS`).
+checked on those values by the stage's claims function, which the caller passes in
+(``imply paper part`` takes it from :func:`imply.cli.paper.stage_claims`), so this module
+imports no study code.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from imply.io import write_json
-from imply.paper.registry import NOT_PRODUCED, Registry, Values, load_registry
+from imply.paper.registry import STAGES, load_registry
+from imply.results import NOT_PRODUCED, Claim, Registry, Values
 
-# each stage's claims: a function (values, results) -> list[Claim], by dotted name
-STAGE_CLAIMS: dict[str, str] = {
-    "section4": "imply.study.section4.claims.section4_claims",
-    "clips": "imply.study.readout_evaluation.readout_claims",
-    "section5": "imply.study.section5.claims.section5_claims",
-    "gap": "imply.diagnose.benchmark_report.benchmark_claims",
-}
-
-
-@dataclass(frozen=True)
-class Claim:
-    """A qualitative claim of the paper, checked on the reproduced results."""
-
-    id: str
-    section: str
-    statement: str
-    holds: bool
-    detail: str = ""
+# a stage's claims: checked on the stage's values, with its result documents (producer -> result) at hand
+ClaimsFunction = Callable[[Values, Mapping[str, Any]], list[Claim]]
 
 
 def stage_numbers(stage: str, results: Mapping[str, Any], registry: Registry | None = None) -> dict[str, Any]:
@@ -58,26 +44,19 @@ def stage_numbers(stage: str, results: Mapping[str, Any], registry: Registry | N
     return numbers
 
 
-def claims_function(stage: str) -> Callable[[Values, Mapping[str, Any]], list[Claim]]:
-    """The claims function of a stage (:data:`STAGE_CLAIMS`)."""
-    module, _, name = STAGE_CLAIMS[stage].rpartition(".")
-    return getattr(importlib.import_module(module), name)
-
-
 def build_part(
-    stage: str, results: Mapping[str, Any], registry: Registry | None = None
+    stage: str, results: Mapping[str, Any], *, claims: ClaimsFunction, registry: Registry | None = None
 ) -> tuple[dict[str, Any], list[Claim]]:
-    """The numbers and checked claims of a stage's part."""
-    if stage not in STAGE_CLAIMS:
-        raise ValueError(f"unknown stage {stage!r} (one of {', '.join(STAGE_CLAIMS)})")
+    """The numbers and checked claims of a stage's part; ``claims`` is the stage's claims function."""
+    if stage not in STAGES:
+        raise ValueError(f"unknown stage {stage!r} (one of {', '.join(STAGES)})")
     registry = registry or load_registry()
     numbers = stage_numbers(stage, results, registry)
-    claims = claims_function(stage)(registry.values(numbers), results)
-    return numbers, claims
+    return numbers, claims(registry.values(numbers), results)
 
 
 def write_part(
-    path: str | os.PathLike, stage: str, numbers: Mapping[str, Any], claims: list[Claim],
+    path: str | os.PathLike, *, stage: str, numbers: Mapping[str, Any], claims: list[Claim],
     registry: Registry | None = None,
 ) -> None:  # fmt: skip
     """Write a stage's part file; every name must be registered to that stage."""

@@ -23,7 +23,7 @@ import pandas as pd
 
 from imply.io import write_csv, write_text
 from imply.paper.macros import Merged
-from imply.paper.registry import Entry, Registry
+from imply.results import Entry, Registry
 
 STATUSES = ("matches", "close", "differs", "not produced")
 

@@ -1,6 +1,7 @@
 """Result documents: what a study step computed, labelled with the function that computed it.
 
-A step writes its result (a JSON-able mapping) with :func:`write_result`::
+A step writes its result (a frozen dataclass of the study, or a JSON-able mapping) with
+:func:`write_result`; a dataclass is written as its fields, nested dataclasses as objects::
 
     {"produced_by": "imply.study.section4.scoring.standin_metrics", "result": {...}}
 
@@ -11,9 +12,10 @@ name leads to the function that computed it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +27,13 @@ def producer_name(function: Callable[..., Any]) -> str:
     return f"{function.__module__}.{function.__qualname__}"
 
 
-def write_result(path: str | os.PathLike, function: Callable[..., Any], result: dict[str, Any]) -> None:
-    """Write ``result``, computed by ``function``, as a result document (atomically)."""
+def write_result(path: str | os.PathLike, function: Callable[..., Any], result: Any) -> None:
+    """Write ``result`` (a dataclass instance or a mapping), computed by ``function``, as a result
+    document (atomically)."""
+    if dataclasses.is_dataclass(result) and not isinstance(result, type):
+        result = dataclasses.asdict(result)
+    if not isinstance(result, Mapping):
+        raise TypeError(f"a result is a dataclass instance or a mapping, not {type(result).__name__}")
     write_json(path, {"produced_by": producer_name(function), "result": result})
 
 

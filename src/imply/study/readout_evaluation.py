@@ -23,9 +23,8 @@ import pandas as pd
 
 from imply.data.clips import load_clips
 from imply.models.encoder import load_features
-from imply.paper.parts import Claim
-from imply.paper.registry import Values
 from imply.readout import FrameDiffReadout, ReadoutConfig, RidgeReadout, r2_linear, r2_log
+from imply.results import Claim, Values
 
 log = logging.getLogger("imply.readout")
 

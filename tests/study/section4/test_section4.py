@@ -121,7 +121,7 @@ def test_study_results_by_construction(study, tiny_table):
     assert set(sel["rules"]) == {"first", "consensus", "anchored", "oracle", "self", "medoid"}
     assert sel["rules"]["oracle"]["picked_oracle"] == 1.0 and sel["rules"]["consensus"]["picked_oracle"] is None
     assert len(choices) == 8 and all(c.count("oracle") == 1 for c in choices["candidates"])
-    numbers, claims = build_part("section4", results)
+    numbers, claims = build_part("section4", results, claims=section4_claims)
     # every registered section4 number is read from these results, except the noise
     # levels this config does not have (three of five)
     registered = {e.name for e in load_registry().of_stage("section4")}
@@ -146,9 +146,9 @@ def test_study_is_deterministic(study, tiny_table, scene, tmp_path):
     paths = []
     for i, (t, r) in enumerate(((truth, rollouts), (truth2, rollouts2))):
         _, results, _ = run_study(tiny_table, objects, t, r)
-        numbers, claims = build_part("section4", results)
+        numbers, claims = build_part("section4", results, claims=section4_claims)
         paths.append(tmp_path / f"part{i}.json")
-        write_part(paths[-1], "section4", numbers, claims)
+        write_part(paths[-1], stage="section4", numbers=numbers, claims=claims)
     assert paths[0].read_bytes() == paths[1].read_bytes()
 
 

@@ -7,8 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from imply.paper.parts import Claim
-from imply.paper.registry import Values
+from imply.results import Claim, Values
 
 # the readout-noise levels of Table 2, lowest first (as many as section4.noise.sds has)
 NOISE_ORACLE = ("noiseAOracle", "noiseBOracle", "noiseCOracle", "noiseDOracle", "noiseEOracle")

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from imply import stats
 from imply.score import ScoreConfig
-from imply.study import metrics
 from imply.study.section4.config import NoiseConfig
 from imply.study.section4.objects import STREAM_NOISE, population, rng_for, truth_arrays
 from imply.study.section4.standins import STANDINS, add_readout_noise, rollout_arrays
@@ -44,7 +44,7 @@ def score_rollouts(
             "object_id": np.tile(t["ids"], len(STANDINS)),
             "self_disagreement": sc.self_disagreement,
             "anchored_disagreement": sc.anchored_disagreement,
-            "log_error": metrics.log_error(sets, np.tile(t["query"], (len(STANDINS), 1)), scorer.floor),
+            "log_error": stats.log_error(sets, np.tile(t["query"], (len(STANDINS), 1)), scorer.floor),
             "mass_hat": sc.mass_hat,
             "friction_hat": sc.friction_hat,
             "anchored_mass_hat": sc.anchored_mass_hat,
@@ -78,9 +78,9 @@ def standin_metrics(scores: pd.DataFrame, table: PushTable, *, jitter_sd: float,
             "corr_anchored_error": None,
         }
         if name != "oracle":
-            row["auroc_self"] = metrics.auroc(orc["self_disagreement"], f["self_disagreement"])
-            row["auroc_anchored"] = metrics.auroc(orc["anchored_disagreement"], f["anchored_disagreement"])
-            row["corr_anchored_error"] = metrics.pearson(f["anchored_disagreement"], f["log_error"])
+            row["auroc_self"] = stats.auroc(orc["self_disagreement"], f["self_disagreement"])
+            row["auroc_anchored"] = stats.auroc(orc["anchored_disagreement"], f["anchored_disagreement"])
+            row["corr_anchored_error"] = stats.pearson(f["anchored_disagreement"], f["log_error"])
         rows[name] = row
     return {
         "n_objects": int(len(orc)),
@@ -89,8 +89,8 @@ def standin_metrics(scores: pd.DataFrame, table: PushTable, *, jitter_sd: float,
         "table_shape": [int(table.speeds.size), int(table.masses.size), int(table.frictions.size)],
         "standins": rows,
         "oracle_recovery": {
-            "mass_r2": metrics.r_squared(np.log(orc["mass"]), np.log(orc["mass_hat"])),
-            "friction_r2": metrics.r_squared(np.log(orc["friction"]), np.log(orc["friction_hat"])),
+            "mass_r2": stats.r_squared(np.log(orc["mass"]), np.log(orc["mass_hat"])),
+            "friction_r2": stats.r_squared(np.log(orc["friction"]), np.log(orc["friction_hat"])),
         },
     }
 
@@ -134,8 +134,8 @@ def noise_sweep(
             per_standin[name] = {
                 "mean_self": float(self_[i, j].mean()),
                 "mean_anchored": float(anch[i, j].mean()),
-                "auroc_self": None if j == 0 else metrics.auroc(self_[i, 0], self_[i, j]),
-                "auroc_anchored": None if j == 0 else metrics.auroc(anch[i, 0], anch[i, j]),
+                "auroc_self": None if j == 0 else stats.auroc(self_[i, 0], self_[i, j]),
+                "auroc_anchored": None if j == 0 else stats.auroc(anch[i, 0], anch[i, j]),
             }
         levels.append({"sd": float(sd), "standins": per_standin})
     return {"levels": levels}

@@ -12,8 +12,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from imply import stats
 from imply.score import ScoreConfig
-from imply.study import metrics, selection_rules
+from imply.study import selection_rules
 from imply.study.section4.config import SelectionConfig
 from imply.study.section4.objects import STREAM_SELECTION, rng_for, truth_arrays
 from imply.study.section4.standins import STANDINS, add_readout_noise, rollout_arrays
@@ -109,17 +110,17 @@ def selection_study(
             idx = chosen[rule]
             sets = selection_rules.take(cands, idx)
             picked = float(np.mean(is_oracle[np.arange(n), idx].astype(float)))
-        miss = metrics.miss_mm(sets[:, qi], true_q)
+        miss = stats.miss_mm(sets[:, qi], true_q)
         per_object[f"{rule}_choice"] = idx
         per_object[f"{rule}_miss_mm"] = miss
-        within = metrics.share_within(miss, settings.within_mm)
+        within = stats.share_within(miss, settings.within_mm)
         summary[rule] = {
             "median_miss_mm": float(np.median(miss)),
             "share_within": within,
             "within_pct": 100.0 * within,
             "picked_oracle": picked,
             "picked_oracle_pct": None if picked is None else 100.0 * picked,
-            "mean_log_error": float(metrics.log_error(sets, t["query"], scorer.floor).mean()),
+            "mean_log_error": float(stats.log_error(sets, t["query"], scorer.floor).mean()),
         }
     result = {
         "k": settings.k,

@@ -11,8 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from imply.paper.parts import Claim
-from imply.paper.registry import Values
+from imply.results import Claim, Values
 
 # Thresholds of the claims, fixed before the results were seen. "Chance level" is a
 # share within 10 points of 50%; "tracks" is r > 0.5; "does not track" is |r| < 0.2;

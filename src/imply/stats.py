@@ -1,4 +1,7 @@
-"""Metrics shared by the study's sections: separation, correlation, recovery, error, miss.
+"""The statistics every layer shares (models, study, paper): separation, correlation, recovery, error, miss.
+
+It imports nothing of :mod:`imply` beyond itself, so a model's validation, the study's
+scoring and the paper's figures compute a correlation the same way.
 
 Conventions:
 
