@@ -1,4 +1,4 @@
-"""Benchmark of `imply score` for users with many objects: the per-object path against the vectorised one.
+"""Benchmark of `imply score` for users with many objects: a naive per-object path against the project's.
 
 Run: python benchmarks/bench_score_cli.py [--table T.npz] [--objects 28572] [--repeats 3] [--git-rev REV]
 
@@ -6,19 +6,19 @@ Writes a rollouts CSV of N objects, each with 5 rollouts at the query speeds and
 calibration pushes (7 rows per object: 28,572 objects are 200,004 rows), displacements
 from the table with log-normal noise. Then, in this process:
 
-- old path: the per-object reading, grouping and padding that `imply score` used
-  (pandas, one groupby and Python loop per object), around the scorer as it was
-  (one matrix of every set against every grid point, the table's 3-D spline per
-  term), kept here as the reference;
-- new path: :func:`imply.score_file.read_rollouts`, :func:`score_rows` and the
-  current :class:`imply.score.Scorer`, as the command runs them.
+- naive path: reading, checking, grouping and padding with pandas, one groupby and a
+  Python loop per object (as `imply score` once did), around the project's
+  :class:`imply.score.Scorer` on one thread;
+- project path: :func:`imply.score_file.read_rollouts`, :func:`score_rows` and
+  :class:`imply.score.Scorer` on every CPU, as the command runs them.
 
 Both include reading the CSV and writing the scores; it prints seconds, rows per second,
 the ratio, and how far the two outputs differ. It also times the command's start (the
 imports before any work, the old set against the new one) and the whole command as a
-user runs it (a fresh `python -m imply.cli score`). With --git-rev, the command of that
-revision (e.g. the commit before the vectorised path) is run the same way, for an end
-to end before/after. Benchmarks measure; they assert nothing.
+user runs it (a fresh `python -m imply.cli score`). The scorer as it was before the
+vectorised path is measured only by running that revision's own code: with --git-rev,
+the command of that revision (e.g. 5d3bc0e) is run the same way, for an end to end
+before/after. Benchmarks measure; they assert nothing.
 """
 
 from __future__ import annotations
@@ -50,86 +50,11 @@ TINY_GRID = (
 )
 
 
-# -- the old path, kept as the reference ------------------------------------------------
+# -- the naive path: per-object pandas around the project's scorer ----------------------
 
 
-class ReferenceScorer(Scorer):
-    """The scorer as it was: the whole (sets x grid points) product at once, 3-D spline per term.
-
-    Only the table's per-speed grid rows (``_rows_for``) are shared with the current one.
-    """
-
-    def fit(self, speeds, displacements):
-        from imply.score import Fit
-
-        d = np.atleast_2d(np.asarray(displacements, dtype=float))
-        v = np.broadcast_to(np.asarray(speeds, dtype=float), d.shape)
-        present = np.isfinite(d)
-        counts = present.sum(axis=1)
-        self.table.check_range(speeds=v[present])
-        y = np.where(present, np.log(np.maximum(np.where(present, d, 1.0), self.floor)), 0.0)
-        v_safe = np.where(present, v, self.table.speeds[0])
-        n = d.shape[0]
-        lm_axis, lu_axis = self.table.fine_axes(self.grid)
-        theta = np.empty((n, 2))
-        sse_best = np.empty(n)
-        for lo in range(0, n, self.chunk):
-            hi = min(lo + self.chunk, n)
-            vc, yc, pc = v_safe[lo:hi], y[lo:hi], present[lo:hi]
-            uniq, inv = np.unique(vc, return_inverse=True)
-            idx = inv.reshape(vc.shape)
-            f, _, _ = self._rows_for(uniq)
-            rows = np.broadcast_to(np.arange(hi - lo)[:, None], vc.shape)
-            weights = np.zeros((hi - lo, 2 * uniq.size))
-            np.add.at(weights, (rows[pc], idx[pc]), 1.0)
-            np.add.at(weights, (rows[pc], uniq.size + idx[pc]), -2.0 * yc[pc])
-            partial = weights @ np.concatenate([f * f, f])
-            k = np.argmin(partial, axis=1)
-            im, iu = np.divmod(k, self.grid)
-            grid_theta = np.stack([lm_axis[im], lu_axis[iu]], axis=1)
-            r = np.where(pc, f[idx, k[:, None]] - yc, 0.0)
-            sse_grid = (r * r).sum(1)
-            gn_theta, sse_gn = self._reference_gauss_newton(vc, yc, pc, grid_theta, uniq, idx)
-            better = sse_gn < sse_grid
-            theta[lo:hi] = np.where(better[:, None], gn_theta, grid_theta)
-            sse_best[lo:hi] = np.where(better, sse_gn, sse_grid)
-        return Fit(rms=np.sqrt(np.maximum(sse_best, 0.0) / counts), mass=np.exp(theta[:, 0]),
-                   friction=np.exp(theta[:, 1]))  # fmt: skip
-
-    def _reference_gauss_newton(self, v, y, present, theta, uniq, idx, iterations=3, max_cells=3.0):
-        lm_axis, lu_axis = self.table.fine_axes(self.grid)
-        cell = np.array([lm_axis[1] - lm_axis[0], lu_axis[1] - lu_axis[0]])
-        lo = np.array([lm_axis[0], lu_axis[0]])
-        hi = np.array([lm_axis[-1], lu_axis[-1]])
-        _, dfm, dfu = self._rows_for(uniq)
-        start = theta.copy()
-        for _ in range(iterations):
-            pred = self._reference_predict(v, present, theta)
-            r = np.where(present, pred - y, 0.0)
-            near = np.clip(np.rint((theta - lo) / cell), 0, self.grid - 1).astype(np.int64)
-            k = near[:, 0] * self.grid + near[:, 1]
-            jm = np.where(present, dfm[idx, k[:, None]], 0.0)
-            ju = np.where(present, dfu[idx, k[:, None]], 0.0)
-            a11, a12, a22 = (jm * jm).sum(1), (jm * ju).sum(1), (ju * ju).sum(1)
-            b1, b2 = (jm * r).sum(1), (ju * r).sum(1)
-            det = a11 * a22 - a12 * a12
-            ok = det > 1e-12 * np.maximum(a11 * a22, 1e-300)
-            det = np.where(ok, det, 1.0)
-            step = np.stack([-(a22 * b1 - a12 * b2) / det, -(a11 * b2 - a12 * b1) / det], axis=1)
-            step[~ok] = 0.0
-            theta = np.clip(np.clip(theta + step, start - max_cells * cell, start + max_cells * cell), lo, hi)
-        pred = self._reference_predict(v, present, theta)
-        return theta, np.where(present, (pred - y) ** 2, 0.0).sum(1)
-
-    def _reference_predict(self, v, present, theta):
-        lm = np.broadcast_to(theta[:, :1], v.shape)
-        lu = np.broadcast_to(theta[:, 1:], v.shape)
-        pred = np.zeros(v.shape)
-        pred[present] = self.table.log_displacement(v[present], np.exp(lm[present]), np.exp(lu[present]))
-        return pred
-
-
-def old_read_rollouts(path, table: PushTable) -> pd.DataFrame:
+def naive_read_rollouts(path, table: PushTable) -> pd.DataFrame:
+    """Read and check a rollouts file with pandas, one groupby and a Python loop over objects."""
     frame = read_table(path, ["object_id", "role", "speed", "displacement"], ["speed", "displacement"])
     roles = frame["role"].str.strip()
     bad_role = ~roles.isin(["calibration", "rollout"])
@@ -152,7 +77,8 @@ def old_read_rollouts(path, table: PushTable) -> pd.DataFrame:
     return frame
 
 
-def old_pad_sets(frame: pd.DataFrame, role: str, order: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def naive_pad_sets(frame: pd.DataFrame, role: str, order: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """One role's pushes as (objects, pushes) arrays, padded with NaN, filled object by object."""
     part = frame[frame["role"] == role]
     groups = {k: g for k, g in part.groupby("object_id", sort=False)}
     width = max([len(g) for g in groups.values()] + [1])
@@ -167,14 +93,15 @@ def old_pad_sets(frame: pd.DataFrame, role: str, order: list[str]) -> tuple[np.n
     return v, d
 
 
-def old_score(path, table: PushTable, out_path) -> None:
-    """`imply score` as it was: pandas frame, a loop per object, the reference scorer, pandas writer."""
-    frame = old_read_rollouts(path, table)
+def naive_score(path, table: PushTable, out_path) -> None:
+    """The naive path: pandas frame, a loop per object, the project's :class:`Scorer` on one thread,
+    pandas writer."""
+    frame = naive_read_rollouts(path, table)
     order = list(frame["object_id"].unique())
-    rv, rd = old_pad_sets(frame, "rollout", order)
+    rv, rd = naive_pad_sets(frame, "rollout", order)
     has_cal = (frame["role"] == "calibration").any()
-    cv, cd = old_pad_sets(frame, "calibration", order) if has_cal else (None, None)
-    scores = ReferenceScorer(table).score(rv, rd, cv, cd)
+    cv, cd = naive_pad_sets(frame, "calibration", order) if has_cal else (None, None)
+    scores = Scorer(table, threads=1).score(rv, rd, cv, cd)
     out = pd.DataFrame({"object_id": order, **{c: getattr(scores, c) for c in SCORE_COLUMNS[1:]}})
     if has_cal:
         no_cal = ~np.isfinite(cd).any(axis=1)
@@ -183,7 +110,7 @@ def old_score(path, table: PushTable, out_path) -> None:
     write_csv(out_path, out)
 
 
-def new_score(path, table: PushTable, out_path) -> None:
+def project_score(path, table: PushTable, out_path) -> None:
     """`imply score` as it runs now."""
     rows = read_rollouts(path, table)
     write_columns(out_path, score_rows(rows, Scorer(table, threads=os.cpu_count() or 1)))
@@ -273,14 +200,14 @@ def main() -> None:
         n_rows = make_rollouts(table, args.objects, src)
         print(f"{args.objects} objects, {n_rows} rows; table {table.log_d.shape}; {os.cpu_count()} CPUs")
 
-        old_out, new_out = tmp / "old.csv", tmp / "new.csv"
-        t_new = best_of(args.repeats, lambda: new_score(src, table, new_out))
-        t_old = best_of(max(1, args.repeats - 1), lambda: old_score(src, table, old_out))
-        a, b = pd.read_csv(old_out), pd.read_csv(new_out)
+        naive_out, project_out = tmp / "naive.csv", tmp / "project.csv"
+        t_new = best_of(args.repeats, lambda: project_score(src, table, project_out))
+        t_old = best_of(max(1, args.repeats - 1), lambda: naive_score(src, table, naive_out))
+        a, b = pd.read_csv(naive_out), pd.read_csv(project_out)
         diff = max(float(np.nanmax(np.abs(a[c].to_numpy(float) - b[c].to_numpy(float)))) for c in SCORE_COLUMNS[1:])
         print("in process (read, check, group, score, write):")
-        print(f"  old per-object path  {t_old:7.2f} s  {n_rows / t_old:12,.0f} rows/s")
-        print(f"  new vectorised path  {t_new:7.2f} s  {n_rows / t_new:12,.0f} rows/s")
+        print(f"  naive per-object     {t_old:7.2f} s  {n_rows / t_old:12,.0f} rows/s")
+        print(f"  project's path       {t_new:7.2f} s  {n_rows / t_new:12,.0f} rows/s")
         print(f"  ratio                {t_old / t_new:7.1f}x   (largest difference in any score: {diff:.2g})")
 
         s_old, s_new = startup(STARTUP_OLD, args.repeats), startup(STARTUP_NEW, args.repeats)
