@@ -84,7 +84,12 @@ rule readout_fit:
         heldout_nocalib=split_files("heldout_nocalib"),
     output:
         ridge="results/readout/ridge.npz",
-        metrics="results/readout/metrics.json",
+        metrics=report(
+            "results/readout/metrics.json",
+            caption="../report/readout_metrics.rst",
+            category="Section 5: readout on clips",
+            subcategory="Result documents",
+        ),
     params:
         readout=as_json(config["readout"]),
         pretrain_episodes=config["clips"]["n_pretrain_episodes"],

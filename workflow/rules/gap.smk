@@ -83,8 +83,18 @@ rule gap_benchmark:
         accuracy="results/gap/world_accuracy.json",
         table="results/table/table.npz",
     output:
-        result="results/gap/benchmark.json",
-        markdown="results/gap/benchmark.md",
+        result=report(
+            "results/gap/benchmark.json",
+            caption="../report/gap_benchmark.rst",
+            category="Gap diagnostic benchmark",
+            subcategory="Benchmark",
+        ),
+        markdown=report(
+            "results/gap/benchmark.md",
+            caption="../report/gap_benchmark.rst",
+            category="Gap diagnostic benchmark",
+            subcategory="Benchmark",
+        ),
     params:
         bench=as_json(config["gap"]["benchmark"]),
     resources:

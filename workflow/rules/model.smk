@@ -72,7 +72,12 @@ rule model_training_plot:
     input:
         training_histories(),
     output:
-        "results/model/training.png",
+        report(
+            "results/model/training.png",
+            caption="../report/training.rst",
+            category="Section 5: learned model",
+            subcategory="Figures",
+        ),
     threads: 1
     resources:
         mem_mb=1000,

@@ -26,8 +26,18 @@ rule paper_tables_section4:
     input:
         part="results/paper/parts/section4.json",
     output:
-        table1="results/paper/tables/table1.tex",
-        table2="results/paper/tables/table2.tex",
+        table1=report(
+            "results/paper/tables/table1.tex",
+            caption="../report/table1.rst",
+            category="Section 4: controlled validation",
+            subcategory="Tables",
+        ),
+        table2=report(
+            "results/paper/tables/table2.tex",
+            caption="../report/table2.rst",
+            category="Section 4: controlled validation",
+            subcategory="Tables",
+        ),
     resources:
         mem_mb=500,
         runtime=1,
@@ -43,7 +53,12 @@ rule paper_table3:
     input:
         part="results/paper/parts/section5.json",
     output:
-        "results/paper/tables/table3.tex",
+        report(
+            "results/paper/tables/table3.tex",
+            caption="../report/table3.rst",
+            category="Section 5: learned model",
+            subcategory="Tables",
+        ),
     resources:
         mem_mb=500,
         runtime=1,
@@ -61,7 +76,12 @@ rule paper_figure1:
         noise="results/section4/noise.json",
     output:
         pdf="results/paper/figures/figure1.pdf",
-        png="results/paper/figures/figure1.png",
+        png=report(
+            "results/paper/figures/figure1.png",
+            caption="../report/figure1.rst",
+            category="Section 4: controlled validation",
+            subcategory="Figures",
+        ),
     resources:
         mem_mb=1000,
         runtime=2,
@@ -79,7 +99,12 @@ rule paper_figure2:
         per_object="results/section5/per_object.csv",
     output:
         pdf="results/paper/figures/figure2.pdf",
-        png="results/paper/figures/figure2.png",
+        png=report(
+            "results/paper/figures/figure2.png",
+            caption="../report/figure2.rst",
+            category="Section 5: learned model",
+            subcategory="Figures",
+        ),
     resources:
         mem_mb=1000,
         runtime=2,
@@ -95,10 +120,30 @@ rule paper_merge:
     input:
         paper_parts,
     output:
-        macros="results/paper/macros.tex",
-        numbers="results/paper/numbers.json",
-        report_md="results/paper/reproduction.md",
-        report_csv="results/paper/reproduction.csv",
+        macros=report(
+            "results/paper/macros.tex",
+            caption="../report/macros.rst",
+            category="Paper numbers",
+            subcategory="Merged numbers",
+        ),
+        numbers=report(
+            "results/paper/numbers.json",
+            caption="../report/numbers.rst",
+            category="Paper numbers",
+            subcategory="Merged numbers",
+        ),
+        report_md=report(
+            "results/paper/reproduction.md",
+            caption="../report/reproduction.rst",
+            category="Paper numbers",
+            subcategory="Reproduction report",
+        ),
+        report_csv=report(
+            "results/paper/reproduction.csv",
+            caption="../report/reproduction.rst",
+            category="Paper numbers",
+            subcategory="Reproduction report",
+        ),
     resources:
         mem_mb=500,
         runtime=1,

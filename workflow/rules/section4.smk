@@ -101,7 +101,12 @@ rule s4_metrics:
         scores="results/section4/scores.csv",
         table="results/table/table.npz",
     output:
-        "results/section4/metrics.json",
+        report(
+            "results/section4/metrics.json",
+            caption="../report/section4_metrics.rst",
+            category="Section 4: controlled validation",
+            subcategory="Result documents",
+        ),
     params:
         standins=as_json({"jitter_sd": config["section4"]["standins"]["jitter_sd"]}),
         score=score_subset("query_speeds"),
@@ -123,7 +128,12 @@ rule s4_noise:
         rollouts="results/section4/rollouts.csv",
         table="results/table/table.npz",
     output:
-        "results/section4/noise.json",
+        report(
+            "results/section4/noise.json",
+            caption="../report/section4_noise.rst",
+            category="Section 4: controlled validation",
+            subcategory="Result documents",
+        ),
     params:
         seed=config["section4"]["seed"],
         noise=as_json(config["section4"]["noise"]),
@@ -146,7 +156,12 @@ rule s4_selection:
         rollouts="results/section4/rollouts.csv",
         table="results/table/table.npz",
     output:
-        summary="results/section4/selection.json",
+        summary=report(
+            "results/section4/selection.json",
+            caption="../report/section4_selection.rst",
+            category="Section 4: controlled validation",
+            subcategory="Result documents",
+        ),
         choices="results/section4/selection_choices.csv",
     params:
         seed=config["section4"]["seed"],

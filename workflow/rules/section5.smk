@@ -10,8 +10,18 @@ rule section5:
         table="results/table/table.npz",
         train_clips="results/clips/train.csv",
     output:
-        metrics="results/section5/metrics.json",
-        per_object="results/section5/per_object.csv",
+        metrics=report(
+            "results/section5/metrics.json",
+            caption="../report/section5_metrics.rst",
+            category="Section 5: learned model",
+            subcategory="Result documents",
+        ),
+        per_object=report(
+            "results/section5/per_object.csv",
+            caption="../report/section5_per_object.rst",
+            category="Section 5: learned model",
+            subcategory="Result documents",
+        ),
     params:
         rollouts=rollouts_options,
         score=score_subset("grid", "readout_floor"),
