@@ -14,7 +14,6 @@ import logging
 from typing import TYPE_CHECKING
 
 from imply.cli.common import UserError, existing_file, int_range
-from imply.paper.registry import STAGES
 
 if TYPE_CHECKING:
     from imply.paper.parts import ClaimsFunction
@@ -89,6 +88,8 @@ def stage_claims(stage: str) -> ClaimsFunction:
         from imply.diagnose.benchmark_report import benchmark_claims
 
         return benchmark_claims
+    from imply.paper.registry import STAGES
+
     raise UserError(f"unknown stage {stage!r} (one of {', '.join(STAGES)})")
 
 
