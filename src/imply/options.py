@@ -238,7 +238,7 @@ def _out_of_bounds(bounds: dict[str, Any], value: Any) -> str | None:
             ("exclusive_maximum", lambda b: value >= b, "greater than or equal to the maximum of"),
         ):
             if key in bounds and fails(bounds[key]):
-                return f"{value!r} is {word} {bounds[key]!r}"
+                return f"{value:g} is {word} {bounds[key]:g}"
     if "choices" in bounds and value not in bounds["choices"]:
         return f"{value!r} is not one of {list(bounds['choices'])}"
     if isinstance(value, tuple | list):

@@ -138,9 +138,6 @@ class BenchmarkConfig(Config):
     )  # fmt: skip
 
     def __post_init__(self) -> None:
-        unknown = sorted(set(self.logs) - set(GROUPS))
-        if unknown:
-            raise ValueError(f"logs: unknown group(s) {', '.join(unknown)} (known: {', '.join(GROUPS)})")
         unknown = sorted(set(self.ranges) - set(EFFECTS))
         if unknown:
             raise ValueError(f"ranges: unknown effect(s) {', '.join(unknown)}")
