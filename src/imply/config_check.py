@@ -5,8 +5,9 @@ Snakemake with one line on error) once, when Snakemake reads the Snakefile, so
 ``snakemake -n`` refuses a bad config with one line naming the key at fault instead of
 a rule failing minutes into the run. Two layers:
 
-* the JSON schemas of ``workflow/schemas`` (types, bounds, and no unknown key at any
-  level), each error turned into one line with a suggestion for a misspelt key;
+* the JSON schema ``workflow/schemas/config.schema.yaml`` (types, bounds, and no unknown
+  key at any level), written from the settings classes (:mod:`imply.study.config`), each
+  error turned into one line with a suggestion for a misspelt key;
 * rules across fields that a schema cannot state: ranges ordered, speeds inside the
   table, the selection's query speed among the query speeds, candidate effects known,
   the preset named in ``model.presets``, and the scene compiled once by MuJoCo.
@@ -23,16 +24,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-# which part of the config each schema file describes: a section name, a list of
-# sections checked together, or None for the whole config
-SCHEMAS: dict[str, str | tuple[str, ...] | None] = {
-    "config.schema.yaml": None,
-    "section4.schema.yaml": "section4",
-    "gap.schema.yaml": "gap",
-    "clips.schema.yaml": ("clips", "encoder", "readout"),
-    "model.schema.yaml": "model",
-    "paper.schema.yaml": "paper",
-}
+# the schema of the whole config, written from imply.study.config.StudyConfig (the settings
+# classes) and held to it by a test: reading it needs none of the modules that declare them
+SCHEMA_FILE = "config.schema.yaml"
 
 # stages whose result parts the paper merge knows (config paper.stages)
 PAPER_STAGES = ("section4", "gap", "clips", "section5")
@@ -63,6 +57,9 @@ def unknown_keys(values: dict[str, Any], known: list[str], where: str) -> None:
 
 
 def _path(prefix: str, parts) -> str:
+    if prefix.startswith("-") and parts:
+        # a CLI option: "--grid-json: speeds.n"
+        return f"{prefix}: {_path('', parts)}"
     out = prefix
     for p in parts:
         out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
@@ -102,32 +99,25 @@ def _first(errors: list) -> Any:
 
 
 def check_schemas(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:
-    """Validate ``config`` against every schema of ``schema_dir``; the first error as one line."""
-    import jsonschema
+    """Validate ``config`` against ``schema_dir/config.schema.yaml``; the first error as one line."""
     import yaml
 
-    schema_dir = Path(schema_dir)
-    if not (schema_dir / "config.schema.yaml").is_file():
-        raise ConfigError(f"no config.schema.yaml in {schema_dir}: cannot check the config")
-    for name, part in SCHEMAS.items():
-        path = schema_dir / name
-        if not path.is_file():
-            continue
-        if part is None:
-            instance, prefix = config, ""
-        elif isinstance(part, str):
-            if part not in config:
-                continue
-            instance, prefix = config[part], part
-        else:
-            instance, prefix = {k: config[k] for k in part if k in config}, ""
-        with open(path) as fh:
-            schema = yaml.safe_load(fh)
-        validator = jsonschema.validators.validator_for(schema)(schema)
-        errors = list(validator.iter_errors(instance))
-        if errors:
-            more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
-            raise ConfigError(_describe(_first(errors), prefix) + more)
+    path = Path(schema_dir) / SCHEMA_FILE
+    if not path.is_file():
+        raise ConfigError(f"no {SCHEMA_FILE} in {schema_dir}: cannot check the config")
+    with open(path) as fh:
+        check_against(yaml.safe_load(fh), config, "")
+
+
+def check_against(schema: dict[str, Any], instance: Any, prefix: str) -> None:
+    """Validate ``instance`` against a JSON ``schema``; the first error as one :class:`ConfigError` line."""
+    import jsonschema
+
+    validator = jsonschema.validators.validator_for(schema)(schema)
+    errors = list(validator.iter_errors(instance))
+    if errors:
+        more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+        raise ConfigError(_describe(_first(errors), prefix) + more)
 
 
 # -- rules across fields --------------------------------------------------------
@@ -253,7 +243,7 @@ def check_rules(config: dict[str, Any]) -> None:
 
 def _check_model_inputs(model: dict[str, Any], clips: dict[str, Any] | None, enc: dict[str, Any] | None) -> None:
     """The predictor's sequence layouts, and its token grid against the CPU encoder's patch grid."""
-    from imply.models.sequences import Layout
+    from imply.models.config import Layout
 
     for name, variant in model["variants"].items():
         try:
@@ -262,7 +252,7 @@ def _check_model_inputs(model: dict[str, Any], clips: dict[str, Any] | None, enc
             raise ConfigError(str(exc)) from None
     grid = model.get("token_grid")
     if grid and clips is not None and enc is not None and enc["kind"] == "cpu" and not enc.get("pool_grid"):
-        from imply.models.vision_transformer import PRESETS, ViTConfig
+        from imply.models.config import PRESETS, ViTConfig
 
         arch = enc.get("cpu_arch")
         patch = (
@@ -331,31 +321,18 @@ def _number(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def _positive(x: Any) -> bool:
-    return _number(x) and x > 0
-
-
 def table_grid(cfg: Any, where: str = "--grid-json"):
-    """A :class:`imply.table.TableGrid` from the ``table`` settings, refused with one line if bad."""
-    from imply.table import TableGrid
+    """A :class:`imply.table.TableGrid` from the ``table`` settings, refused with one line if bad.
+
+    Types, bounds and keys come from :class:`imply.table.TableConfig`'s schema; this adds
+    the rule the schema cannot state (each axis's min below its max).
+    """
+    from imply.options import json_schema
+    from imply.table import TableConfig
 
     if not isinstance(cfg, dict):
         raise ConfigError(f"{where}: expected a JSON object with speeds, masses and frictions")
-    axes = ("speeds", "masses", "frictions")
-    unknown_keys(cfg, list(axes), where)
-    for axis in axes:
-        if axis not in cfg:
-            raise ConfigError(f'{where}: missing axis {axis!r} ({{"min": ..., "max": ..., "n": ...}})')
-        spec = cfg[axis]
-        if not isinstance(spec, dict):
-            raise ConfigError(f"{where}: {axis} must be an object with min, max and n")
-        unknown_keys(spec, ["min", "max", "n"], f"{where}: {axis}")
-        for key in ("min", "max", "n"):
-            if key not in spec:
-                raise ConfigError(f"{where}: {axis} is missing {key!r}")
-        if not (_positive(spec["min"]) and _positive(spec["max"])):
-            raise ConfigError(f"{where}: {axis} min and max must be positive numbers")
-        _ordered(spec, f"{where}: {axis}")
-        if not (isinstance(spec["n"], int) and not isinstance(spec["n"], bool) and spec["n"] >= 4):
-            raise ConfigError(f"{where}: {axis}.n must be an integer of at least 4, not {spec['n']!r}")
-    return TableGrid.from_dict(cfg)
+    check_against(json_schema(TableConfig), cfg, where)
+    for axis in ("speeds", "masses", "frictions"):
+        _ordered(cfg[axis], f"{where}: {axis}")
+    return TableConfig.from_dict(cfg, where).grid()

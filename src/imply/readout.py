@@ -36,7 +36,7 @@ import numpy as np
 from sklearn.linear_model import RidgeCV
 from sklearn.metrics import r2_score
 
-from imply.options import Config
+from imply.options import Config, option
 
 ALPHAS = np.logspace(-2, 5, 29)
 FLOOR = 1e-3  # metres; the frame-difference map can go below zero for tiny slides
@@ -49,10 +49,10 @@ class ReadoutConfig(Config):
 
     config_key: ClassVar[str] = "readout"
 
-    log10_alpha_min: float = -2.0
-    log10_alpha_max: float = 5.0
-    n_alphas: int = 29
-    r2_threshold: float = 0.95
+    log10_alpha_min: float = option(-2.0, doc="smallest ridge alpha (log10)")
+    log10_alpha_max: float = option(5.0, doc="largest ridge alpha (log10)")
+    n_alphas: int = option(29, doc="alphas, log-spaced", minimum=1)
+    r2_threshold: float = option(0.95, doc="held-out R^2 the claims ask of a readout", maximum=1)
 
     def __post_init__(self) -> None:
         if self.log10_alpha_min > self.log10_alpha_max or self.n_alphas < 1:

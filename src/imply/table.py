@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from imply.io import write_npz
-from imply.options import Config
+from imply.options import Axis, Config, option
 from imply.sim.pushes import simulate_pushes
 from imply.sim.reference import ReferencePushes, reference_log_d
 from imply.sim.scene import SceneConfig
@@ -45,28 +45,43 @@ class OutOfRangeError(ValueError):
     """A query lies outside the table's range."""
 
 
+@dataclass(frozen=True, kw_only=True)
+class TableConfig(Config):
+    """Config section ``table``: the grid of the push table f(v, m, mu) -> log d."""
+
+    config_key: ClassVar[str] = "table"
+
+    speeds: Axis = option(Axis(min=0.15, max=1.05, n=19), doc="push speeds (m/s), evenly spaced", required=True)
+    masses: Axis = option(Axis(min=0.2, max=2.0, n=25), doc="masses (kg), log-spaced", required=True)
+    frictions: Axis = option(Axis(min=0.1, max=0.6, n=21), doc="frictions, log-spaced", required=True)
+
+    def grid(self) -> TableGrid:
+        """The table's axes as :func:`build_table` takes them."""
+        return TableGrid(
+            speed_min=self.speeds.min, speed_max=self.speeds.max, n_speeds=self.speeds.n,
+            mass_min=self.masses.min, mass_max=self.masses.max, n_masses=self.masses.n,
+            friction_min=self.frictions.min, friction_max=self.frictions.max, n_frictions=self.frictions.n,
+        )  # fmt: skip
+
+
 @dataclass(frozen=True)
 class TableGrid:
-    """Axes of the table (config key ``table``)."""
+    """Axes of the table, flat (recorded so in a table's metadata); built by :meth:`TableConfig.grid`."""
 
-    speed_min: float = 0.15
-    speed_max: float = 1.05
-    n_speeds: int = 19
-    mass_min: float = 0.2
-    mass_max: float = 2.0
-    n_masses: int = 25
-    friction_min: float = 0.1
-    friction_max: float = 0.6
-    n_frictions: int = 21
+    speed_min: float
+    speed_max: float
+    n_speeds: int
+    mass_min: float
+    mass_max: float
+    n_masses: int
+    friction_min: float
+    friction_max: float
+    n_frictions: int
 
     @classmethod
     def from_dict(cls, cfg: dict[str, Any]) -> TableGrid:
-        return cls(
-            speed_min=cfg["speeds"]["min"], speed_max=cfg["speeds"]["max"], n_speeds=cfg["speeds"]["n"],
-            mass_min=cfg["masses"]["min"], mass_max=cfg["masses"]["max"], n_masses=cfg["masses"]["n"],
-            friction_min=cfg["frictions"]["min"], friction_max=cfg["frictions"]["max"],
-            n_frictions=cfg["frictions"]["n"],
-        )  # fmt: skip
+        """From the config section ``table`` (``{speeds: {min, max, n}, ...}``)."""
+        return TableConfig.from_dict(cfg).grid()
 
     def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return (
@@ -256,9 +271,9 @@ class TableCheckConfig(Config):
 
     config_key: ClassVar[str] = "table_check"
 
-    cells: int = 200
-    seed: int = 0
-    reference_substeps: int = 64
+    cells: int = option(200, doc="grid nodes compared (0: skip the check)", minimum=0)
+    seed: int = option(0, doc="which random nodes", minimum=0)
+    reference_substeps: int = option(64, doc="the reference's step is the table's timestep / this", minimum=2)
 
     def __post_init__(self) -> None:
         if self.cells < 0 or self.reference_substeps < 2:

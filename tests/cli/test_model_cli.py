@@ -16,6 +16,8 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 TINY = {"width": 32, "depth": 2, "heads": 2}
 TRAIN = {"epochs": 2, "batch_size": 16, "rollout_steps": 2, "final_weight": 5.0, "val_objects": 8}
+# the smallest training (the defaults are the study's: 40 epochs, 200 validation objects)
+ONE_EPOCH = {"epochs": 1, "val_objects": 0}
 QUERY = {"query_context": 1, "query_frames": [0, 1, 4, 7]}
 VARIANTS = {"calib": {"calib": True, **QUERY}, "nocalib": {"calib": False, **QUERY}}
 
@@ -109,13 +111,13 @@ def test_cli_rejects_bad_options(synth, tmp_path, capsys):
     d = synth
     rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
                "--preset-json", json.dumps({**TINY, "widht": 3}), "--variant-json", json.dumps(VARIANTS["calib"]),
-               "--train-json", "{}", "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
+               "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
     err = capsys.readouterr().err
     assert rc == 2 and "widht" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "m.pt").exists()
     rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
                "--preset-json", json.dumps({**TINY, "heads": 3}), "--variant-json", json.dumps(VARIANTS["calib"]),
-               "--train-json", "{}", "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
+               "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "-o", str(tmp_path / "m.pt")])  # fmt: skip
     assert rc == 2 and "heads" in capsys.readouterr().err and not (tmp_path / "m.pt").exists()
 
 
@@ -125,7 +127,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
                  "-o", str(tmp_path / "readout.npz"), "--report", str(tmp_path / "readout.json")]) == 0  # fmt: skip
     assert main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
                  "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS["nocalib"]),
-                 "--train-json", json.dumps({"epochs": 1}), "--seed", "0", "--threads", "1", "--token-grid", "1", "2",
+                 "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "--threads", "1", "--token-grid", "1", "2",
                  "-o", str(tmp_path / "m.pt")]) == 0  # fmt: skip
     capsys.readouterr()
     rc = main(["model", "rollout", "--model", str(tmp_path / "m.pt"), "--features", str(d / "heldout_nocalib.npz"),
@@ -136,7 +138,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
     assert not (tmp_path / "r.csv").exists()
     rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
                "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS["nocalib"]),
-               "--train-json", json.dumps({"epochs": 1}), "--seed", "0", "--token-grid", "3", "2",
+               "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "--token-grid", "3", "2",
                "-o", str(tmp_path / "m3.pt")])  # fmt: skip
     assert rc == 2 and "does not divide" in capsys.readouterr().err and not (tmp_path / "m3.pt").exists()
 
@@ -146,7 +148,7 @@ def test_cli_train_checks_every_output_before_training(synth, tmp_path, capsys):
     (tmp_path / "a_folder").mkdir()
     rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
                "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS["nocalib"]),
-               "--train-json", json.dumps({"epochs": 1}), "--seed", "0", "--token-grid", "1", "2",
+               "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "--token-grid", "1", "2",
                "-o", str(tmp_path / "m.pt"), "--history", str(tmp_path / "a_folder")])  # fmt: skip
     err = capsys.readouterr().err
     assert rc == 2 and "--history" in err and "folder" in err

@@ -24,7 +24,7 @@ def test_layout_query_frames_set_the_steps():
     layout = Layout(calib=True, query_context=1, query_frames=(0, 1, 4, 7))
     assert layout.n_steps == 6 + 4 and layout.n_context == 6 + 1
     assert layout.without_calibration().n_steps == 4 and layout.without_calibration().query_frames == (0, 1, 4, 7)
-    assert Layout(calib=False).n_steps == 8
+    assert Layout(calib=False, query_frames=None).n_steps == 8
     for bad in ((0, 1, 4), (0, 4, 1, 7), (1, 1, 7)):
         with pytest.raises(ValueError, match="query_frames"):
             Layout(calib=False, query_context=1, query_frames=bad)

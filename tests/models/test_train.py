@@ -26,7 +26,7 @@ def synth(tmp_path_factory):
 def test_training_rollout_term_matches_explicit_rollout():
     model = tiny_model().eval()
     x, a, s = torch.randn(2, 14, 4, 8), torch.randn(2, 14, 1), torch.randn(2, 14, 1)
-    cfg = TrainConfig(rollout_steps=4)
+    cfg = TrainConfig(rollout_steps=4, final_weight=1.0)
     tf, ar = losses(model, x, a, s, 8, 6, cfg)
     r = rollout(model, x, a, s, 8)
     assert torch.allclose(ar, (r[:, 8:12] - x[:, 8:12]).abs().mean(), atol=1e-5)
@@ -35,10 +35,11 @@ def test_training_rollout_term_matches_explicit_rollout():
 
 def test_training_loss_falls(synth):
     split = load_feature_split(*synth["train"])
-    layout = Layout(calib=True)
+    layout = Layout(calib=True, query_context=2, query_frames=None)
     seqs = training_sequences(split, layout, 1.0)
     assert len(seqs) == 48 and seqs.n_steps == 14 and seqs.n_context == 8
-    cfg = TrainConfig(epochs=1, batch_size=48, lr=3e-3, start_lr=3e-3, warmup=0.0, anneal=0.0, rollout_steps=2)
+    cfg = TrainConfig(epochs=1, batch_size=48, lr=3e-3, start_lr=3e-3, warmup=0.0, anneal=0.0, rollout_steps=2,
+                      final_weight=1.0)  # fmt: skip
     model = tiny_model()
     opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
     batch = seqs.batch(np.arange(48))
@@ -55,10 +56,11 @@ def test_training_loss_falls(synth):
 
 def test_resumed_run_matches_uninterrupted(synth, tmp_path):
     split = load_feature_split(*synth["train"])
-    layout = Layout(calib=False)
+    layout = Layout(calib=False, query_context=2, query_frames=None)
     seqs = training_sequences(split, layout, 1.0)
     pcfg = PredictorConfig(embed_dim=8, grid=(2, 2), max_steps=8, **TINY)
-    cfg = TrainConfig(epochs=3, batch_size=16, rollout_steps=2)
+    cfg = TrainConfig(epochs=3, batch_size=16, lr=5e-4, start_lr=5e-5, final_lr=0.0, warmup=0.1, rollout_steps=2,
+                      final_weight=1.0, val_objects=0)  # fmt: skip
     full = train(seqs, layout, pcfg, cfg, 7, tmp_path / "a.pt", tmp_path / "a.ckpt")
     assert train(seqs, layout, pcfg, cfg, 7, tmp_path / "b.pt", tmp_path / "b.ckpt", stop_after_epoch=1) == {}
     assert not (tmp_path / "b.pt").exists()

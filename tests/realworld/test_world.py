@@ -137,10 +137,10 @@ def test_logs_are_drawn_reproducibly_and_say_nothing_of_their_labels(scene):
 @pytest.mark.parametrize(
     "edit, message",
     [
-        ({"logs": {"nul": 3}}, "gap.benchmark: logs: unknown group(s) nul"),
+        ({"logs": {"nul": 3}}, "gap.benchmark.logs: unknown key(s) nul"),
         ({"noise": {"sdd": 0.1}}, "unknown gap.benchmark.noise option(s): sdd"),
         ({"ranges": {"tilt": [0.02, 0.01]}}, "gap.benchmark: ranges.tilt must be [low, high]"),
-        ({"stepping": {"push_step": -1}}, "push_step must be a positive number"),
+        ({"stepping": {"push_step": -1}}, "push_step: -1 is less than or equal to the minimum of 0"),
     ],
 )
 def test_bad_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message):

@@ -25,6 +25,8 @@ import time
 from pathlib import Path
 
 from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, output_file
+from imply.models.config import ModelConfig
+from imply.options import default_of
 
 log = logging.getLogger("imply.model")
 
@@ -42,7 +44,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     tr.add_argument("--train-json", type=json_arg, required=True, help="training settings (config model.train)")
     tr.add_argument(
-        "--rest-state", type=float, default=1.0, help="state token of the last frame (config model.rest_state)"
+        "--rest-state",
+        type=float,
+        default=default_of(ModelConfig, "rest_state"),
+        help="state token of the last frame (config model.rest_state)",
     )
     tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
     _add_token_grid(tr, "pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)")
@@ -58,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     tr.add_argument("--threads", type=int_range(1), default=2)
     tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
-    tr.add_argument("--device", default="cpu", help="torch device (cpu, cuda)")
+    tr.add_argument("--device", default=default_of(ModelConfig, "device"), help="torch device (cpu, cuda)")
     tr.add_argument("-o", "--output", required=True)
     tr.set_defaults(func=cmd_train)
 
@@ -85,9 +90,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ro.add_argument("--clips", type=existing_file, required=True)
     ro.add_argument("--readout", type=existing_file, required=True)
     ro.add_argument("--contexts", default="own,swap,none", help="comma-separated: own, swap, none")
-    ro.add_argument("--derangement-seed", type=int_range(0), default=0)
+    ro.add_argument("--derangement-seed", type=int_range(0), default=default_of(ModelConfig, "derangement_seed"))
     ro.add_argument("--rest-state", type=float, default=None, help="default: the model's training value")
-    ro.add_argument("--batch-size", type=int_range(1), default=100)
+    ro.add_argument("--batch-size", type=int_range(1), default=default_of(ModelConfig, "rollout_batch"))
     ro.add_argument("--threads", type=int_range(1), default=2)
     ro.add_argument("-o", "--output", required=True)
     ro.set_defaults(func=cmd_rollout)  # fmt: skip

@@ -13,6 +13,8 @@ import logging
 from pathlib import Path
 
 from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.models.config import ModelConfig
+from imply.options import default_of
 
 log = logging.getLogger("imply.section5")
 
@@ -29,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="results/clips/train.csv: the training slides that define the object-blind baseline",
     )
     s5.add_argument("--score-json", type=json_arg, required=True, help="the config's score section (grid, floor)")
-    s5.add_argument("--selection-seed", type=int_range(0), default=0)
+    s5.add_argument("--selection-seed", type=int_range(0), default=default_of(ModelConfig, "selection_seed"))
     s5.add_argument("--metrics", required=True, help="the result document (results/section5/metrics.json)")
     s5.add_argument("--per-object", required=True, help="per-object scores (results/section5/per_object.csv)")
     s5.set_defaults(func=cmd_section5)

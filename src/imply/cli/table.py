@@ -45,13 +45,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     tc.add_argument("table", help="push table (.npz)")
-    tc.add_argument("--cells", type=int_range(1), default=200, help="grid nodes to compare (default %(default)d)")
-    tc.add_argument("--seed", type=int_range(0), default=0, help="which random nodes (default %(default)d)")
+    tc.add_argument("--cells", type=int_range(1), help="grid nodes to compare (default: TableCheckConfig.cells)")
+    tc.add_argument("--seed", type=int_range(0), help="which random nodes (default: TableCheckConfig.seed)")
     tc.add_argument(
         "--reference-substeps",
         type=int_range(2),
-        default=64,
-        help="reference step = the table's timestep / this (default %(default)d)",
+        help="reference step = the table's timestep / this (default: TableCheckConfig.reference_substeps)",
     )
     tc.add_argument("-o", "--output", help="also write the result as JSON here")
     tc.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
@@ -60,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def cmd_table_build(args: argparse.Namespace) -> int:
     from imply.config_check import ConfigError, table_grid
-    from imply.table import TableCheckConfig, TableGrid, build_table, check_table, with_numerical_error
+    from imply.table import TableCheckConfig, TableConfig, build_table, check_table, with_numerical_error
 
     output = output_file(args.output, [getattr(args, "config", None)])
     scene = scene_from_args(args, compile_model=True)
@@ -68,7 +67,7 @@ def cmd_table_build(args: argparse.Namespace) -> int:
     if grid_cfg is None and args.config:
         grid_cfg, where = config_section(args.config, "table"), f"--config {args.config}: table"
     try:
-        grid = table_grid(grid_cfg, where) if grid_cfg is not None else TableGrid()
+        grid = table_grid(grid_cfg, where) if grid_cfg is not None else TableConfig().grid()
     except ConfigError as exc:
         raise UserError(str(exc)) from exc
     check = config_from_json(TableCheckConfig, args.check_json, "--check-json")
@@ -102,7 +101,8 @@ def cmd_table_check(args: argparse.Namespace) -> int:
 
     output = output_file(args.output, [args.table]) if args.output else None
     table = load_push_table(args.table, option="TABLE")
-    settings = TableCheckConfig(cells=args.cells, seed=args.seed, reference_substeps=args.reference_substeps)
+    given = {"cells": args.cells, "seed": args.seed, "reference_substeps": args.reference_substeps}
+    settings = TableCheckConfig(**{k: v for k, v in given.items() if v is not None})  # the rest: the class's defaults
     try:
         error = check_table(table, settings, nthread=args.threads, progress=True)
     except ValueError as exc:

@@ -65,7 +65,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.io import atomic_path, write_csv
-from imply.options import Config, Range
+from imply.options import Config, Range, option
 from imply.score import ScoreConfig
 from imply.sim.render import CameraConfig, ClipRenderer, record_pushes
 from imply.sim.scene import SceneConfig
@@ -82,18 +82,24 @@ class ClipsConfig(Config):
 
     config_key: ClassVar[str] = "clips"
 
-    seed: int = 5
-    n_train_episodes: int = 1500
-    n_heldout_calib: int = 300
-    n_heldout_nocalib: int = 500
-    n_pretrain_episodes: int = 600
-    train_speed: Range = Range(min=0.15, max=1.05)
-    masses: Range = Range(min=0.2, max=2.0)
-    frictions: Range = Range(min=0.1, max=0.6)
-    size_scale: Range = Range(min=0.85, max=1.15)
-    frame_times: tuple[float, ...] = (0.0, 0.03, 0.06, 0.1, 0.15, 0.25, 0.4)
-    camera: CameraConfig = CameraConfig()
-    batch: int = 500
+    seed: int = option(5, doc="seed of the objects' draws", minimum=0, required=True)
+    n_train_episodes: int = option(1500, doc="training objects (3 clips each)", minimum=2, required=True)
+    n_heldout_calib: int = option(300, doc="held-out objects for the model with calibration context", minimum=1,
+                                  required=True)  # fmt: skip
+    n_heldout_nocalib: int = option(500, doc="held-out objects for the model without it", minimum=1, required=True)
+    n_pretrain_episodes: int = option(
+        600, doc="frames for the CPU encoder's JEPA pretraining only", minimum=1, required=True
+    )
+    train_speed: Range = option(Range(min=0.15, max=1.05), doc="training query speeds, uniform (m/s)")
+    masses: Range = option(Range(min=0.2, max=2.0), doc="log-uniform (kg)")
+    frictions: Range = option(Range(min=0.1, max=0.6), doc="log-uniform")
+    size_scale: Range = option(Range(min=0.85, max=1.15), doc="per-axis scale of the canonical box")
+    frame_times: tuple[float, ...] = option(
+        (0.0, 0.03, 0.06, 0.1, 0.15, 0.25, 0.4), doc="s; an 8th frame shows the box at rest", min_items=1,
+        items={"minimum": 0}, required=True,
+    )  # fmt: skip
+    camera: CameraConfig = option(CameraConfig(), doc="the top-down view", required=True)
+    batch: int = option(500, doc="pushes simulated per batch", minimum=1)
 
     def n_objects(self, split: str) -> int:
         return {

@@ -58,7 +58,7 @@ from scipy import stats
 
 from imply.diagnose.candidates import Candidate, Model
 from imply.diagnose.fit import JointFit, ObjectFit, Problem
-from imply.options import Config
+from imply.options import Config, option
 
 log = logging.getLogger("imply.diagnose")
 
@@ -71,22 +71,38 @@ class DiagnosisConfig(Config):
 
     config_key: ClassVar[str] = "gap.diagnose"
 
-    grid: int = 101
-    folds: int = 0  # 0: leave one object out
-    alpha: float = 0.05
-    alias_cos: float = 0.95
-    min_visible: float = 0.005
-    fit_alias_share: float = 0.5
-    noise_sd: float | None = None
-    stop_time_noise_sd: float | None = None
-    model_floor: float | None = None
-    stop_time_floor: float | None = None
-    min_share: float = 0.8
-    use_measured: bool = True
-    use_stop_time: bool = True
-    max_effects: int = 3
-    outlier_sd: float = 6.0
-    scan: int = 7
+    grid: int = option(101, doc="(m, mu) grid per axis for the objects' global search (at most 61 used)", minimum=11)
+    folds: int = option(0, doc="held-out folds of objects (0: leave one object out)", minimum=0)
+    alpha: float = option(
+        0.05, doc="family-wise level over the candidates left at each step (Bonferroni)", exclusive_minimum=0,
+        exclusive_maximum=1,
+    )  # fmt: skip
+    alias_cos: float = option(
+        0.95, doc="|cos| of projected sensitivities that makes two effects one class", minimum=0, maximum=1
+    )
+    min_visible: float = option(
+        0.005, doc="RMS at an effect's largest magnitude below which it is not identifiable", minimum=0
+    )
+    fit_alias_share: float = option(
+        0.5, doc="report a candidate as aliased with the per-object fit when the fit absorbs this share", minimum=0,
+        maximum=1,
+    )  # fmt: skip
+    noise_sd: float | None = option(None, doc="log d noise sd (null: estimated from the log)", exclusive_minimum=0)
+    stop_time_noise_sd: float | None = option(
+        None, doc="log stop time noise sd (null: estimated from the log)", exclusive_minimum=0
+    )
+    model_floor: float | None = option(None, doc="the model's own log d error (null: measured)", minimum=0)
+    stop_time_floor: float | None = option(None, doc="the model's own stop time error (null: measured)", minimum=0)
+    min_share: float = option(
+        0.8, doc="share of the held-out gap above the floor the accepted effects must close", minimum=0, maximum=1
+    )
+    use_measured: bool = option(True, doc="use weighed masses where the log has them")
+    use_stop_time: bool = option(True, doc="use stop_time where the log has it")
+    max_effects: int = option(3, doc="effects accepted at most", minimum=0)
+    outlier_sd: float = option(
+        6.0, doc="replicate disagreement (robust sds) that flags a gross outlier", exclusive_minimum=0
+    )
+    scan: int = option(7, doc="magnitudes scanned per candidate effect", minimum=2)
 
 
 @dataclass

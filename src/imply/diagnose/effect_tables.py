@@ -50,7 +50,7 @@ from scipy.interpolate import RegularGridInterpolator
 from tqdm.auto import tqdm
 
 from imply.io import write_json, write_npz
-from imply.options import Config
+from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
@@ -82,13 +82,13 @@ class CoarseGrid(Config):
 
     config_key: ClassVar[str] = "gap.effect_grid"
 
-    n_speeds: int = 7
-    n_masses: int = 6
-    n_frictions: int = 6
-    stop_speeds: int = 10
-    stop_masses: int = 8
-    stop_frictions: int = 8
-    floor_pushes: int = 200  # random pushes that measure the model's own accuracy
+    n_speeds: int = option(7, doc="speeds of the effect tables", minimum=4)
+    n_masses: int = option(6, doc="masses of the effect tables", minimum=4)
+    n_frictions: int = option(6, doc="frictions of the effect tables", minimum=4)
+    stop_speeds: int = option(10, doc="speeds of the stop-time table", minimum=4)
+    stop_masses: int = option(8, doc="masses of the stop-time table", minimum=4)
+    stop_frictions: int = option(8, doc="frictions of the stop-time table", minimum=4)
+    floor_pushes: int = option(200, doc="random pushes that measure the model's own accuracy", minimum=4)
 
     def axes(self, table: PushTable, stop: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range

@@ -39,12 +39,12 @@ of the paper's predictor) live in config (``model.presets``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
+from imply.models.config import PredictorPreset as PredictorPreset  # its home is imply.models.config
 from imply.models.modules import Block, KeyValue, init_weights, rope_tables, shrink_residual_branches
 from imply.options import Config
 
@@ -77,24 +77,6 @@ class PredictorConfig(Config):
     def tokens_per_step(self) -> int:
         # one action token, one state token, then the patches
         return 2 + self.n_patches
-
-
-@dataclass(frozen=True, kw_only=True)
-class PredictorPreset(Config):
-    """A predictor size (config ``model.presets.<name>``): everything but what the features fix."""
-
-    config_key: ClassVar[str] = "model.presets"
-
-    width: int = 96
-    depth: int = 3
-    heads: int = 4
-    mlp_ratio: float = 4.0
-    rope_theta: float = 10000.0
-    residual: bool = False
-
-    def predictor(self, *, embed_dim: int, grid: tuple[int, int], max_steps: int) -> PredictorConfig:
-        """The full :class:`PredictorConfig` for features of width ``embed_dim`` on a ``grid`` of patches."""
-        return PredictorConfig(embed_dim=embed_dim, grid=grid, max_steps=max_steps, **self.to_dict())
 
 
 def normalise_tokens(x: torch.Tensor) -> torch.Tensor:

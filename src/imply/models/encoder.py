@@ -70,7 +70,7 @@ from tqdm.auto import tqdm
 
 from imply.models.pretrain import PretrainConfig
 from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, preprocess
-from imply.options import Config
+from imply.options import Config, option
 
 log = logging.getLogger("imply.encoder")
 
@@ -88,16 +88,22 @@ class EncoderConfig(Config):
 
     config_key: ClassVar[str] = "encoder"
 
-    kind: str = "cpu"
-    weights: str | None = None  # local path for vjepa2_hf / vjepa2_pt (never downloaded)
-    arch: str | dict[str, Any] = "vit_giant_xformers"  # vjepa2_pt architecture: a preset name or ViTConfig fields
-    input_size: tuple[int, int] = (256, 256)  # vjepa2_pt input size
-    checkpoint_key: str = "target_encoder"
-    pool_grid: tuple[int, int] | None = None  # pool cached tokens to this (rows, columns) grid
-    batch_size: int = 256
-    device: str = "auto"  # auto: CUDA when available
-    cpu_arch: str | dict[str, Any] = "tiny"  # the CPU default: a preset name or ViTConfig fields
-    pretrain: PretrainConfig = PretrainConfig()
+    kind: str = option("cpu", doc="cpu (pretrained here) | vjepa2_hf | vjepa2_pt", choices=KINDS, required=True)
+    weights: str | None = option(None, doc="local path for vjepa2_hf / vjepa2_pt (never downloaded)")
+    arch: str | ViTConfig = option(
+        "vit_giant_xformers", doc="vjepa2_pt architecture: a preset name or ViTConfig fields", choices=tuple(PRESETS)
+    )
+    input_size: tuple[int, int] = option((256, 256), doc="vjepa2_pt input size (px)", items={"minimum": 16})
+    checkpoint_key: str = option("target_encoder", doc="vjepa2_pt weights key", choices=("target_encoder", "encoder"))
+    pool_grid: tuple[int, int] | None = option(
+        None, doc="pool cached tokens to this (rows, columns) grid", items={"minimum": 1}
+    )
+    batch_size: int = option(256, doc="frames per encoder batch", minimum=1)
+    device: str = option("auto", doc="torch device (auto: CUDA when available)")
+    cpu_arch: str | ViTConfig = option(
+        "tiny", doc="the CPU default: a preset name or ViTConfig fields", choices=tuple(PRESETS)
+    )
+    pretrain: PretrainConfig = option(PretrainConfig(), doc="the CPU default's JEPA pretraining")
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:

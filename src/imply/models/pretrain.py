@@ -29,7 +29,7 @@ from tqdm.auto import tqdm
 from imply.models.masked_predictor import MaskedPredictor
 from imply.models.modules import grid_positions
 from imply.models.vision_transformer import VisionTransformer, ViTConfig, preprocess
-from imply.options import Config
+from imply.options import Config, option
 
 log = logging.getLogger("imply.encoder")
 
@@ -40,18 +40,20 @@ class PretrainConfig(Config):
 
     config_key: ClassVar[str] = "encoder.pretrain"
 
-    seed: int = 0
-    steps: int = 800
-    batch_size: int = 64
-    lr: float = 1.0e-3
-    min_lr: float = 1.0e-5
-    warmup: int = 50
-    weight_decay: float = 0.04
-    ema: tuple[float, float] = (0.996, 1.0)
-    mask_cols: tuple[int, int] = (2, 4)
-    pred_dim: int = 48
-    pred_depth: int = 2
-    pred_heads: int = 4
+    seed: int = option(0, doc="seed of the weights and the masks", minimum=0)
+    steps: int = option(800, doc="optimiser steps", minimum=1)
+    batch_size: int = option(64, doc="frames per step", minimum=1)
+    lr: float = option(1.0e-3, doc="peak learning rate", exclusive_minimum=0)
+    min_lr: float = option(1.0e-5, doc="learning rate at the end of the cosine decay", minimum=0)
+    warmup: int = option(50, doc="warmup steps", minimum=0)
+    weight_decay: float = option(0.04, doc="AdamW weight decay", minimum=0)
+    ema: tuple[float, float] = option(
+        (0.996, 1.0), doc="target encoder EMA momentum, first and last step", items={"minimum": 0, "maximum": 1}
+    )
+    mask_cols: tuple[int, int] = option((2, 4), doc="masked patch columns, fewest and most", items={"minimum": 1})
+    pred_dim: int = option(48, doc="the masked predictor's width", minimum=4)
+    pred_depth: int = option(2, doc="the masked predictor's blocks", minimum=1)
+    pred_heads: int = option(4, doc="the masked predictor's heads", minimum=1)
 
 
 def _lr_at(step: int, cfg: PretrainConfig) -> float:

@@ -22,60 +22,12 @@ its feature file and a few index arrays in memory.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 import torch
 
 from imply.models.ac_predictor import normalise_tokens
-from imply.options import Config
-
-
-@dataclass(frozen=True, kw_only=True)
-class Layout(Config):
-    """How a variant lays out its sequence; from config ``model.variants.<name>``."""
-
-    config_key: ClassVar[str] = "model.variants"
-
-    calib: bool
-    calib_frames: tuple[int, ...] = (0, 3, 7)
-    query_context: int = 2
-    n_frames: int = 8
-    query_frames: tuple[int, ...] | None = None
-
-    def __post_init__(self) -> None:
-        if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
-            raise ValueError("a layout needs query_context >= 1, n_frames >= 2 and, with calib, calib_frames")
-        q = self.query_frame_indices
-        if list(q) != sorted(set(q)) or q[0] < 0 or q[-1] != self.n_frames - 1:
-            raise ValueError(
-                f"query_frames {list(q)} must increase and end at the clip's last frame ({self.n_frames - 1})"
-            )
-        if self.query_context >= len(q):
-            raise ValueError(f"query_context {self.query_context} leaves none of the {len(q)} query frames to predict")
-
-    @property
-    def query_frame_indices(self) -> tuple[int, ...]:
-        """Frames of the query clip in the sequence, in order."""
-        return tuple(range(self.n_frames)) if self.query_frames is None else tuple(self.query_frames)
-
-    def without_calibration(self) -> Layout:
-        """The same query steps with no calibration steps (the context-free condition)."""
-        return Layout(
-            calib=False, query_context=self.query_context, n_frames=self.n_frames, query_frames=self.query_frames
-        )
-
-    @property
-    def n_calib_steps(self) -> int:
-        return 2 * len(self.calib_frames) if self.calib else 0
-
-    @property
-    def n_steps(self) -> int:
-        return self.n_calib_steps + len(self.query_frame_indices)
-
-    @property
-    def n_context(self) -> int:
-        return self.n_calib_steps + self.query_context
+from imply.models.config import Layout as Layout  # its home is imply.models.config
 
 
 @dataclass

@@ -43,16 +43,16 @@ import logging
 import math
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
 from imply.io import atomic_path
-from imply.models.ac_predictor import ACPredictor, PredictorConfig, PredictorPreset
+from imply.models.ac_predictor import ACPredictor, PredictorConfig
+from imply.models.config import Layout, PredictorPreset
+from imply.models.config import TrainConfig as TrainConfig  # its home is imply.models.config
 from imply.models.rollout import (
     FeatureSplit,
     LatentReadout,
@@ -60,37 +60,10 @@ from imply.models.rollout import (
     pool_tokens,
     training_sequences,
 )
-from imply.models.sequences import Layout, Sequences
+from imply.models.sequences import Sequences
 from imply.models.validation import split_validation, validator
-from imply.options import Config
 
 log = logging.getLogger("imply.models.train")
-
-
-@dataclass(frozen=True, kw_only=True)
-class TrainConfig(Config):
-    """Config section ``model.train``: the optimiser, its schedule and the loss's rollout term."""
-
-    config_key: ClassVar[str] = "model.train"
-
-    epochs: int = 4
-    batch_size: int = 32
-    lr: float = 5e-4
-    start_lr: float = 5e-5
-    final_lr: float = 0.0
-    warmup: float = 0.1
-    anneal: float = 0.3
-    weight_decay: float = 0.04
-    beta1: float = 0.9
-    beta2: float = 0.999
-    grad_clip: float = 1.0
-    rollout_weight: float = 1.0
-    rollout_steps: int = 6
-    final_weight: float = 1.0
-    every_push_as_query: bool = False
-    init_seed: int = 0
-    val_objects: int = 0
-    val_seed: int = 0
 
 
 def lr_at(step: int, total: int, cfg: TrainConfig) -> float:

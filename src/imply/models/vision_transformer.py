@@ -22,47 +22,17 @@ Presets: ``tiny`` (the CPU default), and V-JEPA 2's ``vit_large``, ``vit_huge``,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
 import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
+from imply.models.config import PRESETS as PRESETS  # the presets' home is imply.models.config
+from imply.models.config import ViTConfig
 from imply.models.modules import Block, grid_positions, init_weights, rope_tables, shrink_residual_branches
-from imply.options import Config
-
-
-@dataclass(frozen=True, kw_only=True)
-class ViTConfig(Config):
-    """Architecture of :class:`VisionTransformer`."""
-
-    config_key: ClassVar[str] = "encoder architecture"
-
-    patch_size: int = 16
-    tubelet_size: int = 2
-    in_chans: int = 3
-    embed_dim: int = 64
-    depth: int = 4
-    num_heads: int = 4
-    mlp_ratio: float = 4.0
-    qkv_bias: bool = True
-
-    def __post_init__(self) -> None:
-        if self.embed_dim % self.num_heads:
-            raise ValueError("embed_dim must be a multiple of num_heads")
-
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
-
-PRESETS: dict[str, ViTConfig] = {
-    "tiny": ViTConfig(embed_dim=64, depth=4, num_heads=4),
-    "vit_large": ViTConfig(embed_dim=1024, depth=24, num_heads=16),
-    "vit_huge": ViTConfig(embed_dim=1280, depth=32, num_heads=16),
-    "vit_giant_xformers": ViTConfig(embed_dim=1408, depth=40, num_heads=22, mlp_ratio=48 / 11),
-}
 
 
 class PatchEmbed3D(nn.Module):

@@ -25,7 +25,7 @@ its own) goes to a sealed file the diagnostic never reads.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
@@ -34,7 +34,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.io import write_csv, write_json
-from imply.options import Config
+from imply.options import Config, option
 from imply.realworld.accuracy import measure_error
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
 from imply.realworld.world import WorldPushes, WorldStepping, simulate_world
@@ -43,6 +43,8 @@ from imply.sim.scene import SceneConfig
 log = logging.getLogger("imply.realworld")
 
 GROUPS = ("null_gaussian", "null_heavy", "single", "single_unidentifiable", "double", "outside")
+# what the benchmark's scoring measures against a target (config gap.benchmark.targets)
+TARGETS = ("false_alarm", "top1", "both_named", "none_outside", "magnitude_error", "shrinkage")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -51,12 +53,16 @@ class NoiseModel(Config):
 
     config_key: ClassVar[str] = "gap.benchmark.noise"
 
-    sd: float = 0.02
-    stop_time_sd: float = 0.02
-    heavy_sd: float = 0.03
-    heavy_df: float = 3.0
-    outliers: tuple[int, int] = (2, 4)
-    outlier_size: tuple[float, float] = (0.3, 1.0)
+    sd: float = option(0.02, doc="Gaussian noise of log d (sd)", exclusive_minimum=0)
+    stop_time_sd: float = option(0.02, doc="Gaussian noise of log stop time (sd)", exclusive_minimum=0)
+    heavy_sd: float = option(0.03, doc="scale of the heavy-tailed noise", exclusive_minimum=0)
+    heavy_df: float = option(3.0, doc="degrees of freedom of the heavy-tailed (Student t) noise", exclusive_minimum=2)
+    outliers: tuple[int, int] = option(
+        (2, 4), doc="gross outliers per heavy log, fewest and most", items={"minimum": 0}
+    )
+    outlier_size: tuple[float, float] = option(
+        (0.3, 1.0), doc="size of a gross outlier in log d, least and most", items={"exclusive_minimum": 0}
+    )
 
     def __post_init__(self) -> None:
         for name in ("outliers", "outlier_size"):
@@ -72,9 +78,9 @@ class AccuracyCheck(Config):
 
     config_key: ClassVar[str] = "gap.benchmark.accuracy"
 
-    pushes: int = 48
-    nominal: int = 16
-    factor: int = 4
+    pushes: int = option(48, doc="of the benchmark's own pushes", minimum=1)
+    nominal: int = option(16, doc="effect-free pushes", minimum=1)
+    factor: int = option(4, doc="how many times finer the reference steps", minimum=2)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,36 +89,55 @@ class BenchmarkConfig(Config):
 
     config_key: ClassVar[str] = "gap.benchmark"
 
-    seed: int
-    logs: dict[str, int] = field(
-        default_factory=lambda: {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12,
-                                 "double": 40, "outside": 48}
+    seed: int = option(4242, doc="seed of the logs' draws (the development set: 1001)", required=True)
+    logs: dict[str, int] = option(
+        {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12, "double": 40,
+         "outside": 48},
+        doc="logs per group (a group left out has none)", required=True, keys=GROUPS, items={"minimum": 0},
     )  # fmt: skip
-    n_objects: int = 8
-    speeds: tuple[float, ...] = (0.2, 0.34, 0.48, 0.62, 0.76, 0.9)
-    masses: tuple[float, float] = (0.2, 2.0)
-    frictions: tuple[float, float] = (0.1, 0.6)
-    replicates: int = 2
-    measured_mass_share: float = 0.7
-    stop_time_share: float = 0.6
-    heavy_share: float = 0.2
-    double_range: tuple[float, float] = (0.3, 1.0)  # two-effect logs: share of each effect's largest magnitude
-    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)  # |magnitude| ranges, by effect
-    stribeck_speed: tuple[float, float] = (0.05, 0.2)
-    noise: NoiseModel = field(default_factory=NoiseModel)
-    stepping: WorldStepping = field(default_factory=WorldStepping)
+    n_objects: int = option(8, doc="objects per log", minimum=2, required=True)
+    speeds: tuple[float, ...] = option(
+        (0.2, 0.34, 0.48, 0.62, 0.76, 0.9), doc="push speeds (m/s), with room for speed errors inside the table",
+        required=True, min_items=2, items={"exclusive_minimum": 0},
+    )  # fmt: skip
+    masses: tuple[float, float] = option(
+        (0.2, 2.0), doc="the objects' mass range (kg, log-uniform)", required=True, items={"exclusive_minimum": 0}
+    )
+    frictions: tuple[float, float] = option(
+        (0.1, 0.6), doc="the objects' friction range (log-uniform)", required=True, items={"exclusive_minimum": 0}
+    )
+    replicates: int = option(2, doc="noise draws per simulated push (pure error for the noise)", minimum=1,
+                             required=True)  # fmt: skip
+    measured_mass_share: float = option(0.7, doc="share of logs with weighed masses", minimum=0, maximum=1)
+    stop_time_share: float = option(0.6, doc="share of logs with stop times", minimum=0, maximum=1)
+    heavy_share: float = option(
+        0.2, doc="share of effect logs with heavy-tailed noise and gross outliers", minimum=0, maximum=1
+    )
+    double_range: tuple[float, float] = option(
+        (0.3, 1.0), doc="two-effect logs: share of each effect's largest magnitude",
+        items={"exclusive_minimum": 0, "maximum": 1},
+    )  # fmt: skip
+    ranges: dict[str, tuple[float, float]] = option(
+        {}, doc="|magnitude| ranges by effect of imply.realworld.effects (default: each effect's own)",
+        items={"exclusive_minimum": 0},
+    )  # fmt: skip
+    stribeck_speed: tuple[float, float] = option(
+        (0.05, 0.2), doc="range of the Stribeck speed (m/s, log-uniform)", items={"exclusive_minimum": 0}
+    )
+    noise: NoiseModel = option(NoiseModel(), doc="readout noise of the logs", required=True)
+    stepping: WorldStepping = option(WorldStepping(), doc="how the world steps a push")
     # how the diagnoses are judged (imply.diagnose.benchmark.score_cases)
-    accuracy: AccuracyCheck = field(default_factory=AccuracyCheck)
-    min_size_sd: float = 2.0  # effects at least this many noise sd (visible RMS) count for the targets
-    targets: dict[str, float] = field(
-        default_factory=lambda: {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8,
-                                 "magnitude_error": 0.10, "shrinkage": 0.8}
+    accuracy: AccuracyCheck = option(AccuracyCheck(), doc="the world's own error, measured by 'imply gap generate'")
+    min_size_sd: float = option(
+        2.0, doc="effects at least this many noise sd (visible RMS) count for the targets", exclusive_minimum=0
+    )
+    targets: dict[str, float] = option(
+        {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8, "magnitude_error": 0.10,
+         "shrinkage": 0.8},
+        doc="what the diagnostic must reach (imply.diagnose.benchmark.score_cases)", keys=TARGETS,
     )  # fmt: skip
 
     def __post_init__(self) -> None:
-        unknown = sorted(set(self.logs) - set(GROUPS))
-        if unknown:
-            raise ValueError(f"logs: unknown group(s) {', '.join(unknown)} (known: {', '.join(GROUPS)})")
         unknown = sorted(set(self.ranges) - set(EFFECTS))
         if unknown:
             raise ValueError(f"ranges: unknown effect(s) {', '.join(unknown)}")

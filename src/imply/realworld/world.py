@@ -53,7 +53,7 @@ import numpy as np
 from mujoco import batch as mjbatch
 from tqdm.auto import tqdm
 
-from imply.options import Config
+from imply.options import Config, option
 from imply.sim.scene import SceneConfig, build_xml
 
 log = logging.getLogger("imply.realworld")
@@ -65,15 +65,21 @@ class WorldStepping(Config):
 
     config_key: ClassVar[str] = "gap.benchmark.stepping"
 
-    integrator: str = "RK4"
-    push_step: float = 2.5e-4  # s, while pushing (and during the release window)
-    slow_push_step: float = 1.25e-4  # s, for pushes commanded below slow_speed
-    slow_speed: float = 0.35  # m/s
-    release_window: float = 0.02  # s after the stroke, still at the push step
-    slide_step: float = 1.0e-3  # s, until the box stops
-    stop_speed: float = 0.01  # m/s in the table plane: the stop time is when the box slows below it
-    rest_speed: float = 1.0e-4  # m/s in the table plane: below it the push is over
-    max_time: float = 4.0  # s
+    integrator: str = option("RK4", doc="MuJoCo integrator", choices=("RK4", "Euler", "implicit", "implicitfast"))
+    push_step: float = option(
+        2.5e-4, doc="s, while pushing (and during the release window)", exclusive_minimum=0, maximum=0.01
+    )
+    slow_push_step: float = option(
+        1.25e-4, doc="s, for pushes commanded below slow_speed", exclusive_minimum=0, maximum=0.01
+    )
+    slow_speed: float = option(0.35, doc="m/s", minimum=0)
+    release_window: float = option(0.02, doc="s after the stroke, still at the push step", minimum=0)
+    slide_step: float = option(1.0e-3, doc="s, until the box stops", exclusive_minimum=0, maximum=0.01)
+    stop_speed: float = option(
+        0.01, doc="m/s in the table plane: the stop time is when the box slows below it", exclusive_minimum=0
+    )
+    rest_speed: float = option(1.0e-4, doc="m/s in the table plane: below it the push is over", exclusive_minimum=0)
+    max_time: float = option(4.0, doc="s a push may take at most", exclusive_minimum=0)
 
     def __post_init__(self) -> None:
         if self.integrator not in ("RK4", "Euler", "implicit", "implicitfast"):

@@ -30,7 +30,7 @@ from typing import ClassVar
 import mujoco
 import numpy as np
 
-from imply.options import Config
+from imply.options import Config, option
 from imply.sim.pushes import batch_with_geometry, run_pushes
 from imply.sim.scene import SceneConfig, build_model
 
@@ -74,12 +74,13 @@ class CameraConfig(Config):
 
     config_key: ClassVar[str] = "clips.camera"
 
-    x_min: float = -0.13
-    x_max: float = 1.15
-    height: int = 32
-    width: int = 128
-    multisample: int = 4
-    supersample: int = 1
+    x_min: float = option(-0.13, doc="left edge of the view along the push axis (m)")
+    x_max: float = option(1.15, doc="right edge of the view along the push axis (m)")
+    height: int = option(32, doc="image height (px)", minimum=8)
+    width: int = option(128, doc="image width (px)", minimum=8)
+    multisample: int = option(4, doc="OpenGL multisample anti-aliasing samples (0: off)", minimum=0, maximum=16)
+    supersample: int = option(1, doc="render this many times larger per side and average (1: off)", minimum=1,
+                              maximum=8)  # fmt: skip
 
     def __post_init__(self) -> None:
         if (

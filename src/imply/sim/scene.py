@@ -25,13 +25,13 @@ Names the simulator relies on: body and geom ``box``, joint ``push``, actuator `
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 
-from imply.options import Config
+from imply.options import Config, option
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -40,23 +40,31 @@ class SceneConfig(Config):
 
     config_key: ClassVar[str] = "scene"
 
-    timestep: float = 0.001  # s, while the box slides; pushing uses timestep / push_substeps
-    push_substeps: int = 8
-    release_window: float = 0.005  # s after the stroke still at the fine step
-    slide_steps: int = 100  # a slide shorter than slide_steps x timestep uses a finer step (0: never)
-    slow_push_speed: float = 0.35  # m/s; slower pushes take twice the push substeps
-    box_half_extents: tuple[float, float, float] = (0.05, 0.05, 0.03)
-    mass: float = 0.5
-    friction: float = 0.3
-    pusher_mass: float = 0.2
-    pusher_kv: float = 80.0
-    pusher_force_limit: float = 100.0
-    stroke: float = 0.01
-    contact_margin: float = 0.002
-    settle_speed: float = 1.0e-4
-    max_time: float = 4.0
-    # extra MJCF option attributes, e.g. {"gravity": "0 0 -9.81"}; used by effects
-    option: dict[str, str] = field(default_factory=dict)
+    timestep: float = option(
+        0.001, doc="s, while the box slides; pushing uses timestep / push_substeps", exclusive_minimum=0,
+        maximum=0.01,
+    )  # fmt: skip
+    push_substeps: int = option(8, doc="substeps per timestep while pushing", minimum=1)
+    release_window: float = option(0.005, doc="s after the stroke still at the fine step", minimum=0)
+    slide_steps: int = option(
+        100, doc="a slide shorter than slide_steps x timestep uses a finer step (0: never)", minimum=0
+    )
+    slow_push_speed: float = option(0.35, doc="m/s; slower pushes take twice the push substeps", minimum=0)
+    box_half_extents: tuple[float, float, float] = option(
+        (0.05, 0.05, 0.03), doc="the canonical box's half-extents (m)", items={"exclusive_minimum": 0}
+    )
+    mass: float = option(0.5, doc="the box's mass when a push names none (kg)", exclusive_minimum=0)
+    friction: float = option(0.3, doc="the box's friction when a push names none", exclusive_minimum=0)
+    pusher_mass: float = option(0.2, doc="kg", exclusive_minimum=0)
+    pusher_kv: float = option(80.0, doc="the pusher's velocity servo gain (N s/m)", exclusive_minimum=0)
+    pusher_force_limit: float = option(100.0, doc="N", exclusive_minimum=0)
+    stroke: float = option(0.01, doc="m the pusher travels", exclusive_minimum=0)
+    contact_margin: float = option(0.002, doc="m", minimum=0)
+    settle_speed: float = option(1.0e-4, doc="m/s below which the box is at rest", exclusive_minimum=0)
+    max_time: float = option(4.0, doc="s a push may take at most", exclusive_minimum=0)
+    option: dict[str, str] = option(
+        {}, doc="extra MJCF <option> attributes, e.g. {gravity: '0 0 -9.81'} (MuJoCo checks their names)"
+    )
 
     def __post_init__(self) -> None:
         positive = (

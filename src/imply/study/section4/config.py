@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from imply.options import Config, Range
+from imply.options import Config, Range, option
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -23,11 +23,14 @@ class ObjectsConfig(Config):
 
     config_key: ClassVar[str] = "section4.objects"
 
-    n: int = 200
-    n_train: int = 200
-    mass: Range = Range(min=0.2, max=2.0)
-    friction: Range = Range(min=0.1, max=0.6)
-    size_log_sd: float = 0.05
+    n: int = option(200, doc="evaluation objects (paper: 200)", minimum=2, required=True)
+    n_train: int = option(200, doc="training objects that define the typical displacement", minimum=2,
+                          required=True)  # fmt: skip
+    mass: Range = option(Range(min=0.2, max=2.0), doc="kg, log-uniform, inside the table's range", required=True)
+    friction: Range = option(Range(min=0.1, max=0.6), doc="log-uniform, inside the table's range", required=True)
+    size_log_sd: float = option(
+        0.05, doc="each box half-extent = canonical * exp(sd * z)", minimum=0, maximum=0.5, required=True
+    )
 
     def __post_init__(self) -> None:
         if self.n < 2 or self.n_train < 2:
@@ -42,8 +45,10 @@ class StandinsConfig(Config):
 
     config_key: ClassVar[str] = "section4.standins"
 
-    jitter_sd: float = 0.25
-    jitter_draws: int = 3
+    jitter_sd: float = option(
+        0.25, doc="log-normal sd of each jitter rollout's (m, mu) around the truth", minimum=0, required=True
+    )
+    jitter_draws: int = option(3, doc="jitter rollout sets per object", minimum=1, required=True)
 
     def __post_init__(self) -> None:
         if self.jitter_sd < 0 or self.jitter_draws < 1:
@@ -56,7 +61,10 @@ class NoiseConfig(Config):
 
     config_key: ClassVar[str] = "section4.noise"
 
-    sds: tuple[float, ...] = (0.0, 0.03, 0.06, 0.1, 0.2)
+    sds: tuple[float, ...] = option(
+        (0.0, 0.03, 0.06, 0.1, 0.2), doc="multiplicative log-normal readout noise (log sd)", min_items=1,
+        max_items=26, items={"minimum": 0}, required=True,
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
         if not self.sds or any(s < 0 for s in self.sds):
@@ -69,13 +77,30 @@ class SelectionConfig(Config):
 
     config_key: ClassVar[str] = "section4.selection"
 
-    k: int = 4
-    noise_sd: float = 0.03
-    query_speed: float = 0.55
-    within_mm: float = 10.0
+    k: int = option(4, doc="candidates per object: the oracle's and k-1 from the other stand-ins", minimum=2,
+                    required=True)  # fmt: skip
+    noise_sd: float = option(0.03, doc="readout noise on every candidate (log sd)", minimum=0, required=True)
+    query_speed: float = option(
+        0.55, doc="the miss is measured at this query speed (one of score.query_speeds)", exclusive_minimum=0,
+        required=True,
+    )  # fmt: skip
+    within_mm: float = option(10.0, doc='the "within N mm" share', exclusive_minimum=0, required=True)
 
     def __post_init__(self) -> None:
         if self.k < 2:
             raise ValueError(f"k must be at least 2, not {self.k}")
         if self.noise_sd < 0 or self.within_mm <= 0:
             raise ValueError("noise_sd must be >= 0 and within_mm > 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Section4Config(Config):
+    """Config section ``section4``: the controlled validation (paper Section 4)."""
+
+    config_key: ClassVar[str] = "section4"
+
+    seed: int = option(4, doc="seed of every draw of the stage", minimum=0, required=True)
+    objects: ObjectsConfig = option(ObjectsConfig(), doc="the objects", required=True)
+    standins: StandinsConfig = option(StandinsConfig(), doc="the stand-in models", required=True)
+    noise: NoiseConfig = option(NoiseConfig(), doc="readout noise levels of Table 2", required=True)
+    selection: SelectionConfig = option(SelectionConfig(), doc="the selection study", required=True)

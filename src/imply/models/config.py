@@ -1,0 +1,212 @@
+"""Settings of the learned models: config sections ``model`` (the predictor, its training and scoring) and the ViT presets.
+
+Torch-free on purpose: the workflow's config check builds these when Snakemake reads the
+Snakefile, and the CLI takes its flags' defaults from them, neither of which should pay
+for importing torch. The modules that use them (:mod:`imply.models.sequences`,
+:mod:`imply.models.ac_predictor`, :mod:`imply.models.train`,
+:mod:`imply.models.vision_transformer`) import them from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+from imply.options import Config, option
+
+if TYPE_CHECKING:
+    from imply.models.ac_predictor import PredictorConfig
+
+
+@dataclass(frozen=True, kw_only=True)
+class ViTConfig(Config):
+    """Architecture of :class:`imply.models.vision_transformer.VisionTransformer`."""
+
+    config_key: ClassVar[str] = "encoder architecture"
+
+    patch_size: int = option(16, doc="pixels per patch side", minimum=1)
+    tubelet_size: int = option(2, doc="frames per tubelet", minimum=1)
+    in_chans: int = option(3, doc="input channels", minimum=1)
+    embed_dim: int = option(64, doc="token width", minimum=1)
+    depth: int = option(4, doc="transformer blocks", minimum=1)
+    num_heads: int = option(4, doc="attention heads", minimum=1)
+    mlp_ratio: float = option(4.0, doc="MLP width / token width", exclusive_minimum=0)
+    qkv_bias: bool = option(True, doc="bias in the fused qkv projection")
+
+    def __post_init__(self) -> None:
+        if self.embed_dim % self.num_heads:
+            raise ValueError("embed_dim must be a multiple of num_heads")
+
+
+PRESETS: dict[str, ViTConfig] = {
+    "tiny": ViTConfig(embed_dim=64, depth=4, num_heads=4),
+    "vit_large": ViTConfig(embed_dim=1024, depth=24, num_heads=16),
+    "vit_huge": ViTConfig(embed_dim=1280, depth=32, num_heads=16),
+    "vit_giant_xformers": ViTConfig(embed_dim=1408, depth=40, num_heads=22, mlp_ratio=48 / 11),
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class PredictorPreset(Config):
+    """A predictor size (config ``model.presets.<name>``): everything but what the features fix."""
+
+    config_key: ClassVar[str] = "model.presets"
+
+    width: int = option(64, doc="token width", minimum=8, required=True)
+    depth: int = option(3, doc="transformer blocks", minimum=1, required=True)
+    heads: int = option(4, doc="attention heads", minimum=1, required=True)
+    mlp_ratio: float = option(4.0, doc="MLP width / token width", exclusive_minimum=0)
+    rope_theta: float = option(10000.0, doc="base of the rotary position frequencies", exclusive_minimum=0)
+    residual: bool = option(True, doc="predict each frame's change from the previous frame, not the frame")
+
+    def predictor(self, *, embed_dim: int, grid: tuple[int, int], max_steps: int) -> PredictorConfig:
+        """The full :class:`PredictorConfig` for features of width ``embed_dim`` on a ``grid`` of patches."""
+        from imply.models.ac_predictor import PredictorConfig
+
+        return PredictorConfig(embed_dim=embed_dim, grid=grid, max_steps=max_steps, **self.to_dict())
+
+
+@dataclass(frozen=True, kw_only=True)
+class Layout(Config):
+    """How a variant lays out its sequence (config ``model.variants.<name>``; see :mod:`imply.models.sequences`)."""
+
+    config_key: ClassVar[str] = "model.variants"
+
+    calib: bool = option(doc="the object's two calibration clips come first")
+    calib_frames: tuple[int, ...] = option(
+        (0, 3, 7), doc="frames of each calibration clip", min_items=1, items={"minimum": 0}
+    )
+    query_context: int = option(1, doc="query frames given as context (the rest are predicted)", minimum=1)
+    n_frames: int = option(8, doc="frames of a clip", minimum=2)
+    query_frames: tuple[int, ...] | None = option(
+        (0, 1, 4, 7),
+        doc="frames of the query clip, ending at the last (null: every frame)",
+        min_items=2,
+        unique=True,
+        items={"minimum": 0},
+    )
+
+    def __post_init__(self) -> None:
+        if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
+            raise ValueError("a layout needs query_context >= 1, n_frames >= 2 and, with calib, calib_frames")
+        q = self.query_frame_indices
+        if list(q) != sorted(set(q)) or q[0] < 0 or q[-1] != self.n_frames - 1:
+            raise ValueError(
+                f"query_frames {list(q)} must increase and end at the clip's last frame ({self.n_frames - 1})"
+            )
+        if self.query_context >= len(q):
+            raise ValueError(f"query_context {self.query_context} leaves none of the {len(q)} query frames to predict")
+
+    @property
+    def query_frame_indices(self) -> tuple[int, ...]:
+        """Frames of the query clip in the sequence, in order."""
+        return tuple(range(self.n_frames)) if self.query_frames is None else tuple(self.query_frames)
+
+    def without_calibration(self) -> Layout:
+        """The same query steps with no calibration steps (the context-free condition)."""
+        return Layout(
+            calib=False, query_context=self.query_context, n_frames=self.n_frames, query_frames=self.query_frames
+        )
+
+    @property
+    def n_calib_steps(self) -> int:
+        return 2 * len(self.calib_frames) if self.calib else 0
+
+    @property
+    def n_steps(self) -> int:
+        return self.n_calib_steps + len(self.query_frame_indices)
+
+    @property
+    def n_context(self) -> int:
+        return self.n_calib_steps + self.query_context
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig(Config):
+    """Config section ``model.train``: the optimiser, its schedule and the loss's rollout term."""
+
+    config_key: ClassVar[str] = "model.train"
+
+    epochs: int = option(40, doc="passes over the training sequences", minimum=1)
+    batch_size: int = option(16, doc="sequences per step", minimum=1)
+    lr: float = option(1.0e-3, doc="peak learning rate", exclusive_minimum=0)
+    start_lr: float = option(1.0e-4, doc="learning rate at the first warmup step", minimum=0)
+    final_lr: float = option(1.0e-5, doc="learning rate at the end of the anneal", minimum=0)
+    warmup: float = option(0.05, doc="share of the steps spent warming up", minimum=0, maximum=1)
+    anneal: float = option(0.3, doc="share of the steps spent annealing (linearly, at the end)", minimum=0, maximum=1)
+    weight_decay: float = option(0.04, doc="AdamW weight decay", minimum=0)
+    beta1: float = option(0.9, doc="AdamW beta1", minimum=0, exclusive_maximum=1)
+    beta2: float = option(0.999, doc="AdamW beta2", minimum=0, exclusive_maximum=1)
+    grad_clip: float = option(1.0, doc="gradient norm clip (0: none)", minimum=0)
+    rollout_weight: float = option(1.0, doc="weight of the rollout loss beside the teacher-forcing loss", minimum=0)
+    rollout_steps: int = option(3, doc="steps of the loss's auto-regressive rollout", minimum=0)
+    final_weight: float = option(
+        10.0, doc="weight of the last query frame (the box at rest) in both losses", exclusive_minimum=0
+    )
+    every_push_as_query: bool = option(False, doc="also train on the calibration pushes as queries")
+    init_seed: int = option(0, doc="seed of the predictor's initial weights", minimum=0)
+    val_objects: int = option(200, doc="training objects held out and validated after every epoch", minimum=0)
+    val_seed: int = option(0, doc="which objects are held out", minimum=0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelResources(Config):
+    """Config ``model.resources``: what the workflow asks the scheduler for, per training and rollout job."""
+
+    config_key: ClassVar[str] = "model.resources"
+
+    gpu: int = option(0, doc="GPUs per job", minimum=0, required=True)
+    train_mem_mb: int = option(4000, doc="memory of a training job (MB)", minimum=100, required=True)
+    train_runtime: int = option(30, doc="minutes of a training job", minimum=1, required=True)
+    rollout_mem_mb: int = option(4000, doc="memory of a rollout job (MB)", minimum=100, required=True)
+    rollout_runtime: int = option(15, doc="minutes of a rollout job", minimum=1, required=True)
+
+
+def _study_presets() -> dict[str, PredictorPreset]:
+    return {
+        "tiny": PredictorPreset(),
+        "vitg-300m": PredictorPreset(width=1024, depth=24, heads=16),
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelVariants(Config):
+    """Config ``model.variants``: the sequence layout of the context-free and the calibrated model."""
+
+    config_key: ClassVar[str] = "model.variants"
+
+    nocalib: Layout = option(Layout(calib=False), doc="the context-free model's layout", required=True)
+    calib: Layout = option(Layout(calib=True), doc="the calibrated model's layout", required=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelConfig(Config):
+    """Config section ``model``: the action-conditioned predictor, its training, rollouts and Section 5 scoring."""
+
+    config_key: ClassVar[str] = "model"
+
+    preset: str = option("tiny", doc="the predictor size, one of presets", required=True)
+    presets: dict[str, PredictorPreset] = option(_study_presets(), doc="predictor sizes by name", required=True)
+    token_grid: tuple[int, int] | None = option(
+        (1, 8), doc="the encoder's patch tokens average-pooled to this grid (null: keep)", required=True,
+        items={"minimum": 1},
+    )  # fmt: skip
+    variants: ModelVariants = option(ModelVariants(), doc="sequence layout of each variant", required=True)
+    seeds: tuple[int, ...] = option(
+        (0, 1), doc="data-order seeds (the second is the replication)", required=True, min_items=1, unique=True,
+        items={"minimum": 0},
+    )  # fmt: skip
+    rest_state: float = option(1.0, doc="state token of the last frame (box at rest)", required=True)
+    train: TrainConfig = option(TrainConfig(), doc="training (imply.models.config.TrainConfig)", required=True)
+    readout: str = option(
+        "rollouts", doc="rollouts read with each model's own readout (rollouts) or the real-token one (real)",
+        required=True, choices=("rollouts", "real"),
+    )  # fmt: skip
+    train_threads: int = option(1, doc="torch threads per training run", minimum=1, required=True)
+    rollout_batch: int = option(100, doc="held-out objects rolled out per batch", minimum=1, required=True)
+    derangement_seed: int = option(
+        11, doc="which object's calibration each object gets in the swap condition", minimum=0, required=True
+    )
+    selection_seed: int = option(12, doc="the random-candidate selection rule of Section 5", minimum=0, required=True)
+    device: str = option("cpu", doc="torch device for training and rollouts", required=True)
+    resources: ModelResources = option(ModelResources(), doc="scheduler resources of its jobs", required=True)
