@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from imply.options import Config, default_of, json_schema, option
-from imply.study.config import StudyConfig, schema_text
+from imply.workflow_config import StudyConfig, schema_text
 from workflow_helpers import ROOT
 
 # keys config.yaml leaves out: the workflow passes no value, so the class's default acts
@@ -67,7 +67,7 @@ def test_config_yaml_builds_the_study_settings():
 
 
 def test_the_schema_file_is_the_one_written_from_the_classes():
-    """Regenerate with `python -m imply.study.config workflow/schemas/config.schema.yaml`."""
+    """Regenerate with `python -m imply.workflow_config workflow/schemas/config.schema.yaml`."""
     assert (ROOT / "workflow" / "schemas" / "config.schema.yaml").read_text() == schema_text()
     assert sorted(p.name for p in (ROOT / "workflow" / "schemas").iterdir()) == ["config.schema.yaml"]
 

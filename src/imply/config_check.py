@@ -6,7 +6,7 @@ Snakemake with one line on error) once, when Snakemake reads the Snakefile, so
 a rule failing minutes into the run. Two layers:
 
 * the JSON schema ``workflow/schemas/config.schema.yaml`` (types, bounds, and no unknown
-  key at any level), written from the settings classes (:mod:`imply.study.config`), each
+  key at any level), written from the settings classes (:mod:`imply.workflow_config`), each
   error turned into one line with a suggestion for a misspelt key;
 * rules across fields that a schema cannot state: ranges ordered, speeds inside the
   table, the selection's query speed among the query speeds, candidate effects known,
@@ -24,7 +24,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-# the schema of the whole config, written from imply.study.config.StudyConfig (the settings
+# the schema of the whole config, written from imply.workflow_config.StudyConfig (the settings
 # classes) and held to it by a test: reading it needs none of the modules that declare them
 SCHEMA_FILE = "config.schema.yaml"
 

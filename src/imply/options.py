@@ -19,7 +19,7 @@ The dataclass is the one source of an option: its type (the hint), its default (
 study's value, or none: the key is required), its bounds and one line of doc, declared
 with :func:`option`. :func:`json_schema` turns a class into the JSON schema the workflow
 validates ``config.yaml`` against (``workflow/schemas/config.schema.yaml`` is written
-by ``python -m imply.study.config`` and held to it by a test), and the CLI takes its
+by ``python -m imply.workflow_config`` and held to it by a test), and the CLI takes its
 flags' defaults from the fields (:func:`default_of`).
 """
 

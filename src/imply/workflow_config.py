@@ -7,7 +7,7 @@ to each other). :func:`write_schema` turns it into ``workflow/schemas/config.sch
 the Snakefile, so the check needs none of the modules imported here. Regenerate it after
 changing a settings class::
 
-    python -m imply.study.config workflow/schemas/config.schema.yaml
+    python -m imply.workflow_config workflow/schemas/config.schema.yaml
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from imply.study.section4.config import Section4Config
 from imply.table import TableCheckConfig, TableConfig
 
 SCHEMA_HEADER = (
-    "# Written by `python -m imply.study.config workflow/schemas/config.schema.yaml` from imply.study.config.StudyConfig\n"
+    "# Written by `python -m imply.workflow_config workflow/schemas/config.schema.yaml` from imply.workflow_config.StudyConfig\n"
     "# (the settings classes are the one source of every option); do not edit by hand.\n"
 )
 
