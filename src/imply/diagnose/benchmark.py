@@ -56,7 +56,7 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
     pl = PushLog(path="<noise-free>", frame=pd.DataFrame(), objects=objects, obj=np.array([index[o] for o in names]),
                  speed=v, displacement=np.exp(np.asarray(nf["log_d"], float)[keep]),
                  direction=np.asarray(p["direction"], float)[keep], has_direction=True, mass=mass)  # fmt: skip
-    prob = Problem(pl, table, None, grid=grid, use_stop_time=False)
+    prob = Problem.of(pl, table, None, grid=grid, use_stop_time=False)
     fit = prob.initial_fit(Model())
     return float(np.sqrt(fit.sse.sum() / v.size))
 

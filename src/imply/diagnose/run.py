@@ -89,12 +89,12 @@ def diagnose_file(
     check_report_folder(output, force, [pushlog_path])
     pushlog = read_checked_pushlog(pushlog_path, session.table)
     opts = session.options
-    problem = Problem(
+    problem = Problem.of(
         pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
         use_stop_time=opts.use_stop_time,
     )  # fmt: skip
     diag = diagnose(problem, session.candidates, opts)
     write_folder(Path(output), lambda tmp: write_report(diag, tmp), force=force)
-    v = diag.summary["verdict"]
-    log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], output)
+    v = diag.summary.verdict
+    log.info("%s: verdict %s (%s) -> %s", pushlog_path, v.verdict, v.reason, output)
     return diag.summary
