@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import UserError, existing_file, int_range
+from imply.cli.common import UserError, existing_file, int_range, user_errors
 
 log = logging.getLogger("imply.paper")
 
@@ -68,10 +68,8 @@ def cmd_part(args: argparse.Namespace) -> int:
 
     if args.stage not in STAGE_CLAIMS:
         raise UserError(f"unknown stage {args.stage!r} (one of {', '.join(STAGE_CLAIMS)})")
-    try:
+    with user_errors(KeyError, ValueError, TypeError):
         numbers, claims = build_part(args.stage, read_results(args.results))
-    except (KeyError, ValueError, TypeError) as exc:
-        raise UserError(str(exc)) from exc
     write_part(args.output, args.stage, numbers, claims)
     held = sum(c.holds for c in claims)
     log.info("%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims),
@@ -122,10 +120,8 @@ def cmd_merge(args: argparse.Namespace) -> int:
     from imply.paper.registry import load_registry
     from imply.paper.report import write_report
 
-    try:
+    with user_errors(KeyError, ValueError):
         merged = merge_parts(args.parts)
-    except (KeyError, ValueError) as exc:
-        raise UserError(str(exc)) from exc
     write_macros(merged, args.macros, args.numbers)
     frame = write_report(load_registry(), merged, args.report_md, args.report_csv)
     counts = frame["status"].value_counts().to_dict()

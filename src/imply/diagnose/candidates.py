@@ -153,7 +153,9 @@ ALIASES = {"tilt_x": "tilt", "tilt_y": "tilt"}
 
 
 def get(names: list[str] | None = None) -> list[Candidate]:
-    """Candidates by name (all, in library order, when ``names`` is None); tilt_x / tilt_y mean tilt."""
+    """Candidates by name (all, in library order, when ``names`` is None); tilt_x / tilt_y mean tilt.
+
+    An unknown name is a ValueError naming it."""
     if names is None:
         return list(CANDIDATES.values())
     out: list[Candidate] = []
@@ -165,7 +167,7 @@ def get(names: list[str] | None = None) -> list[Candidate]:
         elif CANDIDATES[n] not in out:
             out.append(CANDIDATES[n])
     if unknown:
-        raise KeyError(f"unknown effect(s): {', '.join(unknown)} (known: {', '.join(CANDIDATES)})")
+        raise ValueError(f"unknown effect(s): {', '.join(unknown)} (known: {', '.join(CANDIDATES)})")
     return out
 
 
