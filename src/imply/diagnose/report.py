@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.analysis import Diagnosis, Summary
-from imply.diagnose.estimates import AcceptedEffect
+from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.localisation import FACTORS
 from imply.io import atomic_path, write_csv, write_json, write_text
 
@@ -112,16 +112,16 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     _ranking_plot(plt, s, out / "ranking.png")
 
 
-def ranking_colours(summary: Summary) -> list[str]:
+def ranking_colours(ranking: list[RankedCandidate], verdict_effects: list[str]) -> list[str]:
     """Bar colour per ranked candidate: green only for the verdict's effect.
 
     Green: an effect of the verdict; blue: identifiable and improves the held-out fit
     (alone, at the first step); red: makes it worse; grey: not identifiable from these
     pushes. Green must never mark a candidate that is not in the verdict.
     """
-    chosen = set(summary.verdict.effects)
+    chosen = set(verdict_effects)
     out = []
-    for r in summary.ranking:
+    for r in ranking:
         if not r.identifiable:
             out.append("0.75")
         elif r.effect in chosen:
@@ -139,7 +139,7 @@ def _ranking_plot(plt, s: Summary, path: Path) -> None:
     names = [x.effect for x in rank][::-1]
     vals = np.array([x.heldout_improvement if x.heldout_improvement is not None else np.nan for x in rank])
     vals = np.nan_to_num(vals[::-1])
-    colors = ranking_colours(s)[::-1]
+    colors = ranking_colours(rank, s.verdict.effects)[::-1]
     # a candidate that wrecks the held-out fit would dwarf the ones that help: clip the
     # negative side at the largest gain and print the clipped values
     span = max(float(np.max(vals, initial=0.0)), 0.05)
