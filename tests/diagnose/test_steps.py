@@ -168,11 +168,16 @@ def test_forward_selection_accepts_nothing_on_a_null_log(analytic_table):
     assert not any(r.qualifies for r in sel.steps[0])
 
 
-def test_model_error_of_the_baseline_is_the_numerical_floor_and_interpolation(analytic_table):
+def test_model_error_counts_the_numerical_floor_and_interpolation(analytic_table):
     prob = problem_of(make_log(seed=9), analytic_table)
     objects = prob.initial_fit()
-    err = model_error(prob, Model(), np.zeros(0), objects, OPTS.replace(model_floor=0.01))
-    assert err.log_t is None and (err.log_d >= 0.01).all() and err.log_d.max() < 0.02
+    # a speed offset reads the table between its speeds, where cubic and linear interpolation differ
+    model, theta = Model((candidates.CANDIDATES["speed_offset"],)), np.array([0.023])
+    err = model_error(prob, model, theta, objects, OPTS.replace(model_floor=0.01))
+    interpolation, _ = prob.interpolation_indicator(objects, model, theta)
+    assert interpolation.max() > 1e-4
+    np.testing.assert_allclose(err.log_d, np.sqrt(0.01**2 + interpolation**2))
+    assert err.log_t is None
     assert (err.apply(prob).sd_d > prob.sd_d).all()
 
 
