@@ -117,7 +117,7 @@ def test_localisation_finds_the_speed_band_off(analytic_table):
     prob = problem_of(make_log(seed=5, sd=0.01), analytic_table)
     prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
     resid = np.where(prob.v == 0.9, 0.05, 0.0) + np.random.default_rng(0).normal(0, 0.01, prob.y.size)
-    where = localise(prob, base.objects, resid, 0.05)
+    where = localise(prob, base.objects, resid, alpha=0.05)
     fast = [b for b in where.speed if b.band == "0.9"][0]
     assert fast.differs and abs(fast.mean - 0.05) < 0.01 and fast.n_objects == 6
     assert "speed=0.9" in where.regions_beyond_noise
@@ -131,7 +131,7 @@ def test_localisation_finds_the_speed_band_off(analytic_table):
 def test_a_speed_gain_with_weighed_masses_is_aliased_with_friction(analytic_table):
     prob = problem_of(make_log(seed=6), analytic_table)
     prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
-    alias = aliasing(prob, candidates.get(TABLELESS), base.objects, OPTS)
+    alias = aliasing(prob, candidates.get(TABLELESS), fit=base.objects, opts=OPTS)
     gain = alias.effects["speed_gain"]
     assert gain.absorbed_by_fit > 0.5 and "friction change" in gain.fit_alias
     assert gain.fit_alias.startswith("a speed gain here is") and gain.fit_alias.endswith("unless friction is measured")
@@ -147,8 +147,8 @@ def _selected(log: PushLog, table):
     prob = problem_of(log, table)
     prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
     cands = candidates.get(TABLELESS)
-    alias = aliasing(prob, cands, base.objects, OPTS)
-    return prob, base, forward_select(prob, base, cands, alias, OPTS)
+    alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
+    return prob, base, forward_select(prob, base, cands, alias=alias, opts=OPTS)
 
 
 def test_forward_selection_finds_a_speed_offset(analytic_table):
@@ -173,7 +173,7 @@ def test_model_error_counts_the_numerical_floor_and_interpolation(analytic_table
     objects = prob.initial_fit()
     # a speed offset reads the table between its speeds, where cubic and linear interpolation differ
     model, theta = Model((candidates.CANDIDATES["speed_offset"],)), np.array([0.023])
-    err = model_error(prob, model, theta, objects, OPTS.replace(model_floor=0.01))
+    err = model_error(prob, model, theta, objects=objects, opts=OPTS.replace(model_floor=0.01))
     interpolation, _ = prob.interpolation_indicator(objects, model, theta)
     assert interpolation.max() > 1e-4
     np.testing.assert_allclose(err.log_d, np.sqrt(0.01**2 + interpolation**2))

@@ -110,7 +110,7 @@ def _shrinkage(*, both: float | None, gap: float | None = 0.9) -> Shrinkage:
 
 def test_no_gap_beyond_noise():
     sel = Selection(_fit([]), [[_step("viscous", 2.0), _step("tilt", 1.0)]], [], None)
-    v = judge(sel, [], _shrinkage(both=None, gap=None), min_share=0.8)
+    v = judge(sel, [], shrink=_shrinkage(both=None, gap=None), min_share=0.8)
     assert (v.verdict, v.reason, v.partial, v.effects, v.lr_critical) == (NONE, NO_GAP, None, [], 6.0)
     assert v.sentence == ("No gap beyond noise: the table agrees with these pushes within their noise (RMS residual "
                           "0.0238 against a noise floor of 0.0182 in log d).")  # fmt: skip
@@ -119,7 +119,7 @@ def test_no_gap_beyond_noise():
 def test_a_gap_no_candidate_explains():
     # one candidate beats its critical value but fails the other tests: a gap, and nothing accepted
     sel = Selection(_fit([]), [[_step("viscous", 9.0), _step("tilt", 1.0)]], [], None)
-    v = judge(sel, [], _shrinkage(both=0.1), min_share=0.8)
+    v = judge(sel, [], shrink=_shrinkage(both=0.1), min_share=0.8)
     assert (v.verdict, v.reason, v.partial) == (NONE, NO_CANDIDATE, None)
     assert v.sentence == ("None of the candidate effects explains the gap (0.0198 RMS log d above the noise floor); "
                           "look for an effect outside the library.")  # fmt: skip
@@ -129,7 +129,7 @@ def test_effects_that_close_too_little_are_a_partial_none():
     sel = Selection(_fit(["tilt", "viscous"]), [[_step("tilt", 30.0)], [_step("viscous", 12.0)]],
                     [CANDIDATES["tilt"], CANDIDATES["viscous"]], None)  # fmt: skip
     effects = [_effect("tilt", 0.02, 10.0), _effect("viscous", 0.5)]
-    v = judge(sel, effects, _shrinkage(both=0.52, gap=0.95), min_share=0.8)
+    v = judge(sel, effects, shrink=_shrinkage(both=0.52, gap=0.95), min_share=0.8)
     assert (v.verdict, v.partial, v.effects, v.cls, v.effect) == (NONE, "tilt+viscous", [], None, None)
     assert v.reason == "the best candidates (tilt + viscous) close only 52% of the gap above the noise floor"
     assert v.sentence == ("None of the candidate effects explains the gap: the best combination (tilt + viscous) "
@@ -141,10 +141,10 @@ def test_accepted_effects_are_the_verdict_judged_on_both_observables():
     sel = Selection(_fit(["tilt"]), [[_step("tilt", 30.0)]], [CANDIDATES["tilt"]], None)
     effects = [_effect("tilt", 0.025, 292.6)]
     # judged on both observables (0.85) although displacement alone closes less
-    v = judge(sel, effects, _shrinkage(both=0.85, gap=0.5), min_share=0.8)
+    v = judge(sel, effects, shrink=_shrinkage(both=0.85, gap=0.5), min_share=0.8)
     assert (v.verdict, v.effects, v.cls, v.effect, v.reason) == ("tilt", ["tilt"], "tilt", "tilt",
                                                                   "improves beyond noise")  # fmt: skip
     assert v.sentence == "The table slopes 0.025 rad toward 293 degrees (table frame); adding it closes 85% of the gap."
     # without stop times to judge on, displacement alone
-    v = judge(sel, effects, _shrinkage(both=None, gap=0.9), min_share=0.8)
+    v = judge(sel, effects, shrink=_shrinkage(both=None, gap=0.9), min_share=0.8)
     assert v.sentence.endswith("closes 90% of the gap.")

@@ -115,7 +115,7 @@ def fit_alias_text(c: Candidate, *, absorbed: float, by_mass: float, by_friction
             f"absorbs it) unless {fix}")  # fmt: skip
 
 
-def aliasing(problem: Problem, candidates: list[Candidate], fit: ObjectFit, opts: Config) -> Aliasing:
+def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, opts: Config) -> Aliasing:
     """Projected sensitivities, identifiability, alias classes, and aliasing with the per-object fit
     (``opts``: ``min_visible``, ``alias_cos``, ``fit_alias_share``)."""
     both, mass_only, fric_only = _projector(problem, fit)

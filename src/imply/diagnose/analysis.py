@@ -159,7 +159,7 @@ class Diagnosis:
 def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, JointFit]:
     """The table alone, fitted under its own model error: (that problem, the fit)."""
     objects = problem.initial_fit()
-    problem = model_error(problem, Model(), np.zeros(0), objects, opts).apply(problem)
+    problem = model_error(problem, Model(), np.zeros(0), objects=objects, opts=opts).apply(problem)
     return problem, problem.fit(Model(), np.zeros(0), problem.initial_fit())
 
 
@@ -198,7 +198,7 @@ def _path(selection: Selection, alias: Aliasing, n: int) -> list[SelectionStep]:
     for j, res in enumerate(selection.steps):
         chosen = selection.accepted[j].name if j < len(selection.accepted) else None
         path.append(SelectionStep(step=j + 1, accepted=chosen, model_before=model_before.names,
-                                  candidates=ranked(res, alias, model_before, n)))  # fmt: skip
+                                  candidates=ranked(res, alias, model_before=model_before, n=n)))  # fmt: skip
         if chosen:
             model_before = model_before.plus(selection.accepted[j])
     return path
@@ -212,15 +212,15 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     resid_d, resid_t = problem.row_residuals(
         problem.predict(Model(), np.zeros(0), base.objects.lm[problem.c_obj], base.objects.lu[problem.c_obj])
     )
-    where = localise(problem, base.objects, resid_d, opts.alpha)
-    alias = aliasing(problem, candidates, base.objects, opts)
-    selection = forward_select(problem, base, candidates, alias, opts)
+    where = localise(problem, base.objects, resid_d, alpha=opts.alpha)
+    alias = aliasing(problem, candidates, fit=base.objects, opts=opts)
+    selection = forward_select(problem, base, candidates, alias=alias, opts=opts)
     final, problem = selection.fit, selection.problem  # fitted under the accepted effects' model error
     held = heldout(problem, final, opts.folds)
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
     cov = final.covariance() * shrink.dispersion
-    effects = accepted_effects(final.model, final.theta, cov, alias)
-    verdict = judge(selection, effects, shrink, opts.min_share)
+    effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)
+    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share)
 
     observables, note = _observables(problem)
     outliers = _outliers(problem, noise)
@@ -235,7 +235,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),
         localisation=where, aliasing=alias,
-        ranking=ranked(selection.steps[0], alias, Model(), problem.n_rows) if selection.steps else [],
+        ranking=ranked(selection.steps[0], alias, model_before=Model(), n=problem.n_rows) if selection.steps else [],
         selection=_path(selection, alias, problem.n_rows),
         effects=effects,
         verdict=verdict, shrinkage=shrink, options=opts,

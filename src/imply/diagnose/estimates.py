@@ -90,12 +90,7 @@ def estimate_fields(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
     return out
 
 
-def estimate(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> EffectEstimate:
-    """Magnitude (and azimuth) of ``c`` at ``theta`` with 95% intervals from ``cov`` (delta method)."""
-    return EffectEstimate(**estimate_fields(c, theta, cov))
-
-
-def ranked(results: list[StepResult], alias: Aliasing, model_before: Model, n: int) -> list[RankedCandidate]:
+def ranked(results: list[StepResult], alias: Aliasing, *, model_before: Model, n: int) -> list[RankedCandidate]:
     """The candidates tried at one step (``results``, on top of ``model_before``), as reported; ``n`` pushes."""
     rows = []
     k0 = model_before.dim
@@ -113,7 +108,7 @@ def ranked(results: list[StepResult], alias: Aliasing, model_before: Model, n: i
     return rows
 
 
-def accepted_effects(fit_model: Model, theta: np.ndarray, cov: np.ndarray, alias: Aliasing) -> list[AcceptedEffect]:
+def accepted_effects(fit_model: Model, theta: np.ndarray, *, cov: np.ndarray, alias: Aliasing) -> list[AcceptedEffect]:
     """Each effect of ``fit_model`` at ``theta`` (covariance ``cov``), with its alias class and fit aliasing."""
     return [
         AcceptedEffect(

@@ -63,7 +63,7 @@ class Localisation(Record):
         return getattr(self, factor)
 
 
-def _band_stats(label: str, values: np.ndarray, obj: np.ndarray, n_obj: int) -> Band:
+def _band_stats(label: str, values: np.ndarray, *, obj: np.ndarray, n_obj: int) -> Band:
     """Mean residual over objects' band means, with a 95% t interval across objects."""
     per_obj = np.bincount(obj, values, minlength=n_obj)
     cnt = np.bincount(obj, minlength=n_obj)
@@ -87,7 +87,7 @@ def _bands(x: np.ndarray, n_bins: int, distinct_max: int = 12) -> tuple[np.ndarr
     return idx, [f"[{edges[i]:.4g}, {edges[i + 1]:.4g}]" for i in range(n_bins)]
 
 
-def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, alpha: float) -> Localisation:
+def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, *, alpha: float) -> Localisation:
     """Displacement residuals ``resid`` of the baseline fit ``fit``, by region (flagged outliers left out)."""
     keep = problem.w_d > 0
     obj, n_obj = problem.obj[keep], problem.n_obj
@@ -104,7 +104,9 @@ def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, alpha: float) 
         factors["direction"] = (np.searchsorted(uniq, sector), [f"{s * 45} deg" for s in uniq])
     banded = {
         name: [
-            _band_stats(label, r[idx == b], obj[idx == b], n_obj) for b, label in enumerate(labels) if (idx == b).any()
+            _band_stats(label, r[idx == b], obj=obj[idx == b], n_obj=n_obj)
+            for b, label in enumerate(labels)
+            if (idx == b).any()
         ]
         for name, (idx, labels) in factors.items()
     }

@@ -43,7 +43,7 @@ def numerical_floors(problem: Problem, opts: Config) -> tuple[float, float]:
     return d, t
 
 
-def model_error(problem: Problem, model: Model, theta: np.ndarray, objects: ObjectFit, opts: Config) -> ModelError:
+def model_error(problem: Problem, model: Model, theta: np.ndarray, *, objects: ObjectFit, opts: Config) -> ModelError:
     """Per-row model error of ``model`` at ``theta`` with the objects' fitted (log m, log mu)."""
     num_d, num_t = numerical_floors(problem, opts)
     ind_d, ind_t = problem.interpolation_indicator(objects, model, theta)

@@ -82,7 +82,7 @@ def _pure_error(y: np.ndarray, groups: list[np.ndarray]) -> tuple[float, int]:
 
 
 def flag_replicates(
-    y: np.ndarray, groups: list[np.ndarray], scale: float | None, k: float, resid: np.ndarray
+    y: np.ndarray, groups: list[np.ndarray], *, scale: float | None, k: float, resid: np.ndarray
 ) -> np.ndarray:
     """Rows whose replicate disagreement is beyond k robust sds (the member farther from the fit)."""
     flags = np.zeros(y.size, bool)
@@ -102,7 +102,7 @@ def flag_replicates(
     return flags
 
 
-def flag_singletons(resid: np.ndarray, groups: list[np.ndarray], scale: float | None, k: float) -> np.ndarray:
+def flag_singletons(resid: np.ndarray, groups: list[np.ndarray], *, scale: float | None, k: float) -> np.ndarray:
     """Rows without replicates whose residual is beyond k sds, if at most 5% of the pushes are."""
     flags = np.zeros(resid.size, bool)
     if scale is None or scale <= 0:
@@ -119,18 +119,18 @@ def flag_singletons(resid: np.ndarray, groups: list[np.ndarray], scale: float | 
 
 
 def _observable(
-    problem: Problem, y: np.ndarray, resid: np.ndarray, groups: list[np.ndarray], option_sd: float | None, k: float
+    problem: Problem, y: np.ndarray, resid: np.ndarray, *, groups: list[np.ndarray], option_sd: float | None, k: float
 ) -> tuple[ObservableNoise, np.ndarray]:
     """One observable's noise and its row weights."""
     scale, npairs = _replicate_scale(y, groups)
-    flags = flag_replicates(y, groups, scale, k, resid)
+    flags = flag_replicates(y, groups, scale=scale, k=k, resid=resid)
     if scale is None:
         # no replicates: a robust scale of the baseline residuals
         med = np.median(np.abs(resid - np.median(resid)))
         scale_r = 1.4826 * med if med > 0 else None
-        flags |= flag_singletons(resid, groups, scale_r, k)
+        flags |= flag_singletons(resid, groups, scale=scale_r, k=k)
     else:
-        flags |= flag_singletons(resid, groups, scale, k)
+        flags |= flag_singletons(resid, groups, scale=scale, k=k)
     # a flagged push's replicates are set aside too: the kept pushes are then all in complete
     # groups whose spread is the noise the tests assume, with no stray tail among them
     partners = np.isin(problem.cond, problem.cond[flags]) & ~flags
@@ -163,8 +163,8 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
     unit = problem.with_noise(1.0, 1.0).with_weights(ones, ones if problem.use_t else None)
     fit0 = unit.initial_fit()
     rd, rt = unit.row_residuals(unit.predict(Model(), np.zeros(0), fit0.lm[unit.c_obj], fit0.lu[unit.c_obj]))
-    disp, w_d = _observable(unit, unit.y, rd, groups, opts.noise_sd, opts.outlier_sd)
+    disp, w_d = _observable(unit, unit.y, rd, groups=groups, option_sd=opts.noise_sd, k=opts.outlier_sd)
     stop, w_t = None, None
     if unit.y_t is not None:
-        stop, w_t = _observable(unit, unit.y_t, rt, groups, opts.stop_time_noise_sd, opts.outlier_sd)
+        stop, w_t = _observable(unit, unit.y_t, rt, groups=groups, option_sd=opts.stop_time_noise_sd, k=opts.outlier_sd)
     return Noise(displacement=disp, stop_time=stop, weights_d=w_d, weights_t=w_t)

@@ -78,7 +78,7 @@ def _scan_points(c: Candidate, n: int) -> np.ndarray:
     return np.concatenate(out)
 
 
-def fit_candidate(problem: Problem, base: JointFit, c: Candidate, scan: int) -> JointFit:
+def fit_candidate(problem: Problem, base: JointFit, c: Candidate, *, scan: int) -> JointFit:
     """``base``'s model plus ``c``, fitted jointly, started from the best of ``scan`` points of c's range."""
     model = base.model.plus(c)
     pts = _scan_points(c, scan)
@@ -107,7 +107,7 @@ def _try(problem: Problem, current: JointFit, c: Candidate, *, n_left: int, cv0:
          fold_of: np.ndarray, opts: Config) -> StepResult:  # fmt: skip
     """Candidate ``c`` added to ``current``: fitted, and tested against the three criteria."""
     n = max(problem.n_rows, 1)
-    jf = fit_candidate(problem, current, c, opts.scan)
+    jf = fit_candidate(problem, current, c, scan=opts.scan)
     lr = max(current.sse - jf.sse, 0.0)
     crit = float(stats.chi2.ppf(1 - opts.alpha / n_left, c.dim))
     cv1 = jf.heldout_sse_quadratic(fold_of).sum()
@@ -127,7 +127,7 @@ def _try(problem: Problem, current: JointFit, c: Candidate, *, n_left: int, cv0:
 
 
 def forward_select(
-    problem: Problem, base: JointFit, candidates: list[Candidate], alias: Aliasing, opts: Config
+    problem: Problem, base: JointFit, candidates: list[Candidate], *, alias: Aliasing, opts: Config
 ) -> Selection:
     """Add candidates while each still qualifies (``opts``: ``folds``, ``alpha``, ``scan``, ``max_effects``
     and the model floors)."""
@@ -154,7 +154,7 @@ def forward_select(
         current = ok[0].fit
         # the accepted effects' own tables are only so accurate: count it, and refit under it (the
         # objects searched globally again: an accepted effect can move their optimum far)
-        problem = model_error(problem, current.model, current.theta, current.objects, opts).apply(problem)
+        problem = model_error(problem, current.model, current.theta, objects=current.objects, opts=opts).apply(problem)
         current = problem.fit(
             current.model, current.theta, problem.initial_fit(current.model, current.theta, n_grid=31)
         )

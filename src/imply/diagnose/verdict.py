@@ -88,7 +88,7 @@ def none_sentence(shrink: Shrinkage, *, best: list[str], no_gap: bool) -> str:
             "the noise floor); look for an effect outside the library.")  # fmt: skip
 
 
-def judge(selection: Selection, effects: list[AcceptedEffect], shrink: Shrinkage, min_share: float) -> Verdict:
+def judge(selection: Selection, effects: list[AcceptedEffect], *, shrink: Shrinkage, min_share: float) -> Verdict:
     """The verdict on the accepted ``effects`` (as reported) given how far they close the gap."""
     steps = selection.steps
     critical = steps[0][0].critical if steps and steps[0] else None
