@@ -16,7 +16,7 @@ import pytest
 from conftest import analytic_log_d
 from imply.diagnose import candidates
 from imply.diagnose.aliasing import aliasing
-from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, diagnose
+from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
 from imply.diagnose.candidates import Model
 from imply.diagnose.fit import Problem
 from imply.diagnose.localisation import localise
@@ -194,8 +194,7 @@ def test_share_closed():
 def test_shrinkage_of_a_found_speed_offset(analytic_table):
     _, base, sel = _selected(make_log(seed=7, offset=0.05), analytic_table)
     prob = sel.problem
-    rd, rt = prob.row_residuals(prob.predict(Model(), np.zeros(0), base.objects.lm[prob.c_obj],
-                                             base.objects.lu[prob.c_obj]))  # fmt: skip
+    rd, rt = baseline_residuals(prob, base)
     held = heldout(prob, sel.fit, 0)
     shrink = shrinkage(prob, sel.fit, resid_d=rd, resid_t=rt, held=held)
     assert shrink.effects == ["speed_offset"] and shrink.effect == "speed_offset"

@@ -204,24 +204,28 @@ def _path(selection: Selection, alias: Aliasing, n: int) -> list[SelectionStep]:
     return path
 
 
+def baseline_residuals(problem: Problem, base: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
+    """Every push's raw residuals (log d, log T) under the baseline fit ``base``."""
+    lm, lu = base.objects.lm[problem.c_obj], base.objects.lu[problem.c_obj]
+    return problem.row_residuals(problem.predict(Model(), np.zeros(0), lm, lu))
+
+
 def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfig) -> Diagnosis:
     """Run every step on a push log's :class:`Problem` (built with :meth:`Problem.of`)."""
     t0 = time.perf_counter()
-    noise = estimate_noise(problem, opts)
+    noise = estimate_noise(problem, opts)  # 1. noise and outliers, then the baseline under them
     problem, base = baseline_fit(noise.apply(problem), opts)
-    resid_d, resid_t = problem.row_residuals(
-        problem.predict(Model(), np.zeros(0), base.objects.lm[problem.c_obj], base.objects.lu[problem.c_obj])
-    )
-    where = localise(problem, base.objects, resid_d, alpha=opts.alpha)
-    alias = aliasing(problem, candidates, fit=base.objects, opts=opts)
-    selection = forward_select(problem, base, candidates, alias=alias, opts=opts)
+    resid_d, resid_t = baseline_residuals(problem, base)
+    where = localise(problem, base.objects, resid_d, alpha=opts.alpha)  # 2. where
+    alias = aliasing(problem, candidates, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
+    selection = forward_select(problem, base, candidates, alias=alias, opts=opts)  # 4. which effects
     final, problem = selection.fit, selection.problem  # fitted under the accepted effects' model error
-    held = heldout(problem, final, opts.folds)
+    held = heldout(problem, final, opts.folds)  # 5. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
-    cov = final.covariance() * shrink.dispersion
-    effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)
-    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share)
+    effects = accepted_effects(final.model, final.theta, cov=final.covariance() * shrink.dispersion, alias=alias)
+    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share)  # 6. the verdict, in one sentence
 
+    # 7. the report's summary and residuals
     observables, note = _observables(problem)
     outliers = _outliers(problem, noise)
     summary = Summary(
@@ -237,8 +241,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         localisation=where, aliasing=alias,
         ranking=ranked(selection.steps[0], alias, model_before=Model(), n=problem.n_rows) if selection.steps else [],
         selection=_path(selection, alias, problem.n_rows),
-        effects=effects,
-        verdict=verdict, shrinkage=shrink, options=opts,
+        effects=effects, verdict=verdict, shrinkage=shrink, options=opts,
         model_floor=problem.etables.meta.get("model_floor") if problem.etables is not None else None,
         seconds=round(time.perf_counter() - t0, 3),
     )  # fmt: skip
