@@ -141,17 +141,17 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
 
 
 def test_ranking_colours_mark_only_the_verdict_green():
+    from imply.diagnose.estimates import RankedCandidate
     from imply.diagnose.report import ranking_colours
 
-    summary = {
-        "verdict": {"effect": "tilt_x", "effects": ["tilt_x"]},
-        "ranking": [
-            {"effect": "tilt_x", "identifiable": True, "heldout_improvement": 0.6},
-            {"effect": "viscous", "identifiable": True, "heldout_improvement": 0.1},
-            {"effect": "height", "identifiable": False, "heldout_improvement": 0.05},
-            {"effect": "speed_gain", "identifiable": True, "heldout_improvement": -4.0},
-        ],
-    }
-    assert ranking_colours(summary) == ["C2", "C0", "0.75", "C3"]
-    summary["verdict"] = {"effect": None, "effects": []}  # "none of the candidates": nothing is green
-    assert "C2" not in ranking_colours(summary)
+    def row(effect: str, identifiable: bool, improvement: float) -> RankedCandidate:
+        return RankedCandidate(
+            effect=effect, title="", unit="", components={}, magnitude=0.0, ci95=(0.0, 0.0), sd=0.0, at_bound=False,
+            cls=effect, identifiable=identifiable, lr_stat=0.0, df=1, lr_critical=1.0, heldout_gain=0.0,
+            heldout_improvement=improvement, explained_ms=0.0, floor_ms=0.0, qualifies=False, reasons=[], delta_bic=0.0,
+        )  # fmt: skip
+
+    ranking = [row("tilt", True, 0.6), row("viscous", True, 0.1), row("height", False, 0.05),
+               row("speed_gain", True, -4.0)]  # fmt: skip
+    assert ranking_colours(ranking, ["tilt"]) == ["C2", "C0", "0.75", "C3"]
+    assert "C2" not in ranking_colours(ranking, [])  # "none of the candidates": nothing is green

@@ -6,8 +6,11 @@ per stage of the workflow: ``section4``, ``clips``, ``encoder``, ``readout``,
 ``model``, ``section5``, ``gap``, ``paper``. A handler parses its options, calls one
 library function and writes its outputs; the logic lives in the library.
 
-A user error (bad input, bad option, an output that would overwrite an input) prints
-one line and exits with status 2, leaving no output file. Registering a group imports
+A user error (bad input, bad option, an output that would overwrite an input) is a
+:class:`~imply.cli.common.UserError`, raised by a handler or turned from the library's
+own error types by :func:`~imply.cli.common.user_errors`; :func:`main` alone prints it
+in one line and exits with status 2, leaving no output file. Command groups share code
+only through :mod:`imply.cli.common`. Registering a group imports
 nothing heavy: each command imports what it needs when it runs, so ``imply score``
 never loads torch or matplotlib.
 """

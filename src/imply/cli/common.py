@@ -1,18 +1,31 @@
-"""What every command group of the ``imply`` CLI shares: one-line user errors, argument types, output checks.
+"""What every command group of the ``imply`` CLI shares: one-line user errors, argument types, output checks,
+and the options of a run of diagnoses.
 
 A user error (bad input, bad option, an output that would overwrite an input) is raised
-as :class:`UserError` and printed by :func:`imply.cli.main` as one line with exit status
-2, leaving no output file.
+as :class:`UserError`, directly or by :func:`user_errors` from the library's own error
+types, and printed by :func:`imply.cli.main` as one line with exit status 2, leaving no
+output file. This is the only module the command groups import from each other:
+``imply diagnose`` and ``imply gap diagnose-many`` declare their shared options with
+:func:`add_diagnose_options` and check them once into a
+:class:`imply.diagnose.run.DiagnoseRequest` with :func:`diagnose_request`.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from imply.diagnose.analysis import DiagnosisConfig
+    from imply.diagnose.candidates import Candidate
+    from imply.diagnose.effect_tables import CoarseGrid
+    from imply.diagnose.run import DiagnoseRequest
+    from imply.table import PushTable
 
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
@@ -20,6 +33,16 @@ EXIT_INTERRUPTED = 130
 
 class UserError(Exception):
     """Bad input or options: reported in one line, exit status 2."""
+
+
+@contextlib.contextmanager
+def user_errors(*kinds: type[Exception], message: str = "{error}") -> Iterator[None]:
+    """Raise the library errors ``kinds`` met inside as a :class:`UserError`: ``message`` with ``{error}``
+    replaced by the error's text (say which option or file it is about)."""
+    try:
+        yield
+    except kinds as exc:
+        raise UserError(message.replace("{error}", str(exc))) from exc
 
 
 def one_line(text: object) -> str:
@@ -183,11 +206,87 @@ def scene_from_args(args: argparse.Namespace, compile_model: bool = False):
         raise UserError(str(exc)) from exc
 
 
-def read_user_table(path, required, numeric, optional_numeric=()):
-    """A user CSV/parquet table and its rows' lines (:func:`imply.input_files.read_table_lines`), or a one-line error."""
-    from imply.input_files import InputError, read_table_lines
+# -- a run of diagnoses: imply diagnose, imply gap diagnose-many ------------------------
 
-    try:
-        return read_table_lines(path, required, numeric, optional_numeric)
-    except InputError as exc:
-        raise UserError(str(exc)) from exc
+DEFAULT_TABLE = "results/table/table.npz"
+
+
+def add_diagnose_options(p: argparse.ArgumentParser) -> None:
+    """The options of a run of diagnoses (besides the push logs and ``-o``), one declaration for every command."""
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty report folder: replace the files an earlier report wrote there, "
+                        "keep the rest")  # fmt: skip
+    p.add_argument("--table", default=DEFAULT_TABLE, help="baseline push table (default %(default)s)")
+    p.add_argument("--cache-dir", help="effect-table cache (default $IMPLY_CACHE or ~/.cache/imply)")
+    p.add_argument("--effects", help="comma-separated candidate effects (default: the whole library)")
+    p.add_argument(
+        "--effect-grid-json", type=json_arg, help="coarse grid of the effect tables (config gap.effect_grid)"
+    )
+    p.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
+    p.add_argument("--noise-sd", type=positive_float,
+                   help="log-displacement noise sd, used when the log has no replicates")  # fmt: skip
+    p.add_argument("--ignore-measured", action="store_true",
+                   help="fit mass and friction even where the log has measured values")  # fmt: skip
+    p.add_argument("--threads", type=int_range(0), default=0, help="simulation threads for building effect tables")
+
+
+def cache_dir(arg: str | None) -> Path:
+    """The effect-table cache: ``--cache-dir``, else ``$IMPLY_CACHE``, else ``~/.cache/imply``."""
+    if arg:
+        return Path(arg)
+    return Path(os.environ.get("IMPLY_CACHE") or Path.home() / ".cache" / "imply")
+
+
+def load_table(path: str) -> PushTable:
+    """The baseline push table of ``--table`` (with how to build the default one where it is missing)."""
+    hint = "build it with 'snakemake --cores 2 results/table/table.npz'" if path == DEFAULT_TABLE else ""
+    return load_push_table(path, "--table", hint)
+
+
+def candidate_effects(arg: str | None) -> list[Candidate]:
+    """The candidates of ``--effects`` (all of the library when absent)."""
+    from imply.diagnose import candidates
+
+    with user_errors(ValueError, message="--effects: {error}"):
+        return candidates.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
+
+
+def diagnosis_options(
+    options_json: Any, grid_json: Any, *, noise_sd: float | None = None, ignore_measured: bool = False
+) -> tuple[DiagnosisConfig, CoarseGrid]:
+    """Diagnostic settings and effect-table grid from their JSON options (and the flags that override them)."""
+    from imply.diagnose.analysis import DiagnosisConfig
+    from imply.diagnose.effect_tables import CoarseGrid
+
+    opts = config_from_json(DiagnosisConfig, options_json, "--options-json")
+    grid = config_from_json(CoarseGrid, grid_json, "--effect-grid-json")
+    if noise_sd is not None:
+        opts = opts.replace(noise_sd=noise_sd)
+    if ignore_measured:
+        opts = opts.replace(use_measured=False)
+    return opts, grid
+
+
+def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) -> DiagnoseRequest:
+    """The options of :func:`add_diagnose_options` and each (push log, report folder), checked once before any
+    work: the report folders, the table, every push log against it, the settings, the candidates."""
+    from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog
+    from imply.input_files import InputError
+    from imply.io import OutputError
+
+    folders = []
+    for pushlog, folder in reports:
+        out = output_dir(folder)
+        with user_errors(OutputError, message="-o {error}"):
+            check_report_folder(out, args.force, [pushlog, args.table])
+        folders.append(out)
+    table = load_table(args.table)
+    with user_errors(InputError):
+        logs = [read_checked_pushlog(pushlog, table) for pushlog, _ in reports]
+    opts, grid = diagnosis_options(args.options_json, args.effect_grid_json, noise_sd=args.noise_sd,
+                                   ignore_measured=args.ignore_measured)  # fmt: skip
+    return DiagnoseRequest(
+        table=table, candidates=tuple(candidate_effects(args.effects)), options=opts, grid=grid,
+        cache_dir=cache_dir(args.cache_dir), threads=args.threads, force=args.force,
+        reports=tuple(Report(pushlog=log, folder=out) for log, out in zip(logs, folders, strict=True)),
+    )  # fmt: skip

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
 
 log = logging.getLogger("imply")
 
@@ -38,11 +38,9 @@ def _set_threads(n: int) -> None:
 
 
 def _load_frames(path: Path) -> np.ndarray:
-    try:
+    with user_errors(OSError, KeyError, ValueError, message=f"{path}: not a clips file with 'frames' ({{error}})"):
         with np.load(path) as z:
             return z["frames"]
-    except (OSError, KeyError, ValueError) as exc:
-        raise UserError(f"{path}: not a clips file with 'frames' ({exc})") from None
 
 
 def _encoder_config(args: argparse.Namespace):
@@ -57,17 +55,13 @@ def cmd_pretrain(args: argparse.Namespace) -> int:
 
     _set_threads(args.threads)
     enc = _encoder_config(args)
-    try:
+    with user_errors(ValueError, TypeError, message="bad encoder option: {error}"):
         arch = enc.cpu_architecture()
-    except (ValueError, TypeError) as exc:
-        raise UserError(f"bad encoder option: {exc}") from None
     frames = _load_frames(args.clips)
     flat = frames.reshape(-1, *frames.shape[2:])
     log.info("pretraining on %d frames of %s", len(flat), args.clips)
-    try:
+    with user_errors(ValueError):
         model, hist = pretrain_encoder(flat, arch, enc.pretrain)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
     losses = np.asarray(hist["loss"])
     k = min(50, len(losses))
     save_cpu_encoder(
@@ -84,10 +78,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
     _set_threads(args.threads)
     enc = _encoder_config(args)
-    try:
+    with user_errors(EncoderError):
         encoder = load_encoder(enc, args.weights)
-    except EncoderError as exc:
-        raise UserError(str(exc)) from None
     frames = _load_frames(args.clips)
     with np.load(args.clips) as z:
         clip_id = z["clip_id"]

@@ -14,16 +14,19 @@ import json
 import logging
 from pathlib import Path
 
-from imply.cli.common import UserError, config_from_json, int_range, json_arg, output_dir
-from imply.cli.diagnose import (
+from imply.cli.common import (
     DEFAULT_TABLE,
+    UserError,
+    add_diagnose_options,
     candidate_effects,
-    check_pushlog,
-    diagnose_one,
+    config_from_json,
+    diagnose_request,
+    diagnosis_options,
+    int_range,
+    json_arg,
     load_table,
-    options,
-    report_folder,
-    session,
+    output_dir,
+    user_errors,
 )
 
 log = logging.getLogger("imply")
@@ -38,13 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     dm.add_argument("pushlogs", nargs="+")
     dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
-    dm.add_argument("--force", action="store_true", help="as for 'imply diagnose', for each report folder")
-    dm.add_argument("--table", default=DEFAULT_TABLE)
-    dm.add_argument("--cache-dir")
-    dm.add_argument("--effects")
-    dm.add_argument("--effect-grid-json", type=json_arg)
-    dm.add_argument("--options-json", type=json_arg)
-    dm.add_argument("--threads", type=int_range(0), default=0)
+    add_diagnose_options(dm)
     dm.set_defaults(func=cmd_diagnose_many)
 
     t = gsub.add_parser("tables", help="build (or find) the effect tables in a folder, with a manifest")
@@ -86,7 +83,7 @@ def _benchmark_config(args: argparse.Namespace):
 
 
 def cmd_diagnose_many(args: argparse.Namespace) -> int:
-    from tqdm.auto import tqdm
+    from imply.diagnose.run import run
 
     out = output_dir(args.output)
     stems: dict[str, str] = {}
@@ -95,15 +92,7 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
         if stem in stems:
             raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
         stems[stem] = path
-        report_folder(out / stem, args.force, [path, args.table])
-    table = load_table(args.table)
-    for path in args.pushlogs:
-        check_pushlog(path, table)
-    options(args)
-    candidate_effects(args.effects)
-    sess = session(args, table)
-    for path in tqdm(args.pushlogs, desc="diagnoses", unit="log"):
-        diagnose_one(path, out / Path(path).stem, sess, args.force)
+    run(diagnose_request(args, [(path, out / Path(path).stem) for path in args.pushlogs]))
     return 0
 
 
@@ -112,9 +101,10 @@ def cmd_tables(args: argparse.Namespace) -> int:
     from imply.io import write_json
 
     table = load_table(args.table)
-    opts, grid = options(args)
+    opts, grid = diagnosis_options(args.options_json, args.effect_grid_json)
     folder = output_dir(args.output)
-    et = effect_tables(table, candidate_effects(args.effects), opts, grid, folder, nthread=args.threads)
+    et = effect_tables(table, candidate_effects(args.effects), options=opts, grid=grid, cache_dir=folder,
+                       nthread=args.threads)  # fmt: skip
     write_json(folder / "manifest.json", {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
     log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], folder)
     return 0
@@ -148,10 +138,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         labels = json.load(fh)
     with open(args.accuracy) as fh:
         accuracy = json.load(fh)
-    try:
+    with user_errors(FileNotFoundError, message="--reports: {error}"):
         summaries = find_summaries(labels, [Path(r) for r in args.reports])
-    except FileNotFoundError as exc:
-        raise UserError(f"--reports: {exc}") from exc
     result = score_cases(labels, summaries, visible_sizes(labels, table), config=config, accuracy=accuracy)
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)

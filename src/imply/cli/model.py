@@ -24,7 +24,7 @@ import logging
 import time
 from pathlib import Path
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, output_file
+from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, output_file, user_errors
 from imply.models.config import ModelConfig
 from imply.options import default_of
 
@@ -119,19 +119,15 @@ def _setup_torch(threads: int) -> None:
 def _feature_split(features: Path, clips: Path):
     from imply.models.rollout import load_feature_split
 
-    try:
+    with user_errors(ValueError, KeyError):
         return load_feature_split(features, clips)
-    except (ValueError, KeyError) as exc:
-        raise UserError(str(exc)) from exc
 
 
 def _readout(path: Path):
     from imply.models.rollout import load_latent_readout
 
-    try:
+    with user_errors(ValueError, KeyError, message="--readout: {error}"):
         return load_latent_readout(path)
-    except (ValueError, KeyError) as exc:
-        raise UserError(f"--readout: {exc}") from exc
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -153,15 +149,13 @@ def cmd_train(args: argparse.Namespace) -> int:
         if path:
             output_file(path, [*inputs, out], option=option)
     t0 = time.perf_counter()
-    try:
+    with user_errors(ValueError):
         payload = train_variant(
             split, preset=preset, layout=layout, config=config, rest_state=args.rest_state, data_seed=args.seed,
             out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
             token_grid=tuple(args.token_grid) if args.token_grid else None, readout=readout,
             rollout_readout=args.rollout_readout, device=args.device,
         )  # fmt: skip
-    except ValueError as exc:
-        raise UserError(str(exc)) from exc
     if args.history:
         write_json(args.history, {"seed": args.seed, "layout": layout.to_dict(), "history": payload["history"]})
     log.info("trained seed %d in %.1f s -> %s", args.seed, time.perf_counter() - t0, out)
@@ -173,11 +167,9 @@ def cmd_readout(args: argparse.Namespace) -> int:
     from imply.models.rollout import fit_latent_readout, latent_readout_report, pool_tokens
 
     grid = tuple(args.token_grid) if args.token_grid else None
-    try:
+    with user_errors(ValueError, message="--token-grid: {error}"):
         readout = fit_latent_readout(pool_tokens(_feature_split(args.features, args.clips), grid))
         heldout = {Path(f).stem: pool_tokens(_feature_split(f, c), grid) for f, c in args.heldout}
-    except ValueError as exc:
-        raise UserError(f"--token-grid: {exc}") from exc
     report = latent_readout_report(readout, heldout)
     readout.save(args.output)
     write_json(args.report, report)
@@ -223,12 +215,11 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     docs = []
     for path in args.histories:
-        try:
+        with user_errors(ValueError, KeyError,
+                         message=f"{path}: not a training history of imply model train --history ({{error}})"):  # fmt: skip
             doc = json.loads(Path(path).read_text())
             if not doc["history"] or "layout" not in doc:
                 raise KeyError("history")
-        except (ValueError, KeyError) as exc:
-            raise UserError(f"{path}: not a training history of imply model train --history ({exc})") from exc
         docs.append(doc)
     training_figure(docs, png_path=args.output)
     return 0

@@ -13,7 +13,7 @@ import argparse
 import logging
 from typing import TYPE_CHECKING
 
-from imply.cli.common import UserError, existing_file, int_range
+from imply.cli.common import UserError, existing_file, int_range, user_errors
 
 if TYPE_CHECKING:
     from imply.paper.parts import ClaimsFunction
@@ -98,10 +98,8 @@ def cmd_part(args: argparse.Namespace) -> int:
     from imply.paper.results import read_results
 
     claims_of_stage = stage_claims(args.stage)
-    try:
+    with user_errors(KeyError, ValueError, TypeError):
         numbers, claims = build_part(args.stage, read_results(args.results), claims=claims_of_stage)
-    except (KeyError, ValueError, TypeError) as exc:
-        raise UserError(str(exc)) from exc
     write_part(args.output, stage=args.stage, numbers=numbers, claims=claims)
     held = sum(c.holds for c in claims)
     log.info("%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims),
@@ -153,10 +151,8 @@ def cmd_merge(args: argparse.Namespace) -> int:
     from imply.paper.registry import load_registry
     from imply.paper.report import write_report
 
-    try:
+    with user_errors(KeyError, ValueError):
         merged = merge_parts(args.parts)
-    except (KeyError, ValueError) as exc:
-        raise UserError(str(exc)) from exc
     write_macros(merged, args.macros, args.numbers)
     frame = write_report(load_registry(), merged, args.report_md, args.report_csv)
     counts = frame["status"].value_counts().to_dict()

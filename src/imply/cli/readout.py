@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
 
 log = logging.getLogger("imply")
 
@@ -49,13 +49,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from imply.study.readout_evaluation import clip_files, evaluate_readouts
 
     settings = config_from_json(ReadoutConfig, args.readout_json, "--readout-json")
-    try:
+    with user_errors(ValueError):
         ridge, result = evaluate_readouts(
             clip_files(*args.train), [clip_files(*files) for files in args.heldout],
             settings=settings, pretrain_episodes=args.pretrain_episodes,
         )  # fmt: skip
-    except ValueError as exc:
-        raise UserError(str(exc)) from exc
     ridge.save(args.output)
     write_result(args.metrics, evaluate_readouts, result)
     return 0

@@ -6,7 +6,7 @@ import argparse
 import logging
 import os
 
-from imply.cli.common import UserError, int_range, load_push_table, output_file, positive_float
+from imply.cli.common import int_range, load_push_table, output_file, positive_float, user_errors
 from imply.options import default_of
 from imply.score import ScoreConfig
 
@@ -44,12 +44,10 @@ def cmd_score(args: argparse.Namespace) -> int:
 
     output = output_file(args.output, [args.rollouts, args.table])
     table = load_push_table(args.table)
-    try:
+    with user_errors(InputError, OutOfRangeError):
         rows = read_rollouts(args.rollouts, table)
         threads = args.threads or os.cpu_count() or 1
         out = score_rows(rows, Scorer(table, grid=args.grid, floor=args.floor, threads=threads))
-    except (InputError, OutOfRangeError) as exc:
-        raise UserError(str(exc)) from exc
     write_columns(output, out)
     log.info("scored %d objects -> %s", len(rows.objects), output)
     return 0

@@ -17,7 +17,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -103,13 +103,11 @@ def _user_errors(func):
 
         from imply.table import TableError
 
-        try:
+        with (
+            user_errors(TableError, ValueError, pd.errors.ParserError),
+            user_errors(KeyError, message="missing setting or column {error}"),
+        ):
             return func(args)
-        except UserError:
-            raise
-        except (TableError, KeyError, ValueError, pd.errors.ParserError) as exc:
-            msg = f"missing setting or column {exc}" if isinstance(exc, KeyError) else str(exc)
-            raise UserError(msg) from exc
 
     return wrapper
 

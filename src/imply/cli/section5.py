@@ -12,7 +12,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg
+from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
 from imply.models.config import ModelConfig
 from imply.options import default_of
 
@@ -48,16 +48,12 @@ def cmd_section5(args: argparse.Namespace) -> int:
     from imply.study.section5.scoring import section5_results
     from imply.table import PushTable
 
-    try:
+    with user_errors(ValueError, message="--rollouts: {error}"):
         tables = read_rollout_tables(args.rollouts)
-    except ValueError as exc:
-        raise UserError(f"--rollouts: {exc}") from exc
     seeds = sorted({s for _, s in tables})
     scorer = config_from_json(ScoreConfig, args.score_json, "--score-json").scorer(PushTable.load(args.table))
-    try:
+    with user_errors(ValueError, KeyError, message="--train-clips: {error}"):
         typical = typical_slide_of_clips(pd.read_csv(args.train_clips))
-    except (ValueError, KeyError) as exc:
-        raise UserError(f"--train-clips: {exc}") from exc
     result, per_object = section5_results(
         tables, scorer, seeds=seeds, selection_seed=args.selection_seed, typical=typical
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import UserError, add_scene_options, int_range, output_file, scene_from_args
+from imply.cli.common import UserError, add_scene_options, int_range, output_file, scene_from_args, user_errors
 
 log = logging.getLogger("imply")
 
@@ -47,7 +47,7 @@ def parse_object_settings(items: list[str]) -> dict:
         key, sep, value = item.partition("=")
         if not sep:
             raise UserError(f"OBJECT setting {item!r} is not key=value")
-        try:
+        with user_errors(ValueError, message=f"OBJECT setting {item!r}: bad value"):
             if key == "size":
                 parts = [float(x) for x in value.split(",")]
                 if len(parts) != 3 or not all(0 < x < float("inf") for x in parts):
@@ -59,8 +59,6 @@ def parse_object_settings(items: list[str]) -> dict:
                     raise ValueError
             else:
                 raise UserError(f"unknown OBJECT setting {key!r} (use mass, friction, size)")
-        except ValueError:
-            raise UserError(f"OBJECT setting {item!r}: bad value") from None
     return settings
 
 
@@ -73,10 +71,8 @@ def cmd_export_xml(args: argparse.Namespace) -> int:
     output = output_file(args.output, [getattr(args, "config", None)])
     scene = scene_from_args(args)
     xml = build_xml(scene, **parse_object_settings(args.object))
-    try:
+    with user_errors(ValueError, message="the scene does not compile: {error}"):
         mujoco.MjModel.from_xml_string(xml)  # fail here, not in the user's hands
-    except ValueError as exc:
-        raise UserError(f"the scene does not compile: {exc}") from exc
     write_text(output, xml)
     log.info("wrote %s", output)
     return 0
@@ -88,20 +84,13 @@ def cmd_pushes(args: argparse.Namespace) -> int:
     from imply.sim.push_file import load_push_model, read_pushes, simulate_push_table
 
     output = output_file(args.output, [args.pushes, args.model, getattr(args, "config", None)])
-    try:
+    # an InputError is a ValueError too: the inner one names the file's row and column
+    with user_errors(ValueError, message="--model {error}"), user_errors(InputError):
         pushes = read_pushes(args.pushes)
         model = load_push_model(args.model) if args.model else None
-    except InputError as exc:
-        raise UserError(str(exc)) from exc
-    except ValueError as exc:
-        raise UserError(f"--model {exc}") from exc
     scene = scene_from_args(args) if model is None else None
-    try:
+    with user_errors(KeyError, ValueError, message="cannot simulate on this model: {error}"), user_errors(InputError):
         log_frame = simulate_push_table(pushes, model=model, scene=scene, nthread=args.threads, progress=True)
-    except InputError as exc:
-        raise UserError(str(exc)) from exc
-    except (KeyError, ValueError) as exc:
-        raise UserError(f"cannot simulate on this model: {exc}") from exc
     write_csv(output, log_frame)
     log.info("simulated %d pushes (%d failed checks) -> %s", len(log_frame), int((~log_frame["ok"]).sum()), output)
     return 0

@@ -6,7 +6,6 @@ import argparse
 import logging
 
 from imply.cli.common import (
-    UserError,
     add_scene_options,
     config_from_json,
     config_section,
@@ -15,6 +14,7 @@ from imply.cli.common import (
     load_push_table,
     output_file,
     scene_from_args,
+    user_errors,
 )
 
 log = logging.getLogger("imply")
@@ -66,16 +66,12 @@ def cmd_table_build(args: argparse.Namespace) -> int:
     grid_cfg, where = args.grid_json, "--grid-json"
     if grid_cfg is None and args.config:
         grid_cfg, where = config_section(args.config, "table"), f"--config {args.config}: table"
-    try:
+    with user_errors(ConfigError):
         grid = table_grid(grid_cfg, where) if grid_cfg is not None else TableConfig().grid()
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
     check = config_from_json(TableCheckConfig, args.check_json, "--check-json")
-    try:
+    # the simulator refuses settings it cannot finish a push with; a failed cell names itself
+    with user_errors(ValueError, RuntimeError, message="cannot build the table: {error}"):
         table = build_table(scene, grid, nthread=args.threads, progress=True)
-    except (ValueError, RuntimeError) as exc:
-        # the simulator refuses settings it cannot finish a push with; a failed cell names itself
-        raise UserError(f"cannot build the table: {exc}") from exc
     if check.cells:
         log.info("measuring the table's numerical error on %d cells", check.cells)
         table = with_numerical_error(table, check_table(table, check, nthread=args.threads, progress=True))
@@ -103,10 +99,8 @@ def cmd_table_check(args: argparse.Namespace) -> int:
     table = load_push_table(args.table, option="TABLE")
     given = {"cells": args.cells, "seed": args.seed, "reference_substeps": args.reference_substeps}
     settings = TableCheckConfig(**{k: v for k, v in given.items() if v is not None})  # the rest: the class's defaults
-    try:
+    with user_errors(ValueError, message=f"cannot check {args.table}: {{error}}"):
         error = check_table(table, settings, nthread=args.threads, progress=True)
-    except ValueError as exc:
-        raise UserError(f"cannot check {args.table}: {exc}") from exc
     recorded = table.meta.get("numerical_error")
     print(_error_line(error))
     if recorded:

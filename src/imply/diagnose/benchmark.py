@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from imply.diagnose.analysis import Summary
 from imply.realworld.cases import BenchmarkConfig
 
 LIBRARY_GROUPS = ("single", "double", "single_unidentifiable")
@@ -56,19 +57,19 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
     pl = PushLog(path="<noise-free>", frame=pd.DataFrame(), objects=objects, obj=np.array([index[o] for o in names]),
                  speed=v, displacement=np.exp(np.asarray(nf["log_d"], float)[keep]),
                  direction=np.asarray(p["direction"], float)[keep], has_direction=True, mass=mass)  # fmt: skip
-    prob = Problem(pl, table, None, grid=grid, use_stop_time=False)
+    prob = Problem.of(pl, table, None, grid=grid, use_stop_time=False)
     fit = prob.initial_fit(Model())
     return float(np.sqrt(fit.sse.sum() / v.size))
 
 
-def _classes(summary: dict) -> list[set[str]]:
+def _classes(summary: Summary) -> list[set[str]]:
     """Each accepted effect's alias class (as a set of candidate names)."""
-    if summary["verdict"]["verdict"] == "none":
+    if summary.verdict.is_none:
         return []
-    return [set(e["class"].split("+")) if e.get("class") else {e["effect"]} for e in summary["effects"]]
+    return [set(e.cls.split("+")) if e.cls else {e.effect} for e in summary.effects]
 
 
-def _named(true: str, summary: dict) -> bool:
+def _named(true: str, summary: Summary) -> bool:
     return any(true in cls for cls in _classes(summary))
 
 
@@ -92,7 +93,7 @@ def visible_sizes(labels: dict[str, dict], table, *, progress: bool = True) -> d
     }
 
 
-def find_summaries(labels: dict[str, dict], report_dirs: list[Path]) -> dict[str, dict]:
+def find_summaries(labels: dict[str, dict], report_dirs: list[Path]) -> dict[str, Summary]:
     """Each log's diagnosis summary, from the folder of report folders that holds it."""
     summaries = {}
     for cid in labels:
@@ -100,7 +101,7 @@ def find_summaries(labels: dict[str, dict], report_dirs: list[Path]) -> dict[str
         if not found:
             raise FileNotFoundError(f"no diagnosis for log {cid} in {', '.join(map(str, report_dirs))}")
         with open(found[0]) as fh:
-            summaries[cid] = json.load(fh)
+            summaries[cid] = Summary.from_dict(json.load(fh))
     return summaries
 
 
@@ -121,7 +122,7 @@ def world_error(accuracy: dict) -> dict:
 
 def score_cases(
     labels: dict[str, dict],
-    summaries: dict[str, dict],
+    summaries: dict[str, Summary],
     sizes: dict[str, dict],
     *,
     config: BenchmarkConfig,
@@ -143,7 +144,7 @@ def score_cases(
         sd = lab["noise"]["sd"]
         size = sizes[cid]["all"]
         eff_sizes = {n: sizes[cid].get(n, size) for n in true}
-        accepted = [e["effect"] for e in s["effects"]] if s["verdict"]["verdict"] != "none" else []
+        accepted = [e.effect for e in s.effects] if not s.verdict.is_none else []
         predicted = accepted[0] if accepted else "none"
         big_each = {n: bool(eff_sizes[n] >= min_size_sd * sd) for n in true}
         if group in ("null_gaussian", "null_heavy"):
@@ -162,31 +163,31 @@ def score_cases(
         for e in lab["effects"]:
             if group not in ("single", "double") or not big_each[e["name"]]:
                 continue
-            hit = next((r for r in s["effects"] if r["effect"] == e["name"]), None) if accepted else None
+            hit = next((r for r in s.effects if r.effect == e["name"]), None) if accepted else None
             if hit is None:
                 continue
             t = _true_theta(e)
-            rel = abs(hit["magnitude"] - t["magnitude"]) / abs(t["magnitude"]) if t["magnitude"] else None
+            rel = abs(hit.magnitude - t["magnitude"]) / abs(t["magnitude"]) if t["magnitude"] else None
             az = None
-            if t["azimuth_deg"] is not None and hit.get("azimuth_deg") is not None:
+            if t["azimuth_deg"] is not None and hit.azimuth_deg is not None:
                 period = 180.0 if e["name"] == "anisotropic" else 360.0
-                az = _angle_error(hit["azimuth_deg"], t["azimuth_deg"], period)
-            mags.append({"case": cid, "effect": e["name"], "true": t["magnitude"], "estimate": hit["magnitude"],
+                az = _angle_error(hit.azimuth_deg, t["azimuth_deg"], period)
+            mags.append({"case": cid, "effect": e["name"], "true": t["magnitude"], "estimate": hit.magnitude,
                          "relative_error": rel, "azimuth_error_deg": az,
-                         "in_ci": bool(hit["ci95"][0] <= t["magnitude"] <= hit["ci95"][1])})  # fmt: skip
-        sh = s["shrinkage"]
+                         "in_ci": bool(hit.ci95[0] <= t["magnitude"] <= hit.ci95[1])})  # fmt: skip
+        sh = s.shrinkage
         kept = lab.get("rows_kept") or []
-        flagged = {tuple(kept[int(r["row"])]) for r in s.get("outliers", {}).get("displacement", []) if kept}
+        flagged = {tuple(kept[r.row]) for r in s.outliers.get("displacement", []) if kept}
         true_out = {(int(j), int(r)) for r, j in lab["outliers"]}
         rows.append({
             "case": cid, "group": group, "effects": "+".join(true) or "null", "noise": lab["noise"]["kind"],
             "noise_sd": sd, "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"],
             "visible_rms": size, "size_sd": size / sd, "big": all(big_each.values()) if true else False,
             "predicted": predicted, "accepted": "+".join(accepted) or "none", "correct": bool(correct),
-            "exact": exact, "gap_share_closed": sh.get("gap_share_closed") if accepted else 0.0,
-            "anchored_share_closed": sh.get("anchored_share_closed") if accepted else 0.0,
-            "before_rms": sh["before_rms"], "after_rms": sh["after_rms"], "true_outliers": len(true_out),
-            "flagged_outliers": len(flagged), "flagged_true": len(flagged & true_out), "seconds": s.get("seconds"),
+            "exact": exact, "gap_share_closed": sh.gap_share_closed if accepted else 0.0,
+            "anchored_share_closed": sh.anchored_share_closed if accepted else 0.0,
+            "before_rms": sh.before_rms, "after_rms": sh.after_rms, "true_outliers": len(true_out),
+            "flagged_outliers": len(flagged), "flagged_true": len(flagged & true_out), "seconds": s.seconds,
         })  # fmt: skip
     frame = pd.DataFrame(rows)
     mag = pd.DataFrame(

@@ -22,6 +22,7 @@ either asks for ``tilt``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,11 +34,19 @@ SPEED_GAIN, SPEED_OFFSET, FRICTION2, TABLE, TILT = "speed_gain", "speed_offset",
 
 @dataclass(frozen=True)
 class Candidate:
-    """One candidate effect: its components, bounds and how it enters a prediction."""
+    """One candidate effect: what it is called and how a verdict says it, its components, bounds and
+    how it enters a prediction.
+
+    ``title`` and ``unit`` describe the magnitude in reports; ``phrase`` names the effect inside a
+    sentence ("a tilted table"); ``clause`` turns a fitted magnitude (and azimuth, in degrees, for
+    two components) into the verdict's words ("the table slopes 0.03 rad toward 35 degrees").
+    """
 
     name: str
     title: str
     unit: str
+    phrase: str
+    clause: Callable[[float, float | None], str]
     kind: str  # speed_gain | speed_offset | friction2 | table | tilt
     components: tuple[str, ...]
     lo: tuple[float, ...]
@@ -46,7 +55,6 @@ class Candidate:
     period: float | None = None  # azimuth period (2 pi for a slope, pi for an axis)
     table_keys: tuple[str, ...] = ()
     levels: tuple[float, ...] = ()
-    identifiable_note: str = ""
 
     @property
     def dim(self) -> int:
@@ -79,43 +87,75 @@ class Candidate:
         return np.maximum(np.abs(np.asarray(self.hi)), np.abs(np.asarray(self.lo)))
 
 
-def _one(e: Effect, kind: str = TABLE) -> Candidate:
+def _faster(m: float) -> str:
+    return "faster" if m > 0 else "slower"
+
+
+def speed_clause(gain: float, offset: float) -> str:
+    """The verdict's words for a speed gain and a speed offset found together: v' = (1 + gain) v + offset."""
+    text = (f"the pusher's speed is {abs(gain):.1%} {'above' if gain > 0 else 'below'} the command, "
+            f"{'plus' if offset > 0 else 'less'} {abs(offset) * 1000:.2g} mm/s")  # fmt: skip
+    if gain * offset < 0:  # the two cross: slower on one side of a speed, faster on the other
+        cross = -offset / gain
+        below, above = ("slower", "faster") if gain > 0 else ("faster", "slower")
+        text += f" ({below} than commanded below {cross:.2g} m/s, {above} above)"
+    return text
+
+
+def _one(name: str, title: str, unit: str, phrase: str, clause, kind: str = TABLE) -> Candidate:
+    """A one-component candidate on the library effect ``name`` (its bounds and tabulated levels)."""
+    e = EFFECTS[name]
     return Candidate(
-        e.name, e.title, e.unit, kind, (e.name,), (float(e.bounds[0]),), (float(e.bounds[1]),),
+        name, title, unit, phrase, clause, kind, (name,), (float(e.bounds[0]),), (float(e.bounds[1]),),
         table_keys=(e.table_key,) if kind == TABLE else (), levels=tuple(e.levels),
     )  # fmt: skip
 
 
-def _library() -> dict[str, Candidate]:
-    out: dict[str, Candidate] = {}
-    for name in ("torsional", "rolling", "viscous", "pusher_softness"):
-        out[name] = _one(EFFECTS[name])
-    tx = EFFECTS["tilt_x"]
-    a = float(max(abs(tx.bounds[0]), abs(tx.bounds[1])))
-    out["tilt"] = Candidate(
-        "tilt", "table tilt: a slope toward an azimuth (along and across every push)", "rad", TILT,
-        ("tilt_x", "tilt_y"), (-a, -a), (a, a), radius=a, period=2 * np.pi, table_keys=("slope", "slope_across"),
-        levels=tuple(tx.levels),
-    )  # fmt: skip
-    for name in ("air_drag", "height"):
-        out[name] = _one(EFFECTS[name])
-    out["speed_gain"] = _one(EFFECTS["speed_gain"], SPEED_GAIN)
-    out["speed_offset"] = _one(EFFECTS["speed_offset"], SPEED_OFFSET)
-    an = EFFECTS["anisotropic"]
-    a = float(max(abs(an.bounds[0]), abs(an.bounds[1])))
-    out["anisotropic"] = Candidate(
-        "anisotropic", "anisotropic friction: mu (1 + a cos 2(phi - axis))", "1", FRICTION2,
-        ("aniso_cos", "aniso_sin"), (-a, -a), (a, a), radius=a, period=np.pi,
-    )  # fmt: skip
-    return out
+def _library() -> list[Candidate]:
+    """Every candidate, each described once: name, title, unit, phrase and the verdict's clause."""
+    tx, an = EFFECTS["tilt_x"], EFFECTS["anisotropic"]
+    tilt = float(max(abs(tx.bounds[0]), abs(tx.bounds[1])))
+    aniso = float(max(abs(an.bounds[0]), abs(an.bounds[1])))
+    return [
+        _one("torsional", "torsional friction (condim 4)", "m", "torsional friction",
+             lambda m, az: f"torsional friction (condim 4) of {m:.3g} m"),
+        _one("rolling", "rolling friction (condim 6)", "m", "rolling friction",
+             lambda m, az: f"rolling friction (condim 6) of {m:.3g} m"),
+        _one("viscous", "viscous (velocity-proportional) friction on the box", "N s/m", "viscous friction",
+             lambda m, az: f"the box feels viscous friction of {m:.3g} N s/m"),
+        _one("pusher_softness", "pusher contact softness (extra solref time constant)", "s", "a softer pusher",
+             lambda m, az: f"the pusher's contact is softer (solref time constant +{m:.3g} s)"),
+        Candidate(
+            "tilt", "table tilt: a slope toward an azimuth (along and across every push)", "rad", "a tilted table",
+            lambda m, az: f"the table slopes {m:.3g} rad toward {round(az) % 360:.0f} degrees (table frame)",
+            TILT, ("tilt_x", "tilt_y"), (-tilt, -tilt), (tilt, tilt), radius=tilt, period=2 * np.pi,
+            table_keys=("slope", "slope_across"), levels=tuple(tx.levels),
+        ),
+        _one("air_drag", "fluid drag (medium density, MuJoCo fluid model)", "kg/m^3", "air drag",
+             lambda m, az: f"the box feels air drag as of a medium of {m:.3g} kg/m^3"),
+        _one("height", "box height deviation from the canonical box (fraction)", "1", "a different box height",
+             lambda m, az: f"the boxes are {abs(m):.0%} {'taller' if m > 0 else 'shorter'} than the table's"),
+        _one("speed_gain", "commanded-vs-actual speed gain (v' = (1+g) v)", "1", "a speed gain",
+             lambda m, az: f"the pusher runs {abs(m):.1%} {_faster(m)} than commanded", SPEED_GAIN),
+        _one("speed_offset", "commanded-vs-actual speed offset (v' = v + c)", "m/s", "a speed offset",
+             lambda m, az: f"the pusher runs {abs(m):.3g} m/s {_faster(m)} than commanded", SPEED_OFFSET),
+        Candidate(
+            "anisotropic", "anisotropic friction: mu (1 + a cos 2(phi - axis))", "1", "anisotropic friction",
+            # an axis: 0 and 180 degrees are the same direction
+            lambda m, az: f"friction is {m:.0%} higher along {round(az) % 180:.0f} degrees than across it",
+            FRICTION2, ("aniso_cos", "aniso_sin"), (-aniso, -aniso), (aniso, aniso), radius=aniso, period=np.pi,
+        ),
+    ]  # fmt: skip
 
 
-CANDIDATES: dict[str, Candidate] = _library()
+CANDIDATES: dict[str, Candidate] = {c.name: c for c in _library()}
 ALIASES = {"tilt_x": "tilt", "tilt_y": "tilt"}
 
 
 def get(names: list[str] | None = None) -> list[Candidate]:
-    """Candidates by name (all, in library order, when ``names`` is None); tilt_x / tilt_y mean tilt."""
+    """Candidates by name (all, in library order, when ``names`` is None); tilt_x / tilt_y mean tilt.
+
+    An unknown name is a ValueError naming it."""
     if names is None:
         return list(CANDIDATES.values())
     out: list[Candidate] = []
@@ -127,7 +167,7 @@ def get(names: list[str] | None = None) -> list[Candidate]:
         elif CANDIDATES[n] not in out:
             out.append(CANDIDATES[n])
     if unknown:
-        raise KeyError(f"unknown effect(s): {', '.join(unknown)} (known: {', '.join(CANDIDATES)})")
+        raise ValueError(f"unknown effect(s): {', '.join(unknown)} (known: {', '.join(CANDIDATES)})")
     return out
 
 

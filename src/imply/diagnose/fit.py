@@ -24,7 +24,8 @@ object's contribution to the profiled sum of squares is kept as a quadratic in t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from imply.table import PushTable
 _H = 1e-4  # finite-difference step in log m and log mu
 
 
-@dataclass
+@dataclass(frozen=True)
 class ObjectFit:
     """Per-object fit: (N,) log mass, log friction and weighted sum of squares (whitened)."""
 
@@ -45,7 +46,7 @@ class ObjectFit:
     sse: np.ndarray
 
 
-@dataclass
+@dataclass(frozen=True)
 class JointFit:
     """A model's joint fit: parameters, objects, and each object's quadratic in theta."""
 
@@ -94,82 +95,149 @@ class JointFit:
         return np.maximum(out, 0.0)
 
 
-class Problem:
-    """A push log against a baseline table, its effect tables and its noise."""
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted log d and log T at some conditions, and what of them was extrapolated beyond the tables.
 
-    def __init__(
-        self,
+    ``extrapolated_d`` / ``extrapolated_t`` are the linear extrapolation parts added (None where no
+    condition left the table's range)."""
+
+    log_d: np.ndarray
+    log_t: np.ndarray | None
+    extrapolated_d: np.ndarray | None
+    extrapolated_t: np.ndarray | None
+
+    def extrapolation_sizes(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """|log d part| and |log T part| of the extrapolation per condition (zeros where there was none)."""
+        zeros = np.zeros(self.log_d.size)
+        size_d = np.abs(self.extrapolated_d) if self.extrapolated_d is not None else zeros
+        if self.log_t is None:
+            return size_d, None
+        return size_d, np.abs(self.extrapolated_t) if self.extrapolated_t is not None else zeros
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A push log against a baseline table, its effect tables, its noise, weights and model error.
+
+    Immutable: :meth:`with_noise`, :meth:`with_weights` and :meth:`with_model_error` return a new
+    problem, so each step of the diagnosis says what it fits under. Build one with :meth:`of`.
+    """
+
+    log: PushLog
+    table: PushTable
+    etables: EffectTables | None
+    grid: int
+    obj: np.ndarray  # (n,) object index per push
+    n_obj: int
+    v: np.ndarray
+    phi: np.ndarray
+    y: np.ndarray  # log displacement per push
+    cond: np.ndarray  # (n,) condition index per push: replicate pushes share one prediction
+    n_cond: int
+    c_obj: np.ndarray
+    c_v: np.ndarray
+    c_phi: np.ndarray
+    counts: np.ndarray  # pushes per object
+    lm_range: np.ndarray
+    lu_range: np.ndarray
+    v_range: tuple[float, float]
+    fixed_lm: np.ndarray | None  # measured log mass, held fixed
+    fixed_lu: np.ndarray | None  # measured log friction, held fixed
+    use_t: bool
+    y_t: np.ndarray | None  # log stop time per push, where used
+    noise_d: float = 1.0
+    noise_t: float = 1.0
+    model_err_d: np.ndarray | None = None  # per row (None: zeros)
+    model_err_t: np.ndarray | None = None
+    w_d: np.ndarray | None = None  # per row, 0 for a flagged outlier (None: ones)
+    w_t: np.ndarray | None = None  # (None: ones where stop times are used)
+
+    def __post_init__(self) -> None:
+        # defaults that depend on the log's length
+        n = self.y.size
+        if self.model_err_d is None:
+            object.__setattr__(self, "model_err_d", np.zeros(n))
+        if self.model_err_t is None:
+            object.__setattr__(self, "model_err_t", np.zeros(n))
+        if self.w_d is None:
+            object.__setattr__(self, "w_d", np.ones(n))
+        if self.w_t is None and self.use_t:
+            object.__setattr__(self, "w_t", np.ones(n))
+
+    @classmethod
+    def of(
+        cls,
         pushlog: PushLog,
         table: PushTable,
         etables: EffectTables | None,
+        *,
         grid: int = 101,
         use_measured: bool = True,
         use_stop_time: bool = True,
-    ):
-        self.log = pushlog
-        self.table = table
-        self.etables = etables
-        self.grid = grid
-        self.obj = pushlog.obj
-        self.n_obj = len(pushlog.objects)
-        self.v = pushlog.speed
-        self.phi = pushlog.direction
-        self.y = pushlog.log_d
+    ) -> Problem:
+        """The problem of a push log at unit noise, no model error and every push weighted 1."""
+        obj = pushlog.obj
+        v = pushlog.speed
+        phi = pushlog.direction
         # replicate pushes share one prediction: unique (object, speed, direction)
-        key = np.stack([self.obj.astype(float), np.round(self.v, 9), np.round(np.mod(self.phi, 2 * np.pi), 6)], 1)
+        key = np.stack([obj.astype(float), np.round(v, 9), np.round(np.mod(phi, 2 * np.pi), 6)], 1)
         uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        self.cond = cond.ravel()
-        self.n_cond = uniq.shape[0]
-        self.c_obj = self.obj[first]
-        self.c_v = self.v[first]
-        self.c_phi = self.phi[first]
-        self.counts = np.bincount(self.obj, minlength=self.n_obj).astype(float)
-        self.lm_range = np.log(table.mass_range)
-        self.lu_range = np.log(table.friction_range)
-        self.v_range = table.speed_range
-        self.fixed_lm = np.log(pushlog.mass) if use_measured and pushlog.mass is not None else None
-        self.fixed_lu = np.log(pushlog.friction) if use_measured and pushlog.friction is not None else None
-        self.k_free = int(self.fixed_lm is None) + int(self.fixed_lu is None)
+        n_obj = len(pushlog.objects)
         has_t = pushlog.stop_time is not None and etables is not None and etables.has_stop_time
-        self.use_t = bool(use_stop_time and has_t)
-        self.y_t = np.log(pushlog.stop_time) if self.use_t else None
-        self.noise_d = 1.0
-        self.noise_t = 1.0
-        self.sd_d: float | np.ndarray = 1.0  # per row: noise and model error together
-        self.sd_t: float | np.ndarray = 1.0
-        self.model_err_d = np.zeros(self.y.size)
-        self.model_err_t = np.zeros(self.y.size)
-        self.w_d = np.ones(self.y.size)
-        self.w_t = np.ones(self.y.size) if self.use_t else None
+        use_t = bool(use_stop_time and has_t)
+        return cls(
+            log=pushlog, table=table, etables=etables, grid=grid, obj=obj, n_obj=n_obj, v=v, phi=phi,
+            y=pushlog.log_d, cond=cond.ravel(), n_cond=uniq.shape[0], c_obj=obj[first], c_v=v[first],
+            c_phi=phi[first], counts=np.bincount(obj, minlength=n_obj).astype(float),
+            lm_range=np.log(table.mass_range), lu_range=np.log(table.friction_range), v_range=table.speed_range,
+            fixed_lm=np.log(pushlog.mass) if use_measured and pushlog.mass is not None else None,
+            fixed_lu=np.log(pushlog.friction) if use_measured and pushlog.friction is not None else None,
+            use_t=use_t, y_t=np.log(pushlog.stop_time) if use_t else None,
+        )  # fmt: skip
 
-    # -- setup -----------------------------------------------------------------------
-    def set_noise(self, sd_d: float, sd_t: float | None) -> None:
-        """Each observable's noise sd (the model's own error is added by :meth:`set_model_error`)."""
-        self.noise_d = float(sd_d)
-        if self.use_t:
-            self.noise_t = float(sd_t if sd_t else sd_d)
-        self._combine()
+    # -- noise, weights and model error: each a new problem ---------------------------
+    def with_noise(self, sd_d: float, sd_t: float | None) -> Problem:
+        """Each observable's noise sd (the model's own error is added by :meth:`with_model_error`)."""
+        return replace(self, noise_d=float(sd_d), noise_t=float(sd_t if sd_t else sd_d) if self.use_t else self.noise_t)
 
-    def set_model_error(self, err_d: np.ndarray, err_t: np.ndarray | None) -> None:
+    def with_model_error(self, err_d: np.ndarray, err_t: np.ndarray | None) -> Problem:
         """The model's own error per row (RMS, log units), counted as variance beside the noise."""
-        self.model_err_d = np.asarray(err_d, float)
-        if self.use_t and err_t is not None:
-            self.model_err_t = np.asarray(err_t, float)
-        self._combine()
+        keep_t = not (self.use_t and err_t is not None)
+        return replace(self, model_err_d=np.asarray(err_d, float),
+                       model_err_t=self.model_err_t if keep_t else np.asarray(err_t, float))  # fmt: skip
 
-    def _combine(self) -> None:
-        self.sd_d = np.sqrt(self.noise_d**2 + self.model_err_d**2)
-        self.sd_t = np.sqrt(self.noise_t**2 + self.model_err_t**2)
+    def with_weights(self, w_d: np.ndarray, w_t: np.ndarray | None) -> Problem:
+        """Per-row weights (0 leaves a flagged outlier out of every fit)."""
+        if not self.use_t:
+            return replace(self, w_d=np.asarray(w_d, float))
+        return replace(self, w_d=np.asarray(w_d, float),
+                       w_t=np.asarray(w_t if w_t is not None else np.ones(self.y.size), float))  # fmt: skip
+
+    @cached_property
+    def k_free(self) -> int:
+        """Per-object parameters fitted (mass and friction, less the measured ones)."""
+        return int(self.fixed_lm is None) + int(self.fixed_lu is None)
+
+    @cached_property
+    def sd_d(self) -> np.ndarray:
+        """Per row: noise and model error together (log d)."""
+        return np.sqrt(self.noise_d**2 + self.model_err_d**2)
+
+    @cached_property
+    def sd_t(self) -> np.ndarray:
+        return np.sqrt(self.noise_t**2 + self.model_err_t**2)
+
+    @cached_property
+    def _linear(self):
+        from scipy.interpolate import RegularGridInterpolator
+
+        t = self.table
+        return RegularGridInterpolator((t.speeds, np.log(t.masses), np.log(t.frictions)), t.log_d, method="linear")
 
     def interpolation_indicator(self, objs: ObjectFit, model: Model | None = None, theta=None):
         """Per row, |cubic - linear| interpolation of the push table (and of the stop-time table) at
         each push as the model sees it: large where the tables' interpolation is unsure."""
-        from scipy.interpolate import RegularGridInterpolator
-
-        if not hasattr(self, "_linear"):
-            t = self.table
-            self._linear = RegularGridInterpolator((t.speeds, np.log(t.masses), np.log(t.frictions)), t.log_d,
-                                                   method="linear")  # fmt: skip
         v = self.c_v
         lu = objs.lu[self.c_obj]
         if model is not None and model.dim:
@@ -186,24 +254,19 @@ class Problem:
             ind_t = self.etables.stop_interpolation_indicator(v, np.exp(lm), np.exp(lu))[self.cond]
         return ind_d, ind_t
 
-    def set_weights(self, w_d: np.ndarray, w_t: np.ndarray | None) -> None:
-        self.w_d = np.asarray(w_d, float)
-        if self.use_t:
-            self.w_t = np.asarray(w_t if w_t is not None else np.ones(self.y.size), float)
-
     @property
     def n_rows(self) -> int:
         """Pushes (rows) that count in the fit (not flagged)."""
         return int((self.w_d > 0).sum())
 
     # -- predictions -------------------------------------------------------------------
-    def predict(self, model: Model, theta, lm_c, lu_c, cond=None, extrapolation: bool = False):
-        """(log d, log T) at conditions ``cond`` (all by default) given per-condition log m, log mu,
+    def predict(self, model: Model, theta, lm_c, lu_c, cond=None) -> Prediction:
+        """log d and log T at conditions ``cond`` (all by default) given per-condition log m, log mu,
         and theta (p,) or per condition (n, p).
 
         A speed or friction that the model's effects carry outside the table's range is read at
-        the range's edge and extrapolated linearly (the edge's slope); with ``extrapolation`` the
-        size of that extrapolation is returned too, (|log d part|, |log T part|)."""
+        the range's edge and extrapolated linearly (the edge's slope); the prediction keeps what
+        was extrapolated (:meth:`Prediction.extrapolation_sizes`)."""
         idx = np.arange(self.n_cond) if cond is None else cond
         v, phi = self.c_v[idx], self.c_phi[idx]
         m = np.exp(np.clip(lm_c, *self.lm_range))
@@ -245,11 +308,7 @@ class Problem:
                 pd = pd + dd
                 if self.use_t:
                     pt = pt + dt
-        if extrapolation:
-            zeros = np.zeros(v.size)
-            return pd, pt, (np.abs(ext_d) if ext_d is not None else zeros,
-                            np.abs(ext_t) if ext_t is not None else (zeros if self.use_t else None))  # fmt: skip
-        return pd, pt
+        return Prediction(pd, pt, ext_d, ext_t)
 
     def table_terms(self, model: Model, theta, lm_c, lu_c) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
         """Each tabulated term of the model at every condition: (key, Delta log d, Delta log T)."""
@@ -266,10 +325,10 @@ class Problem:
             out.append((key, dd, dt if self.use_t else None))
         return out
 
-    def row_residuals(self, pd_c: np.ndarray, pt_c: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """Raw (unwhitened, unweighted) residuals observed minus predicted per row."""
-        rd = self.y - pd_c[self.cond]
-        rt = self.y_t - pt_c[self.cond] if self.use_t else None
+    def row_residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
+        """Raw (unwhitened, unweighted) residuals, observed minus predicted, per row: (log d, log T)."""
+        rd = self.y - pred.log_d[self.cond]
+        rt = self.y_t - pred.log_t[self.cond] if self.use_t else None
         return rd, rt
 
     def _row_obj(self) -> np.ndarray:
@@ -287,9 +346,9 @@ class Problem:
         lm_c = lms[:, self.c_obj].ravel()
         lu_c = lus[:, self.c_obj].ravel()
         th = np.repeat(np.atleast_2d(thetas), C, axis=0) if model.dim else np.zeros(0)
-        pd, pt = self.predict(model, th, lm_c, lu_c, cond)
-        pd = pd.reshape(k, C)
-        pt = None if pt is None else pt.reshape(k, C)
+        pred = self.predict(model, th, lm_c, lu_c, cond)
+        pd = pred.log_d.reshape(k, C)
+        pt = None if pred.log_t is None else pred.log_t.reshape(k, C)
         rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
         if not self.use_t:
             return rd

@@ -25,7 +25,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from imply.diagnose.analysis import Diagnosis
+from imply.diagnose.analysis import Diagnosis, Summary
+from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
+from imply.diagnose.localisation import FACTORS
 from imply.io import atomic_path, write_csv, write_json, write_text
 
 # every file write_report puts in the report folder
@@ -45,17 +47,17 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     s = diag.summary
-    write_json(out / "summary.json", s)
+    write_json(out / "summary.json", s.to_dict())
     r = diag.residuals
-    frame = pd.DataFrame({"speed": r["speed"], "direction": r["direction"], "log_d": r["log_d"],
-                          "resid_before": r["resid_before"]})  # fmt: skip
-    if r["resid_after"] is not None:
-        frame["resid_after"] = r["resid_after"]
-    if r.get("stop_resid_before") is not None:
-        frame["stop_resid_before"] = r["stop_resid_before"]
-        if r.get("stop_resid_after") is not None:
-            frame["stop_resid_after"] = r["stop_resid_after"]
-    frame["outlier"] = np.asarray(r.get("flagged", np.zeros(len(frame), bool)), bool)
+    frame = pd.DataFrame({"speed": r.speed, "direction": r.direction, "log_d": r.log_d,
+                          "resid_before": r.resid_before})  # fmt: skip
+    if r.resid_after is not None:
+        frame["resid_after"] = r.resid_after
+    if r.stop_resid_before is not None:
+        frame["stop_resid_before"] = r.stop_resid_before
+        if r.stop_resid_after is not None:
+            frame["stop_resid_after"] = r.stop_resid_after
+    frame["outlier"] = np.asarray(r.flagged, bool)
     write_csv(out / "residuals.csv", frame)
     _plots(diag, out)
     write_text(out / "report.md", markdown(s))
@@ -68,17 +70,17 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     import matplotlib.pyplot as plt
 
     s, r = diag.summary, diag.residuals
-    floor = s["noise"]["sd"]
+    floor = s.noise.sd
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    flagged = np.asarray(r.get("flagged", np.zeros(len(r["speed"]), bool)), bool)
-    ax.scatter(r["speed"][~flagged], r["resid_before"][~flagged], s=6, alpha=0.4, color="0.4", label="pushes")
+    flagged = np.asarray(r.flagged, bool)
+    ax.scatter(r.speed[~flagged], r.resid_before[~flagged], s=6, alpha=0.4, color="0.4", label="pushes")
     if flagged.any():
-        ax.scatter(r["speed"][flagged], r["resid_before"][flagged], s=18, marker="x", color="C1",
+        ax.scatter(r.speed[flagged], r.resid_before[flagged], s=18, marker="x", color="C1",
                    label="gross outliers (left out)")  # fmt: skip
-    bands = s["localisation"]["speed"]
-    xs = [float(b["band"]) if b["band"].replace(".", "", 1).isdigit() else i for i, b in enumerate(bands)]
-    means = [b["mean"] for b in bands]
-    err = [[b["mean"] - b["ci95"][0] for b in bands], [b["ci95"][1] - b["mean"] for b in bands]]
+    bands = s.localisation.speed
+    xs = [float(b.band) if b.band.replace(".", "", 1).isdigit() else i for i, b in enumerate(bands)]
+    means = [b.mean for b in bands]
+    err = [[b.mean - b.ci95[0] for b in bands], [b.ci95[1] - b.mean for b in bands]]
     ax.errorbar(xs, means, yerr=err, fmt="o", color="C3", label="band mean, 95% CI")
     if floor:
         ax.axhspan(-floor, floor, color="C0", alpha=0.1, label="noise sd")
@@ -91,13 +93,13 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    sp = np.unique(r["speed"])
+    sp = np.unique(r.speed)
     keep = ~flagged
-    rms_b = [np.sqrt(np.mean(r["resid_before"][(r["speed"] == v) & keep] ** 2)) for v in sp]
+    rms_b = [np.sqrt(np.mean(r.resid_before[(r.speed == v) & keep] ** 2)) for v in sp]
     ax.plot(sp, rms_b, "o-", label="baseline table")
-    if r["resid_after"] is not None:
-        rms_a = [np.sqrt(np.mean(r["resid_after"][(r["speed"] == v) & keep] ** 2)) for v in sp]
-        ax.plot(sp, rms_a, "s-", label=f"with {s['shrinkage']['effect']} (held out)")
+    if r.resid_after is not None:
+        rms_a = [np.sqrt(np.mean(r.resid_after[(r.speed == v) & keep] ** 2)) for v in sp]
+        ax.plot(sp, rms_a, "s-", label=f"with {s.shrinkage.effect} (held out)")
     if floor:
         ax.axhline(floor, ls="--", color="0.5", label="noise sd")
     ax.set_xlabel("commanded speed (m/s)")
@@ -110,35 +112,34 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     _ranking_plot(plt, s, out / "ranking.png")
 
 
-def ranking_colours(summary: dict) -> list[str]:
+def ranking_colours(ranking: list[RankedCandidate], verdict_effects: list[str]) -> list[str]:
     """Bar colour per ranked candidate: green only for the verdict's effect.
 
     Green: an effect of the verdict; blue: identifiable and improves the held-out fit
     (alone, at the first step); red: makes it worse; grey: not identifiable from these
     pushes. Green must never mark a candidate that is not in the verdict.
     """
-    chosen = set(summary["verdict"].get("effects") or ([summary["verdict"]["effect"]] if summary["verdict"].get("effect")
-                                                          else []))  # fmt: skip
+    chosen = set(verdict_effects)
     out = []
-    for r in summary["ranking"]:
-        if not r["identifiable"]:
+    for r in ranking:
+        if not r.identifiable:
             out.append("0.75")
-        elif r["effect"] in chosen:
+        elif r.effect in chosen:
             out.append("C2")
-        elif (r["heldout_improvement"] or 0.0) > 0:
+        elif (r.heldout_improvement or 0.0) > 0:
             out.append("C0")
         else:
             out.append("C3")
     return out
 
 
-def _ranking_plot(plt, s: dict, path: Path) -> None:
-    rank = s["ranking"]
+def _ranking_plot(plt, s: Summary, path: Path) -> None:
+    rank = s.ranking
     fig, ax = plt.subplots(figsize=(6, 0.3 * len(rank) + 1.4))
-    names = [x["effect"] for x in rank][::-1]
-    vals = np.array([x["heldout_improvement"] if x["heldout_improvement"] is not None else np.nan for x in rank])
+    names = [x.effect for x in rank][::-1]
+    vals = np.array([x.heldout_improvement if x.heldout_improvement is not None else np.nan for x in rank])
     vals = np.nan_to_num(vals[::-1])
-    colors = ranking_colours(s)[::-1]
+    colors = ranking_colours(rank, s.verdict.effects)[::-1]
     # a candidate that wrecks the held-out fit would dwarf the ones that help: clip the
     # negative side at the largest gain and print the clipped values
     span = max(float(np.max(vals, initial=0.0)), 0.05)
@@ -172,74 +173,73 @@ def _floor_parts(parts: dict | None) -> str:
     )
 
 
-def _effect_line(e: dict) -> str:
+def _effect_line(e: AcceptedEffect) -> str:
     az = ""
-    if e.get("azimuth_deg") is not None:
-        lo, hi = e["azimuth_ci95_deg"]
-        az = f", toward {e['azimuth_deg']:.0f} deg (95% CI {lo:.0f} to {hi:.0f} deg, table frame)"
-    return (f"- **{e['effect']}** ({e['title']}): {_fmt(e['magnitude'])} {e['unit']} (95% CI {_fmt(e['ci95'][0])} to "
-            f"{_fmt(e['ci95'][1])}){az}" + (f"; alias class {e['class']}" if "+" in (e.get("class") or "") else "")
-            + (" (at the edge of the searched range)" if e.get("at_bound") else ""))  # fmt: skip
+    if e.azimuth_deg is not None:
+        lo, hi = e.azimuth_ci95_deg
+        az = f", toward {e.azimuth_deg:.0f} deg (95% CI {lo:.0f} to {hi:.0f} deg, table frame)"
+    return (f"- **{e.effect}** ({e.title}): {_fmt(e.magnitude)} {e.unit} (95% CI {_fmt(e.ci95[0])} to "
+            f"{_fmt(e.ci95[1])}){az}" + (f"; alias class {e.cls}" if "+" in (e.cls or "") else "")
+            + (" (at the edge of the searched range)" if e.at_bound else ""))  # fmt: skip
 
 
-def markdown(s: dict) -> str:
-    v, sh, noise = s["verdict"], s["shrinkage"], s["noise"]
+def markdown(s: Summary) -> str:
+    v, sh, noise = s.verdict, s.shrinkage, s.noise
     lines = [
         "# Sim-to-real gap diagnosis",
         "",
-        f"**{v['sentence']}**",
+        f"**{v.sentence}**",
         "",
-        f"Push log: `{s['pushlog']}` ({s['n_pushes']} pushes, {s['n_objects']} objects"
-        f"{', with directions' if s['has_direction'] else ', no directions'}"
-        f"{''.join(f', measured {k} held fixed' for k, on in s.get('measured', {}).items() if on)}). "
-        f"Observables used: {s['observables_note']}.",
-        f"Noise: sd {_fmt(noise['sd'])} in log d ({noise['source']})"
-        + (f", {_fmt(noise.get('stop_time_sd'))} in log stop time" if noise.get("stop_time_sd") else "")
-        + f". Table model floor: {_fmt(s['options'].get('model_floor'))} RMS log d{_floor_parts(s.get('model_floor'))}.",
+        f"Push log: `{s.pushlog}` ({s.n_pushes} pushes, {s.n_objects} objects"
+        f"{', with directions' if s.has_direction else ', no directions'}"
+        f"{''.join(f', measured {k} held fixed' for k, on in s.measured.items() if on)}). "
+        f"Observables used: {s.observables_note}.",
+        f"Noise: sd {_fmt(noise.sd)} in log d ({noise.source})"
+        + (f", {_fmt(noise.stop_time_sd)} in log stop time" if noise.stop_time_sd else "")
+        + f". Table model floor: {_fmt(s.options.model_floor)} RMS log d{_floor_parts(s.model_floor)}.",
         "",
         "## Verdict",
         "",
     ]
-    if v["verdict"] == "none":
-        lines.append(f"**None of the candidates** ({v['reason']}). Unexplained residual above the noise floor: "
-                     f"{_fmt(sh['unexplained_rms_above_floor'])} RMS log d.")  # fmt: skip
+    if v.is_none:
+        lines.append(f"**None of the candidates** ({v.reason}). Unexplained residual above the noise floor: "
+                     f"{_fmt(sh.unexplained_rms_above_floor)} RMS log d.")  # fmt: skip
     else:
         lines.append("Accepted effects (fitted jointly, with every object's mass and friction):")
         lines.append("")
-        lines += [_effect_line(e) for e in s["effects"]]
-    notes = [e["fit_alias"] for e in s["effects"] if e.get("fit_alias")]
+        lines += [_effect_line(e) for e in s.effects]
+    notes = [e.fit_alias for e in s.effects if e.fit_alias]
     if notes:
         lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
     lines += [
         "",
-        f"Held-out RMS gap in log d: {_fmt(sh['before_rms'])} with the table alone, {_fmt(sh['after_rms'])} with "
-        f"{' + '.join(sh['effects']) or 'no effect added'} (each object's mass and friction refitted at the effects "
-        f"fitted without it); noise floor {_fmt(sh['noise_floor_rms'])}; share of the gap above the floor closed: "
-        f"{_fmt(sh['gap_share_closed'], '.2f')}"
-        + (f" (stop times: {_fmt(sh['stop_time_share_closed'], '.2f')})" if sh.get("stop_time_share_closed") is not None
+        f"Held-out RMS gap in log d: {_fmt(sh.before_rms)} with the table alone, {_fmt(sh.after_rms)} with "
+        f"{' + '.join(sh.effects) or 'no effect added'} (each object's mass and friction refitted at the effects "
+        f"fitted without it); noise floor {_fmt(sh.noise_floor_rms)}; share of the gap above the floor closed: "
+        f"{_fmt(sh.gap_share_closed, '.2f')}"
+        + (f" (stop times: {_fmt(sh.stop_time_share_closed, '.2f')})" if sh.stop_time_share_closed is not None
            else "") + ".",
     ]  # fmt: skip
-    outl = s.get("outliers") or {}
-    n_out = sum(len(x) for x in outl.values())
+    n_out = sum(len(x) for x in s.outliers.values())
     if n_out:
         lines += ["", f"**Gross outliers** ({n_out}, left out of every fit so they cannot decide the verdict; "
                   "their replicates were set aside with them):", ""]  # fmt: skip
-        for obs, rows in outl.items():
+        for obs, rows in s.outliers.items():
             for r in rows:
-                lines.append(f"- {obs}: row {r['row'] + 1} (object {r['object_id']}, speed {r['speed']:g} m/s, "
-                             f"direction {r['direction']:.3g} rad)")  # fmt: skip
+                lines.append(f"- {obs}: row {r.row + 1} (object {r.object_id}, speed {r.speed:g} m/s, "
+                             f"direction {r.direction:.3g} rad)")  # fmt: skip
     lines += [
         "",
         "## Where (baseline fit residuals)",
         "",
-        f"Baseline RMS residual {_fmt(s['baseline']['rms'])}. Regions whose mean residual differs from zero "
-        f"(95% interval across objects excludes 0): {', '.join(s['localisation']['regions_beyond_noise']) or 'none'}.",
+        f"Baseline RMS residual {_fmt(s.baseline.rms)}. Regions whose mean residual differs from zero "
+        f"(95% interval across objects excludes 0): {', '.join(s.localisation.regions_beyond_noise) or 'none'}.",
         "",
         "![residuals vs speed](residuals_vs_speed.png)",
         "",
     ]
-    for factor in ("speed", "displacement", "direction", "fitted_mass", "fitted_friction"):
-        rows = s["localisation"].get(factor)
+    for factor in FACTORS:
+        rows = s.localisation.bands(factor)
         if not rows:
             continue
         lines += [
@@ -249,8 +249,8 @@ def markdown(s: dict) -> str:
             "|---|---|---|---|---|",
         ]
         for b in rows:
-            lines.append(f"| {b['band']} | {b['n_pushes']} | {_fmt(b['mean'], '+.4f')} | "
-                         f"[{_fmt(b['ci95'][0], '+.4f')}, {_fmt(b['ci95'][1], '+.4f')}] | {'yes' if b['differs'] else ''} |")  # fmt: skip
+            lines.append(f"| {b.band} | {b.n_pushes} | {_fmt(b.mean, '+.4f')} | "
+                         f"[{_fmt(b.ci95[0], '+.4f')}, {_fmt(b.ci95[1], '+.4f')}] | {'yes' if b.differs else ''} |")  # fmt: skip
         lines.append("")
     lines += [
         "## Which (candidate effects)",
@@ -261,25 +261,25 @@ def markdown(s: dict) -> str:
         "sum of squares, and it explains more than the model's own error could. The best qualifying one is accepted.",
         "",
     ]
-    for step in s.get("selection", []):
-        lines += [f"**Step {step['step']}** (on top of: {', '.join(step['model_before']) or 'the table alone'}; "
-                  f"accepted: {step['accepted'] or 'none'})", "",
+    for step in s.selection:
+        lines += [f"**Step {step.step}** (on top of: {', '.join(step.model_before) or 'the table alone'}; "
+                  f"accepted: {step.accepted or 'none'})", "",
                   "| effect | class | magnitude | 95% CI | LR (critical) | held-out gain | qualifies |",
                   "|---|---|---|---|---|---|---|"]  # fmt: skip
-        for r in step["candidates"]:
-            az = f" @ {r['azimuth_deg']:.0f} deg" if r.get("azimuth_deg") is not None else ""
-            lines.append(f"| {r['effect']} | {r['class']} | {_fmt(r['magnitude'])} {r['unit']}{az} | "
-                         f"[{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}] | {_fmt(r['lr_stat'], '.1f')} "
-                         f"({_fmt(r['lr_critical'], '.1f')}) | {_fmt(r['heldout_gain'], '.1f')} | "
-                         f"{'yes' if r['qualifies'] else '; '.join(r['reasons'])} |")  # fmt: skip
+        for r in step.candidates:
+            az = f" @ {r.azimuth_deg:.0f} deg" if r.azimuth_deg is not None else ""
+            lines.append(f"| {r.effect} | {r.cls} | {_fmt(r.magnitude)} {r.unit}{az} | "
+                         f"[{_fmt(r.ci95[0])}, {_fmt(r.ci95[1])}] | {_fmt(r.lr_stat, '.1f')} "
+                         f"({_fmt(r.lr_critical, '.1f')}) | {_fmt(r.heldout_gain, '.1f')} | "
+                         f"{'yes' if r.qualifies else '; '.join(r.reasons)} |")  # fmt: skip
         lines.append("")
-    al = s["aliasing"]
+    al = s.aliasing
     lines += [
-        f"Not identifiable from these pushes (projected effect below {s['options']['min_visible']} RMS at the "
-        f"largest magnitude): {', '.join(al['not_identifiable']) or 'none'}. Alias classes: "
-        f"{'; '.join(al['classes'])}.",
+        f"Not identifiable from these pushes (projected effect below {s.options.min_visible} RMS at the "
+        f"largest magnitude): {', '.join(al.not_identifiable) or 'none'}. Alias classes: "
+        f"{'; '.join(al.classes)}.",
     ]
-    fit_alias = [f"{n}: {al['effects'][n]['fit_alias']}" for n in al.get("aliased_with_fit", [])]
+    fit_alias = [f"{n}: {al.effects[n].fit_alias}" for n in al.aliased_with_fit]
     if fit_alias:
         lines += ["", "Candidates largely absorbed by the per-object (mass, friction) fit:", ""]
         lines += [f"- {x}" for x in fit_alias]
@@ -289,12 +289,12 @@ def markdown(s: dict) -> str:
         "",
         "## How far",
         "",
-        f"Held-out RMS gap: {_fmt(sh['before_rms'])} before, {_fmt(sh['after_rms'])} after "
-        f"({sh['effect'] or 'no effect added'}); noise floor {_fmt(sh['noise_floor_rms'])}; share of the gap above "
-        f"the floor closed: {_fmt(sh['gap_share_closed'], '.2f')}.",
-        f"Anchored disagreement (mean over objects): {_fmt(sh['anchored_before_mean'])} before, "
-        f"{_fmt(sh['anchored_after_mean'])} after; floor {_fmt(sh['anchored_floor'])}; share closed "
-        f"{_fmt(sh['anchored_share_closed'], '.2f')}.",
+        f"Held-out RMS gap: {_fmt(sh.before_rms)} before, {_fmt(sh.after_rms)} after "
+        f"({sh.effect or 'no effect added'}); noise floor {_fmt(sh.noise_floor_rms)}; share of the gap above "
+        f"the floor closed: {_fmt(sh.gap_share_closed, '.2f')}.",
+        f"Anchored disagreement (mean over objects): {_fmt(sh.anchored_before_mean)} before, "
+        f"{_fmt(sh.anchored_after_mean)} after; floor {_fmt(sh.anchored_floor)}; share closed "
+        f"{_fmt(sh.anchored_share_closed, '.2f')}.",
         "",
         "![before and after](before_after.png)",
         "",

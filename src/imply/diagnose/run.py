@@ -1,9 +1,13 @@
-"""Running the diagnostic on push-log files: set up once (table, candidates, effect tables), diagnose each log.
+"""Running the diagnostic on push-log files: one checked request, its shared setup, then each log's report.
 
-:func:`prepare` loads what every diagnosis of a session shares; :func:`diagnose_file`
-diagnoses one push log into a report folder, written beside it and moved in whole
-(:func:`imply.io.write_folder`), so a report is never half-written and nothing in the
-folder that an earlier report did not write is touched.
+A :class:`DiagnoseRequest` holds everything a run needs, checked once by whoever builds
+it (the CLI: :func:`imply.cli.common.diagnose_request`): the baseline table, the
+candidates, the settings, the effect-table cache, and every push log (read and checked
+against the table) with the report folder it goes to (checked by
+:func:`check_report_folder`). :func:`run` loads what every diagnosis shares (the effect
+tables, :func:`prepare`), then diagnoses each log into its folder, written beside it and
+moved in whole (:func:`imply.io.write_folder`), so a report is never half-written and
+nothing in the folder that an earlier report did not write is touched.
 """
 
 from __future__ import annotations
@@ -13,7 +17,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from imply.diagnose.analysis import DiagnosisConfig, diagnose
+from tqdm.auto import tqdm
+
+from imply.diagnose.analysis import DiagnosisConfig, Summary, diagnose
 from imply.diagnose.candidates import Candidate, library_effects, needs_across
 from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
@@ -26,50 +32,65 @@ log = logging.getLogger("imply.diagnose")
 
 
 @dataclass(frozen=True)
-class Session:
-    """What the diagnoses of one run share."""
+class Report:
+    """One push log (read and checked against the table) and the report folder it goes to (checked)."""
+
+    pushlog: PushLog
+    folder: Path
+
+
+@dataclass(frozen=True, kw_only=True)
+class DiagnoseRequest:
+    """A run of diagnoses, checked: the table, candidates, settings, effect-table cache and the reports to write."""
 
     table: PushTable
-    candidates: list[Candidate]
+    candidates: tuple[Candidate, ...]
+    options: DiagnosisConfig
+    grid: CoarseGrid
+    cache_dir: Path | None
+    threads: int = 0
+    force: bool = False  # replace the files an earlier report wrote in a report folder
+    reports: tuple[Report, ...] = ()
+
+
+@dataclass(frozen=True)
+class Session:
+    """What the diagnoses of one run share: the settings with the tables' model floors, and the tables."""
+
+    table: PushTable
+    candidates: tuple[Candidate, ...]
     options: DiagnosisConfig
     effect_tables: EffectTables
 
 
 def effect_tables(
     table: PushTable,
-    candidates: list[Candidate],
+    candidates: list[Candidate] | tuple[Candidate, ...],
+    *,
     options: DiagnosisConfig,
     grid: CoarseGrid,
     cache_dir: str | os.PathLike | None,
-    *,
     nthread: int = 0,
     progress: bool = True,
 ) -> EffectTables:
     """The effect tables the candidates need (from the cache, or simulated into it)."""
     return load_or_build(
-        table, library_effects(candidates), grid, cache_dir, nthread=nthread, progress=progress,
-        across=needs_across(candidates), stop_time=options.use_stop_time,
+        table, library_effects(list(candidates)), grid, cache_dir, nthread=nthread, progress=progress,
+        across=needs_across(list(candidates)), stop_time=options.use_stop_time,
     )  # fmt: skip
 
 
-def prepare(
-    table: PushTable,
-    candidates: list[Candidate],
-    options: DiagnosisConfig,
-    grid: CoarseGrid,
-    cache_dir: str | os.PathLike | None,
-    *,
-    nthread: int = 0,
-    progress: bool = True,
-) -> Session:
+def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
     """Load (or simulate and cache) the effect tables; the floors default to the tables' measured ones."""
-    etables = effect_tables(table, candidates, options, grid, cache_dir, nthread=nthread, progress=progress)
+    options = request.options
+    etables = effect_tables(request.table, request.candidates, options=options, grid=request.grid,
+                            cache_dir=request.cache_dir, nthread=request.threads, progress=progress)  # fmt: skip
     floor = etables.meta.get("model_floor") or {}
     if options.model_floor is None:
         options = options.replace(model_floor=floor.get("rms"))
     if options.stop_time_floor is None and floor.get("stop_time"):
         options = options.replace(stop_time_floor=floor["stop_time"]["rms"])
-    return Session(table, candidates, options, etables)
+    return Session(request.table, request.candidates, options, etables)
 
 
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable) -> PushLog:
@@ -82,19 +103,22 @@ def check_report_folder(folder: str | os.PathLike, force: bool, inputs) -> None:
     check_folder(folder, REPORT_FILES, force, inputs)
 
 
-def diagnose_file(
-    pushlog_path: str | os.PathLike, output: str | os.PathLike, session: Session, *, force: bool = False
-) -> dict:
-    """Diagnose one push log into the report folder ``output``; returns the summary."""
-    check_report_folder(output, force, [pushlog_path])
-    pushlog = read_checked_pushlog(pushlog_path, session.table)
+def diagnose_report(report: Report, session: Session, *, force: bool = False) -> Summary:
+    """Diagnose one push log into its report folder; returns the summary."""
     opts = session.options
-    problem = Problem(
-        pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
+    problem = Problem.of(
+        report.pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
         use_stop_time=opts.use_stop_time,
     )  # fmt: skip
-    diag = diagnose(problem, session.candidates, opts)
-    write_folder(Path(output), lambda tmp: write_report(diag, tmp), force=force)
-    v = diag.summary["verdict"]
-    log.info("%s: verdict %s (%s) -> %s", pushlog_path, v["verdict"], v["reason"], output)
+    diag = diagnose(problem, list(session.candidates), opts)
+    write_folder(report.folder, lambda tmp: write_report(diag, tmp), force=force)
+    v = diag.summary.verdict
+    log.info("%s: verdict %s (%s) -> %s", report.pushlog.path, v.verdict, v.reason, report.folder)
     return diag.summary
+
+
+def run(request: DiagnoseRequest, *, progress: bool = True) -> list[Summary]:
+    """Every report of a checked request: the shared setup once, then each push log's diagnosis."""
+    session = prepare(request, progress=progress)
+    reports = tqdm(request.reports, desc="diagnoses", unit="log", disable=not progress or len(request.reports) < 2)
+    return [diagnose_report(r, session, force=request.force) for r in reports]

@@ -1,0 +1,196 @@
+"""Step 3 of the diagnosis: which candidates these pushes can tell apart, from each other and from the fit.
+
+Each candidate's change of the pushes per unit magnitude (a secant at half its bound),
+with each object's (log m, log mu) directions projected out. What the projection removes
+is what the per-object fit absorbs: a candidate that loses at least ``fit_alias_share``
+of its change this way is reported as aliased with the fit, naming the parameter that
+absorbs it (friction, mass, or both) and how measuring it would help. A candidate whose
+projected change at its largest magnitude is below ``min_visible`` (RMS, in either
+observable) is not identifiable; the others form alias classes when their projected
+changes are nearly parallel (|cos| >= ``alias_cos``; for two-component candidates the
+largest canonical correlation).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from imply.diagnose.candidates import Candidate, Model
+from imply.diagnose.fit import ObjectFit, Problem
+from imply.diagnose.records import Record, json_field
+from imply.options import Config
+
+NOT_IDENTIFIABLE = "not identifiable"
+
+
+@dataclass(frozen=True, kw_only=True)
+class CandidateAliasing(Record):
+    """One candidate: how much of it these pushes see, what the per-object fit absorbs, its alias class."""
+
+    raw_rms_at_bound: float
+    visible_rms_at_bound: float
+    visible_stop_time_rms_at_bound: float | None
+    visible_share: float
+    absorbed_by_fit: float
+    absorbed_by_mass: float
+    absorbed_by_friction: float
+    identifiable: bool
+    fit_alias: str  # a sentence when the per-object fit absorbs most of it, else ""
+    cls: str = json_field(key="class")  # its alias class ("tilt+height"), or "not identifiable"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Aliasing(Record):
+    """Every candidate's aliasing, the alias classes and the cosines between projected changes."""
+
+    effects: dict[str, CandidateAliasing]
+    classes: list[str]
+    not_identifiable: list[str]
+    aliased_with_fit: list[str]
+    projected_cosine: dict[str, float]
+
+
+def _reference(c: Candidate) -> np.ndarray:
+    """Half the candidate's largest magnitude, per component (toward the larger side)."""
+    ref = np.where(np.abs(np.asarray(c.hi)) >= np.abs(np.asarray(c.lo)), c.hi, c.lo) * 0.5
+    if c.radius is not None:
+        ref = ref / np.sqrt(2.0)
+    return np.asarray(ref, float)
+
+
+Projection = Callable[[np.ndarray], np.ndarray]
+
+
+def _projector(problem: Problem, fit: ObjectFit) -> tuple[Projection, Projection, Projection]:
+    """Functions removing each object's (log m, log mu) directions (both, or each alone) from row vectors."""
+    lm, lu = fit.lm[None, :], fit.lu[None, :]
+    r = problem.residuals(Model(), np.zeros((3, 0)), np.concatenate([lm, lm + 1e-4, lm]),
+                          np.concatenate([lu, lu, lu + 1e-4]))  # fmt: skip
+    jm, ju = (r[1] - r[0]) / 1e-4, (r[2] - r[0]) / 1e-4
+    jm, ju = problem._free_columns(jm, ju)
+    ro = problem._row_obj()
+    n = problem.n_obj
+
+    def onto(x: np.ndarray, cols: list[np.ndarray]) -> np.ndarray:
+        cols = [c for c in cols if np.any(c != 0)]
+        if not cols:
+            return x
+        k = len(cols)
+        A = np.zeros((n, k, k))
+        b = np.zeros((n, k))
+        for a in range(k):
+            b[:, a] = np.bincount(ro, cols[a] * x, minlength=n)
+            for c in range(k):
+                A[:, a, c] = np.bincount(ro, cols[a] * cols[c], minlength=n)
+        A += 1e-12 * np.eye(k)
+        coef = np.linalg.solve(A, b[..., None])[..., 0]
+        return x - sum(coef[ro, a] * cols[a] for a in range(k))
+
+    return (lambda x: onto(x, [jm, ju])), (lambda x: onto(x, [jm])), (lambda x: onto(x, [ju]))
+
+
+def _canonical(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest canonical correlation between the column spaces of a and b."""
+    qa, _ = np.linalg.qr(a)
+    qb, _ = np.linalg.qr(b)
+    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max())
+
+
+def fit_alias_text(c: Candidate, *, absorbed: float, by_mass: float, by_friction: float, k_free: int,
+                   share: float) -> str:  # fmt: skip
+    """A sentence when the per-object (mass, friction) fit absorbs at least ``share`` of what ``c`` does."""
+    if absorbed < share:
+        return ""
+    if by_friction >= share and by_friction >= by_mass:
+        param, fix = "a friction change", "friction is measured"
+    elif by_mass >= share:
+        param, fix = "a mass change", "mass is measured"
+    else:
+        param = "a change of mass and friction together"
+        fix = "mass or friction is measured" if k_free == 2 else "both are measured"
+    return (f"{c.phrase} here is {absorbed:.0%} indistinguishable from {param} of each object (the per-object fit "
+            f"absorbs it) unless {fix}")  # fmt: skip
+
+
+def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, opts: Config) -> Aliasing:
+    """Projected sensitivities, identifiability, alias classes, and aliasing with the per-object fit
+    (``opts``: ``min_visible``, ``alias_cos``, ``fit_alias_share``)."""
+    both, mass_only, fric_only = _projector(problem, fit)
+    n_d = problem.y.size
+    lm, lu = fit.lm[None, :], fit.lu[None, :]
+    r0 = problem.residuals(Model(), np.zeros((1, 0)), lm, lu)[0]
+    rows, vecs = {}, {}
+    for c in candidates:
+        model = Model((c,))
+        ref = _reference(c)
+        ths = []
+        for j in range(c.dim):
+            t = np.zeros(c.dim)
+            t[j] = ref[j]
+            ths.append(t)
+        rr = problem.residuals(model, np.stack(ths), np.repeat(lm, c.dim, 0), np.repeat(lu, c.dim, 0))
+        S = np.stack([(rr[j] - r0) / ref[j] for j in range(c.dim)], 1)  # (rows, dim)
+        P = np.stack([both(S[:, j]) for j in range(c.dim)], 1)
+        ext = float(np.hypot(*c.scale())) if c.radius is None and c.dim == 2 else float(c.radius or c.scale()[0])
+        raw2 = float((S**2).sum())
+        vis2 = float((P**2).sum())
+
+        def rms_part(M: np.ndarray, part: slice, sd) -> float:
+            x = M[part] * np.broadcast_to(sd, (n_d,))[:, None]  # back to log units
+            return float(np.sqrt(np.mean((x**2).sum(1)) if x.size else 0.0))
+
+        dpart = slice(0, n_d)
+        tpart = slice(n_d, 2 * n_d)
+        vis_d = rms_part(P, dpart, problem.sd_d) * ext
+        vis_t = rms_part(P, tpart, problem.sd_t) * ext if problem.use_t else 0.0
+        absorbed = 1.0 - vis2 / raw2 if raw2 > 0 else 0.0
+        by_mass = by_fric = 0.0
+        if raw2 > 0:
+            if problem.fixed_lm is None:
+                by_mass = 1.0 - float(sum((mass_only(S[:, j]) ** 2).sum() for j in range(c.dim))) / raw2
+            if problem.fixed_lu is None:
+                by_fric = 1.0 - float(sum((fric_only(S[:, j]) ** 2).sum() for j in range(c.dim))) / raw2
+        rows[c.name] = dict(
+            raw_rms_at_bound=rms_part(S, dpart, problem.sd_d) * ext, visible_rms_at_bound=vis_d,
+            visible_stop_time_rms_at_bound=vis_t if problem.use_t else None,
+            visible_share=1.0 - absorbed, absorbed_by_fit=absorbed,
+            absorbed_by_mass=by_mass, absorbed_by_friction=by_fric,
+            identifiable=bool(max(vis_d, vis_t) >= opts.min_visible),
+            fit_alias=fit_alias_text(c, absorbed=absorbed, by_mass=by_mass, by_friction=by_fric,
+                                     k_free=problem.k_free, share=opts.fit_alias_share),
+        )  # fmt: skip
+        vecs[c.name] = P
+    ident = [c.name for c in candidates if rows[c.name]["identifiable"]]
+    cos: dict[str, float] = {}
+    parent = {n: n for n in ident}
+
+    def root(n: str) -> str:
+        while parent[n] != n:
+            n = parent[n]
+        return n
+
+    for i, a in enumerate(ident):
+        for b in ident[i + 1 :]:
+            va, vb = vecs[a], vecs[b]
+            if va.shape[1] == 1 and vb.shape[1] == 1:
+                cval = float(va[:, 0] @ vb[:, 0] / (np.linalg.norm(va) * np.linalg.norm(vb) + 1e-300))
+            else:
+                cval = _canonical(va, vb)
+            cos[f"{a}|{b}"] = cval
+            if abs(cval) >= opts.alias_cos:
+                parent[root(b)] = root(a)
+    classes: dict[str, list[str]] = {}
+    for n in ident:
+        classes.setdefault(root(n), []).append(n)
+    class_of = {n: "+".join(members) for members in classes.values() for n in members}
+    effects = {n: CandidateAliasing(**row, cls=class_of.get(n, NOT_IDENTIFIABLE)) for n, row in rows.items()}
+    return Aliasing(
+        effects=effects,
+        classes=sorted(set(class_of.values())),
+        not_identifiable=[c.name for c in candidates if not effects[c.name].identifiable],
+        aliased_with_fit=[c.name for c in candidates if effects[c.name].fit_alias],
+        projected_cosine=cos,
+    )

@@ -1,0 +1,227 @@
+"""Each step of the diagnosis on small synthetic logs of the closed-form table (no simulation, no effect tables).
+
+The logs' pushes follow ``analytic_log_d`` with the speed and friction effects the
+diagnostic models without tables (speed gain and offset, anisotropic friction), plus
+Gaussian noise; replicate pushes repeat a push with fresh noise.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import analytic_log_d
+from imply.diagnose import candidates
+from imply.diagnose.aliasing import aliasing
+from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
+from imply.diagnose.candidates import Model
+from imply.diagnose.fit import Problem
+from imply.diagnose.localisation import localise
+from imply.diagnose.model_error import model_error
+from imply.diagnose.noise import estimate_noise
+from imply.diagnose.pushlog import PushLog
+from imply.diagnose.selection import forward_select
+from imply.diagnose.shrinkage import heldout, share_closed, shrinkage
+
+SPEEDS = (0.3, 0.5, 0.7, 0.9)
+OPTS = DiagnosisConfig(grid=41, scan=5, max_effects=2)
+TABLELESS = ["speed_gain", "speed_offset", "anisotropic"]
+
+
+def make_log(*, seed: int = 0, gain: float = 0.0, offset: float = 0.0, aniso: tuple[float, float] = (0.0, 0.0),
+             sd: float = 0.02, replicates: int = 2, n_objects: int = 6, measured_mass: bool = True,
+             outlier: float = 0.0) -> PushLog:  # fmt: skip
+    """A push log of the closed-form world: each object pushed once per speed in a random direction."""
+    rng = np.random.default_rng(seed)
+    mass = np.geomspace(0.3, 1.5, n_objects)
+    friction = rng.permutation(np.geomspace(0.15, 0.45, n_objects))
+    obj = np.repeat(np.arange(n_objects), len(SPEEDS))
+    v = np.tile(SPEEDS, n_objects).astype(float)
+    phi = rng.uniform(0, 2 * np.pi, v.size)
+    obj, v, phi = (np.repeat(x, replicates) for x in (obj, v, phi))
+    mu = friction[obj] * (1 + aniso[0] * np.cos(2 * phi) + aniso[1] * np.sin(2 * phi))
+    log_d = analytic_log_d(v * (1 + gain) + offset, mass[obj], mu) + rng.normal(0, sd, v.size)
+    log_d[5] += outlier
+    names = [f"box{i}" for i in obj]
+    frame = pd.DataFrame({"object_id": names, "speed": v, "displacement": np.exp(log_d), "direction": phi})
+    return PushLog(path="<synthetic>", frame=frame, objects=[f"box{i}" for i in range(n_objects)], obj=obj, speed=v,
+                   displacement=np.exp(log_d), direction=phi, has_direction=True,
+                   mass=mass if measured_mass else None)  # fmt: skip
+
+
+def problem_of(log: PushLog, table) -> Problem:
+    return Problem.of(log, table, None, grid=OPTS.grid)
+
+
+# -- the problem: immutable, one prediction shape ------------------------------------------
+
+
+def test_problem_is_changed_only_into_a_new_one(analytic_table):
+    prob = problem_of(make_log(), analytic_table)
+    noisy = prob.with_noise(0.05, None)
+    assert prob.noise_d == 1.0 and noisy.noise_d == 0.05
+    np.testing.assert_allclose(noisy.sd_d, 0.05)
+    np.testing.assert_allclose(prob.sd_d, 1.0)
+    weighted = noisy.with_weights(np.r_[0.0, np.ones(prob.y.size - 1)], None)
+    assert weighted.n_rows == prob.n_rows - 1 and noisy.n_rows == prob.n_rows
+    with_err = weighted.with_model_error(np.full(prob.y.size, 0.12), None)
+    np.testing.assert_allclose(with_err.sd_d, 0.13)
+    np.testing.assert_allclose(weighted.sd_d, 0.05)
+    with pytest.raises(AttributeError):
+        prob.noise_d = 2.0
+
+
+def test_prediction_keeps_what_it_extrapolated(analytic_table):
+    prob = problem_of(make_log(), analytic_table)
+    lm, lu = np.zeros(prob.n_cond) + np.log(0.5), np.zeros(prob.n_cond) + np.log(0.3)
+    inside = prob.predict(Model((candidates.CANDIDATES["speed_gain"],)), np.array([0.05]), lm, lu)
+    size_d, size_t = inside.extrapolation_sizes()
+    assert not size_d.any() and size_t is None and inside.extrapolated_d is None
+    # +0.2 carries the 0.9 m/s pushes to 1.08 m/s, beyond the table's 1.05
+    beyond = prob.predict(Model((candidates.CANDIDATES["speed_offset"],)), np.array([0.18]), lm, lu)
+    size_d, _ = beyond.extrapolation_sizes()
+    assert (size_d[prob.c_v == 0.9] > 0).all() and not size_d[prob.c_v < 0.8].any()
+    exact = analytic_log_d(prob.c_v + 0.18, 0.5, 0.3)
+    np.testing.assert_allclose(beyond.log_d, exact, atol=0.01)
+
+
+# -- step 1: noise and outliers --------------------------------------------------------------
+
+
+def test_noise_from_replicates_and_the_outlier_left_out(analytic_table):
+    prob = problem_of(make_log(seed=3, sd=0.02, outlier=0.8), analytic_table)
+    noise = estimate_noise(prob, OPTS)
+    d = noise.displacement
+    assert d.source == "replicate pushes" and abs(d.sd - 0.02) < 0.008
+    assert d.outliers == [5] and d.set_aside == [4]  # its replicate is set aside with it
+    assert noise.weights_d[4] == 0 and noise.weights_d[5] == 0 and noise.weights_d.sum() == prob.y.size - 2
+    assert noise.stop_time is None and noise.weights_t is None
+    fitted = noise.apply(prob)
+    assert fitted.noise_d == d.sd and fitted.n_rows == prob.y.size - 2 and prob.n_rows == prob.y.size
+
+
+def test_noise_option_and_no_replicates(analytic_table):
+    prob = problem_of(make_log(seed=4), analytic_table)
+    assert estimate_noise(prob, OPTS.replace(noise_sd=0.05)).displacement.source == "option"
+    single = estimate_noise(problem_of(make_log(seed=4, replicates=1), analytic_table), OPTS).displacement
+    assert single.source.startswith("residual variance") and single.replicate_pairs == 0
+
+
+# -- step 2: localisation --------------------------------------------------------------------
+
+
+def test_localisation_finds_the_speed_band_off(analytic_table):
+    prob = problem_of(make_log(seed=5, sd=0.01), analytic_table)
+    prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
+    resid = np.where(prob.v == 0.9, 0.05, 0.0) + np.random.default_rng(0).normal(0, 0.01, prob.y.size)
+    where = localise(prob, base.objects, resid, alpha=0.05)
+    fast = [b for b in where.speed if b.band == "0.9"][0]
+    assert fast.differs and abs(fast.mean - 0.05) < 0.01 and fast.n_objects == 6
+    assert "speed=0.9" in where.regions_beyond_noise
+    assert not [b for b in where.speed if b.band == "0.3"][0].differs
+    assert where.direction is not None and len(where.object) == 6
+
+
+# -- step 3: aliasing ----------------------------------------------------------------------
+
+
+def test_a_speed_gain_with_weighed_masses_is_aliased_with_friction(analytic_table):
+    prob = problem_of(make_log(seed=6), analytic_table)
+    prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
+    alias = aliasing(prob, candidates.get(TABLELESS), fit=base.objects, opts=OPTS)
+    gain = alias.effects["speed_gain"]
+    assert gain.absorbed_by_fit > 0.5 and "friction change" in gain.fit_alias
+    assert gain.fit_alias.startswith("a speed gain here is") and gain.fit_alias.endswith("unless friction is measured")
+    assert alias.effects["anisotropic"].identifiable and alias.effects["anisotropic"].fit_alias == ""
+    assert alias.aliased_with_fit == [n for n in TABLELESS if alias.effects[n].fit_alias]
+    assert set(alias.classes) == {a.cls for a in alias.effects.values() if a.identifiable}
+
+
+# -- step 4: forward selection ---------------------------------------------------------------
+
+
+def _selected(log: PushLog, table):
+    prob = problem_of(log, table)
+    prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
+    cands = candidates.get(TABLELESS)
+    alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
+    return prob, base, forward_select(prob, base, cands, alias=alias, opts=OPTS)
+
+
+def test_forward_selection_finds_a_speed_offset(analytic_table):
+    prob, base, sel = _selected(make_log(seed=7, offset=0.05), analytic_table)
+    assert [c.name for c in sel.accepted] == ["speed_offset"]
+    assert abs(sel.fit.theta[0] - 0.05) < 0.01
+    first = sel.steps[0]
+    assert first[0].candidate.name == "speed_offset" and first[0].qualifies
+    assert [r.heldout_gain for r in first] == sorted((r.heldout_gain for r in first), reverse=True)
+    # the accepted effect brings its model error: the selection says what it fitted under
+    assert sel.problem is not prob and sel.problem.noise_d == prob.noise_d
+
+
+def test_forward_selection_accepts_nothing_on_a_null_log(analytic_table):
+    _, base, sel = _selected(make_log(seed=8), analytic_table)
+    assert sel.accepted == [] and sel.fit is base and len(sel.steps) == 1
+    assert not any(r.qualifies for r in sel.steps[0])
+
+
+def test_model_error_counts_the_numerical_floor_and_interpolation(analytic_table):
+    prob = problem_of(make_log(seed=9), analytic_table)
+    objects = prob.initial_fit()
+    # a speed offset reads the table between its speeds, where cubic and linear interpolation differ
+    model, theta = Model((candidates.CANDIDATES["speed_offset"],)), np.array([0.023])
+    err = model_error(prob, model, theta, objects=objects, opts=OPTS.replace(model_floor=0.01))
+    interpolation, _ = prob.interpolation_indicator(objects, model, theta)
+    assert interpolation.max() > 1e-4
+    np.testing.assert_allclose(err.log_d, np.sqrt(0.01**2 + interpolation**2))
+    assert err.log_t is None
+    assert (err.apply(prob).sd_d > prob.sd_d).all()
+
+
+# -- step 5: shrinkage ---------------------------------------------------------------------
+
+
+def test_share_closed():
+    assert share_closed(0.1, 0.02, 0.02) == pytest.approx(1.0)
+    assert share_closed(0.1, 0.06, 0.02) == pytest.approx(0.5)
+    assert share_closed(0.02, 0.01, 0.02) is None  # no gap above the floor
+    assert share_closed(0.1, 0.05, None) is None
+
+
+def test_shrinkage_of_a_found_speed_offset(analytic_table):
+    _, base, sel = _selected(make_log(seed=7, offset=0.05), analytic_table)
+    prob = sel.problem
+    rd, rt = baseline_residuals(prob, base)
+    held = heldout(prob, sel.fit, 0)
+    shrink = shrinkage(prob, sel.fit, resid_d=rd, resid_t=rt, held=held)
+    assert shrink.effects == ["speed_offset"] and shrink.effect == "speed_offset"
+    assert shrink.before_rms > 3 * shrink.after_rms and shrink.gap_share_closed > 0.9
+    assert shrink.judged == shrink.both_share_closed and shrink.stop_time_share_closed is None
+    assert shrink.lack_of_fit.stop_time is None and shrink.lack_of_fit.displacement.n == prob.n_rows
+
+
+# -- the whole pipeline, and its summary as JSON -------------------------------------------
+
+
+def test_pipeline_names_anisotropy_and_its_summary_reads_back(analytic_table, tmp_path):
+    from imply.diagnose.report import write_report
+
+    prob = problem_of(make_log(seed=10, aniso=(0.1, 0.1)), analytic_table)
+    diag = diagnose(prob, candidates.get(TABLELESS), OPTS.replace(model_floor=0.0, max_effects=1))
+    s = diag.summary
+    assert s.verdict.effects == ["anisotropic"], s.verdict
+    aniso = s.effects[0]
+    assert abs(aniso.magnitude - np.hypot(0.1, 0.1)) < 0.03
+    assert abs((aniso.azimuth_deg - 22.5 + 90) % 180 - 90) < 10
+    assert s.verdict.sentence.startswith("Friction is 1") and " higher along 2" in s.verdict.sentence
+    write_report(diag, tmp_path)
+    written = json.loads((tmp_path / "summary.json").read_text())
+    assert written["verdict"]["class"] == "anisotropic" and "cls" not in written["verdict"]
+    ranked = {r["effect"]: r for r in written["ranking"]}
+    assert "azimuth_deg" in ranked["anisotropic"] and "azimuth_deg" not in ranked["speed_gain"]  # absent, not null
+    back = Summary.from_dict(written)
+    assert back.to_dict() == written
+    assert (back.verdict, back.effects, back.shrinkage, back.options) == (s.verdict, s.effects, s.shrinkage, s.options)
