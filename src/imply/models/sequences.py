@@ -14,7 +14,8 @@ The last query frame must be the clip's last (the box at rest): that is the fram
 latent readout reads.
 
 The action of a step is its push's commanded speed (m/s); the state is the frame's
-time divided by the clip's last frame time (see :mod:`imply.models.ac_predictor`).
+nominal time divided by the layout's ``rest_state`` (:meth:`Layout.frame_states`; see
+:mod:`imply.models.ac_predictor`).
 Steps are gathered lazily from the float16 feature array, so a training set costs
 its feature file and a few index arrays in memory.
 """
@@ -25,15 +26,21 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+import pandas as pd
 import torch
 
 from imply.models.ac_predictor import normalise_tokens
+from imply.models.features import FeatureSplit
 from imply.options import Config
 
 
 @dataclass(frozen=True, kw_only=True)
 class Layout(Config):
-    """How a variant lays out its sequence; from config ``model.variants.<name>``."""
+    """How a variant lays out its sequence; from config ``model.variants.<name>``.
+
+    ``rest_state`` is the state token of the clip's last frame (config ``model.rest_state``,
+    the same for every variant, which the commands pass in beside the variant's fields).
+    """
 
     config_key: ClassVar[str] = "model.variants"
 
@@ -42,6 +49,7 @@ class Layout(Config):
     query_context: int = 2
     n_frames: int = 8
     query_frames: tuple[int, ...] | None = None
+    rest_state: float = 1.0
 
     def __post_init__(self) -> None:
         if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
@@ -62,8 +70,28 @@ class Layout(Config):
     def without_calibration(self) -> Layout:
         """The same query steps with no calibration steps (the context-free condition)."""
         return Layout(
-            calib=False, query_context=self.query_context, n_frames=self.n_frames, query_frames=self.query_frames
+            calib=False,
+            query_context=self.query_context,
+            n_frames=self.n_frames,
+            query_frames=self.query_frames,
+            rest_state=self.rest_state,
         )
+
+    def frame_states(self, meta: pd.DataFrame) -> np.ndarray:
+        """(n_frames,) state of each frame index of the clips in ``meta`` (their metadata).
+
+        Frames 0..T-2 are at the clip's nominal frame times (the same for every clip;
+        the median of columns ``t0``.. where present, else evenly spaced); the last frame
+        shows the box at rest, at a time that depends on the object, so it gets the
+        constant ``rest_state`` instead: a state must not leak the outcome.
+        """
+        t = self.n_frames
+        cols = [f"t{k}" for k in range(t - 1)]
+        if all(c in meta.columns for c in cols):
+            nominal = meta[cols].median(axis=0).to_numpy(dtype=float)
+        else:
+            nominal = np.arange(t - 1, dtype=float) / max(t - 1, 1)
+        return np.append(nominal, self.rest_state)
 
     @property
     def n_calib_steps(self) -> int:
@@ -110,20 +138,17 @@ class Sequences:
 
 
 def build_sequences(
-    features: np.ndarray,
-    query_clip: np.ndarray,
-    calib_clips: np.ndarray | None,
-    speed: np.ndarray,
-    frame_time: np.ndarray,
-    layout: Layout,
+    split: FeatureSplit, layout: Layout, *, query_clip: np.ndarray, calib_clips: np.ndarray | None
 ) -> Sequences:
-    """Sequences for N queries.
+    """Sequences of ``split``'s clips for N queries.
 
     query_clip: (N,) clip index of each query push; calib_clips: (N, 2) clip indices
     of the calibration pushes placed in context (any object's: the swap condition
-    passes another object's), required when ``layout.calib``; speed: (n_clips,)
-    commanded speed of every clip; frame_time: (n_clips, n_frames) seconds.
+    passes another object's), required when ``layout.calib``. The action of a step is
+    its clip's commanded speed (metadata ``speed``), its state from
+    :meth:`Layout.frame_states`.
     """
+    features = split.tokens
     n_frames = features.shape[1]
     if n_frames != layout.n_frames:
         raise ValueError(f"features have {n_frames} frames per clip, the layout expects {layout.n_frames}")
@@ -145,15 +170,14 @@ def build_sequences(
         frames.append(np.full(n, f))
     clip = np.stack(clips, axis=1)
     frame = np.stack(frames, axis=1)
-    speed = np.asarray(speed, dtype=np.float64)
-    frame_time = np.asarray(frame_time, dtype=np.float64)
-    last = np.maximum(frame_time[:, -1:], 1e-9)
-    rel_time = frame_time / last
+    speed = np.asarray(split.meta["speed"].to_numpy(), dtype=np.float64)
+    state = np.asarray(np.broadcast_to(layout.frame_states(split.meta), (len(split.meta), n_frames)), dtype=np.float64)
+    rel_state = state / np.maximum(state[:, -1:], 1e-9)  # the last frame's state is 1
     return Sequences(
         features=features,
         clip=clip,
         frame=frame,
         action=speed[clip],
-        state=rel_time[clip, frame],
+        state=rel_state[clip, frame],
         n_context=layout.n_context,
     )
