@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         tuple(grid) if grid else None
     )
     objects = training_objects(split)
-    predicted = final_tokens(model, training_sequences(split, layout, objects), 200)
+    predicted = final_tokens(model, training_sequences(split, layout, objects), batch_size=200)
     real = real_last_tokens(split, objects.query)
     speed = split.meta["speed"].to_numpy(dtype=float)[objects.query]
     truth = np.log(split.meta["displacement"].to_numpy(dtype=float)[objects.query])

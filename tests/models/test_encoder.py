@@ -114,11 +114,11 @@ def test_cpu_pretrain_and_features(tmp_path):
     cfg = PretrainConfig(steps=8, batch_size=8, warmup=2, mask_cols=(1, 2), pred_dim=16, pred_heads=2)
     model, hist = pretrain_encoder(flat, ViTConfig.from_dict(TINY_ARCH), cfg, progress=False)
     assert np.isfinite(hist["loss"]).all()
-    save_cpu_encoder(tmp_path / "enc.pt", model, (16, 64))
+    save_cpu_encoder(tmp_path / "enc.pt", model, input_size=(16, 64))
     enc = load({"kind": "cpu", "device": "cpu"}, tmp_path / "enc.pt")
     tokens, grid = encode_clips(enc, frames, batch_size=7, progress=False)
     assert tokens.shape == (9, 4, 4, 24) and tokens.dtype == np.float16 and grid == (1, 4)
-    save_features(tmp_path / "f.npz", tokens, np.arange(9), grid, enc.name)
+    save_features(tmp_path / "f.npz", tokens, clip_id=np.arange(9), grid=grid, name=enc.name)
     back = load_features(tmp_path / "f.npz")
     assert np.array_equal(back["tokens"], tokens) and back["grid"] == (1, 4)
     # the same seed gives the same weights

@@ -66,7 +66,7 @@ def test_evaluation_reads_the_last_frame_the_training_rollout_predicts(tmp_path)
         trained = rollout(
             model, frames, actions, states, n_context=seqs.n_context, context_pass=model.run(frames, actions, states)
         )
-    evaluated = final_tokens(model, seqs, 4)  # in batches of 4
+    evaluated = final_tokens(model, seqs, batch_size=4)  # in batches of 4
     assert evaluated.shape == (10, 4, 8)
     assert np.allclose(evaluated, trained[:, -1].numpy(), atol=1e-5)
-    assert np.array_equal(evaluated, final_tokens(model, seqs, 10))
+    assert np.array_equal(evaluated, final_tokens(model, seqs, batch_size=10))

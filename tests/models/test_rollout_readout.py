@@ -31,7 +31,7 @@ def test_rollout_readout_reads_the_models_predictions(tmp_path):
     own = load_latent_readout(tmp_path / "r.npz")
     model, _, _ = load_model(tmp_path / "m.pt")
     objects = training_objects(split)
-    tokens = final_tokens(model, training_sequences(split, layout, objects), 64)
+    tokens = final_tokens(model, training_sequences(split, layout, objects), batch_size=64)
     truth = np.log(split.meta["displacement"].to_numpy()[objects.query])
     err_own = np.mean((own.predict_log(tokens) - truth) ** 2)
     err_real = np.mean((real.predict_log(tokens) - truth) ** 2)

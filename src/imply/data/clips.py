@@ -227,7 +227,7 @@ def render_split(
 
 
 def save_split(
-    npz_path: str | Path, csv_path: str | Path, frames: np.ndarray, meta: pd.DataFrame, cfg: ClipsConfig
+    npz_path: str | Path, csv_path: str | Path, *, frames: np.ndarray, meta: pd.DataFrame, cfg: ClipsConfig
 ) -> None:
     """Write a split's frames (.npz) and metadata (.csv); format in the module docstring."""
     write_npz(

@@ -204,7 +204,7 @@ def strip_prefixes(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
 
 
 def load_vjepa2_pt(
-    path: str | os.PathLike, arch: str | dict, input_size: tuple[int, int], key: str = "target_encoder"
+    path: str | os.PathLike, *, arch: str | dict, input_size: tuple[int, int], key: str = "target_encoder"
 ) -> ViTFrameEncoder:
     """An official V-JEPA 2 ``.pt`` checkpoint as a frozen frame encoder."""
     path = Path(path)
@@ -252,7 +252,7 @@ def _arch(arch: str | dict) -> ViTConfig:
 
 
 def save_cpu_encoder(
-    path: str | os.PathLike, model: VisionTransformer, input_size: tuple[int, int], extra: dict | None = None
+    path: str | os.PathLike, model: VisionTransformer, *, input_size: tuple[int, int], extra: dict | None = None
 ) -> None:
     """Write the CPU default's weights file (the frozen target encoder and its architecture)."""
     from imply.io import atomic_path
@@ -297,7 +297,7 @@ def load_encoder(cfg: EncoderConfig, weights: str | os.PathLike | None = None) -
     elif cfg.kind == "vjepa2_hf":
         enc = load_vjepa2_hf(path)
     else:
-        enc = load_vjepa2_pt(path, cfg.arch, cfg.input_size, cfg.checkpoint_key)
+        enc = load_vjepa2_pt(path, arch=cfg.arch, input_size=cfg.input_size, key=cfg.checkpoint_key)
     return enc.to(cfg.device)
 
 
@@ -337,7 +337,7 @@ def encode_clips(
 
 
 def save_features(
-    path: str | os.PathLike, tokens: np.ndarray, clip_id: np.ndarray, grid: tuple[int, int], name: str
+    path: str | os.PathLike, tokens: np.ndarray, *, clip_id: np.ndarray, grid: tuple[int, int], name: str
 ) -> None:
     """Write a features file (layout in the module docstring)."""
     write_npz(

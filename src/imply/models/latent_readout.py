@@ -133,7 +133,7 @@ def fit_rollout_readout(
     displacement = np.asarray(displacement, dtype=float)
     if displacement.shape != (len(seqs),) or not np.all(displacement > 0):
         raise ValueError("the rollout readout needs one positive slide per training sequence")
-    tokens = final_tokens(model, seqs, batch_size, desc="rollout readout")
+    tokens = final_tokens(model, seqs, batch_size=batch_size, desc="rollout readout")
     return _ridge_readout(tokens, np.log(displacement), margin)
 
 

@@ -91,7 +91,7 @@ def rollout(
 
 
 @torch.no_grad()
-def final_tokens(model: ACPredictor, seqs: Sequences, batch_size: int, desc: str = "rollout") -> np.ndarray:
+def final_tokens(model: ACPredictor, seqs: Sequences, *, batch_size: int, desc: str = "rollout") -> np.ndarray:
     """Last-frame tokens of each sequence's rollout from its context: (N, P, D)."""
     out = []
     for lo in tqdm(range(0, len(seqs), batch_size), desc=desc, mininterval=5.0, leave=False):
@@ -138,7 +138,7 @@ def rollout_split(
         calib_obj = np.arange(n) if ctx == "own" else partner
         calib = np.repeat(held.calib[calib_obj], k, axis=0) if ctx != "none" else None
         seqs = build_sequences(split, ctx_layout, query_clip=held.query.reshape(-1), calib_clips=calib)
-        pred = readout.predict(final_tokens(model, seqs, batch_size, desc=f"rollout {ctx}"))
+        pred = readout.predict(final_tokens(model, seqs, batch_size=batch_size, desc=f"rollout {ctx}"))
         q = held.query.reshape(-1)
         rollouts = pd.DataFrame(
             {

@@ -75,7 +75,7 @@ def validator(
         rel_true = slice_.log_true - slice_.log_typical
         out = {"blind_log_error": float(np.mean(np.abs(rel_true)))}
         for ctx, seqs in slice_.sequences.items():
-            pred = readout.predict_log(final_tokens(model, seqs, batch_size, desc=f"validate {ctx}"))
+            pred = readout.predict_log(final_tokens(model, seqs, batch_size=batch_size, desc=f"validate {ctx}"))
             out[f"{ctx}_log_error"] = float(np.mean(np.abs(pred - slice_.log_true)))
             out[f"{ctx}_track_r"] = pearson(pred - slice_.log_typical, rel_true)
         return out
