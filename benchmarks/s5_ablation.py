@@ -26,14 +26,10 @@ import torch
 import yaml
 
 from imply.models.ac_predictor import PredictorPreset
+from imply.models.features import load_feature_split
+from imply.models.latent_readout import fit_latent_readout, load_latent_readout
 from imply.models.object_blind import typical_slide_of_clips
-from imply.models.rollout import (
-    fit_latent_readout,
-    load_feature_split,
-    load_latent_readout,
-    pool_tokens,
-    rollout_split,
-)
+from imply.models.rollout import rollout_split
 from imply.models.sequences import Layout
 from imply.models.train import TrainConfig, load_model, train_variant
 from imply.score import ScoreConfig
@@ -69,23 +65,21 @@ def main(argv: list[str] | None = None) -> int:
         _set(model_cfg, a)
     res = Path(args.results)
     grid = tuple(model_cfg["token_grid"]) if model_cfg.get("token_grid") else None
-    train = pool_tokens(load_feature_split(res / "features/train.npz", res / "clips/train.csv"), grid)
+    train = load_feature_split(res / "features/train.npz", res / "clips/train.csv").pooled(grid)
     readout = fit_latent_readout(train)
     preset = PredictorPreset.from_dict(model_cfg["presets"][model_cfg["preset"]])
     scorer = ScoreConfig.from_dict(config["score"]).scorer(PushTable.load(res / "table/table.npz"))
     typical = typical_slide_of_clips(train.meta)
     line: dict = {"name": args.name, "set": args.set, "seed": args.seed}
     for variant in args.models.split(","):
-        layout = Layout.from_dict(model_cfg["variants"][variant])
+        layout = Layout.from_dict({**model_cfg["variants"][variant], "rest_state": model_cfg["rest_state"]})
         split_name = "heldout_calib" if layout.calib else "heldout_nocalib"
-        held = pool_tokens(
-            load_feature_split(res / f"features/{split_name}.npz", res / f"clips/{split_name}.csv"), grid
-        )
+        held = load_feature_split(res / f"features/{split_name}.npz", res / f"clips/{split_name}.csv").pooled(grid)
         t0 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
             payload = train_variant(
                 train, preset=preset, layout=layout, config=TrainConfig.from_dict(model_cfg["train"]),
-                rest_state=model_cfg["rest_state"], data_seed=args.seed, out=Path(tmp) / "m.pt",
+                data_seed=args.seed, out=Path(tmp) / "m.pt",
                 checkpoint=Path(tmp) / "c.pt", readout=readout, rollout_readout=Path(tmp) / "r.npz",
             )  # fmt: skip
             reader = load_latent_readout(Path(tmp) / "r.npz") if model_cfg["readout"] == "rollouts" else readout
@@ -95,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         line["readout"] = model_cfg["readout"]
         contexts = ("own", "swap", "none") if layout.calib else ("none",)
         table = rollout_split(
-            model, layout, held, reader, contexts, rest_state=model_cfg["rest_state"],
+            model, layout, held, readout=reader, contexts=contexts,
             derangement_seed=model_cfg["derangement_seed"],
         )  # fmt: skip
         rollouts = rollouts_by_context(table)

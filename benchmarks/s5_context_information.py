@@ -27,8 +27,8 @@ import yaml
 from sklearn.linear_model import RidgeCV
 
 from imply.models.ac_predictor import normalise_tokens
+from imply.models.features import load_feature_split
 from imply.models.object_blind import typical_slide_of_clips
-from imply.models.rollout import load_feature_split, pool_tokens
 
 
 def _design(split, frames, typical):
@@ -48,10 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     res = Path(args.results)
     grid = yaml.safe_load(Path(args.config).read_text())["model"].get("token_grid")
     grid = tuple(grid) if grid else None
-    train = pool_tokens(load_feature_split(res / "features/train.npz", res / "clips/train.csv"), grid)
-    held = pool_tokens(
-        load_feature_split(res / "features/heldout_nocalib.npz", res / "clips/heldout_nocalib.csv"), grid
-    )
+    train = load_feature_split(res / "features/train.npz", res / "clips/train.csv").pooled(grid)
+    held = load_feature_split(res / "features/heldout_nocalib.npz", res / "clips/heldout_nocalib.csv").pooled(grid)
     typical = typical_slide_of_clips(train.meta)
     print(f"{'query frames':>14} {'r (push)':>9} {'r (object)':>11} {'|error|':>8} {'blind |error|':>14}")
     for frames in ([0], [1], [0, 1], [0, 1, 2]):

@@ -23,16 +23,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from imply.models.examples import training_objects, training_sequences
+from imply.models.features import load_feature_split
+from imply.models.latent_readout import load_latent_readout, real_last_tokens
 from imply.models.object_blind import typical_slide_of_clips
-from imply.models.rollout import (
-    final_tokens,
-    load_feature_split,
-    load_latent_readout,
-    pool_tokens,
-    real_last_tokens,
-    training_objects,
-    training_sequences,
-)
+from imply.models.rollout import final_tokens
 from imply.models.train import load_model
 
 
@@ -46,11 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     res = Path(args.results)
     model, layout, payload = load_model(args.model)
     grid = payload.get("token_grid")
-    split = pool_tokens(
-        load_feature_split(res / "features/train.npz", res / "clips/train.csv"), tuple(grid) if grid else None
+    split = load_feature_split(res / "features/train.npz", res / "clips/train.csv").pooled(
+        tuple(grid) if grid else None
     )
     objects = training_objects(split)
-    predicted = final_tokens(model, training_sequences(split, layout, payload["rest_state"], objects), 200)
+    predicted = final_tokens(model, training_sequences(split, layout, objects), batch_size=200)
     real = real_last_tokens(split, objects.query)
     speed = split.meta["speed"].to_numpy(dtype=float)[objects.query]
     truth = np.log(split.meta["displacement"].to_numpy(dtype=float)[objects.query])

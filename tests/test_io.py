@@ -1,4 +1,4 @@
-"""Report folders: written whole or not at all, and never at the cost of files already there."""
+"""Report folders: written whole or not at all, and never at the cost of files already there; byte-stable npz files."""
 
 from __future__ import annotations
 
@@ -8,7 +8,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imply.io import MANIFEST, OutputError, check_folder, read_manifest, write_columns, write_csv, write_folder
+from imply.io import (
+    MANIFEST,
+    OutputError,
+    check_folder,
+    read_manifest,
+    write_columns,
+    write_csv,
+    write_folder,
+    write_npz,
+)
 
 NAMES = ("summary.json", "report.md")
 
@@ -80,3 +89,21 @@ def test_write_columns_writes_what_write_csv_writes(tmp_path):
     write_csv(tmp_path / "pandas.csv", pd.DataFrame(cols))
     write_columns(tmp_path / "plain.csv", cols)
     assert (tmp_path / "pandas.csv").read_bytes() == (tmp_path / "plain.csv").read_bytes()
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_npz_bytes_depend_on_the_arrays_not_the_clock(tmp_path, monkeypatch, compressed):
+    import time
+    import zipfile
+
+    arrays = {"tokens": np.arange(12.0).reshape(3, 4), "name": np.asarray("enc"), "grid": np.asarray([1, 4])}
+    write_npz(tmp_path / "a.npz", compressed=compressed, **arrays)
+    later = time.time() + 400 * 86400
+    monkeypatch.setattr(time, "time", lambda: later)
+    write_npz(tmp_path / "b", compressed=compressed, **arrays)  # no .npz appended
+    assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b").read_bytes()
+    with zipfile.ZipFile(tmp_path / "b") as zf:
+        assert [i.filename for i in zf.infolist()] == ["tokens.npy", "name.npy", "grid.npy"]
+        assert {i.compress_type for i in zf.infolist()} == {zipfile.ZIP_DEFLATED if compressed else zipfile.ZIP_STORED}
+    with np.load(tmp_path / "b") as z:
+        assert np.array_equal(z["tokens"], arrays["tokens"]) and str(z["name"]) == "enc"

@@ -54,10 +54,16 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
     write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=_json_default) + "\n")
 
 
-def write_npz(path: str | os.PathLike, **arrays: Any) -> None:
-    # np.savez appends .npz to names without it, so write through a file object.
+def write_npz(path: str | os.PathLike, *, compressed: bool = False, **arrays: Any) -> None:
+    """Write ``arrays`` as an .npz atomically (zip-deflated with ``compressed``), byte-stable.
+
+    The same arrays give the same bytes: ``np.savez`` opens each entry by name, and
+    zipfile stamps such entries with its fixed default date (1980-01-01), not the clock.
+    Entries are in argument order. Written through a buffer because ``np.savez``
+    appends .npz to a path without it.
+    """
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    (np.savez_compressed if compressed else np.savez)(buf, **arrays)
     with atomic_path(path) as tmp:
         tmp.write_bytes(buf.getvalue())
 

@@ -36,6 +36,7 @@ import numpy as np
 from sklearn.linear_model import RidgeCV
 from sklearn.metrics import r2_score
 
+from imply.io import write_npz
 from imply.options import Config, option
 
 ALPHAS = np.logspace(-2, 5, 29)
@@ -60,12 +61,6 @@ class ReadoutConfig(Config):
 
     def alphas(self) -> np.ndarray:
         return np.logspace(self.log10_alpha_min, self.log10_alpha_max, self.n_alphas)
-
-
-def last_frame_features(tokens: np.ndarray) -> np.ndarray:
-    """(n_clips, T, n_patches, dim) cached tokens -> (n_clips, n_patches*dim) float64 of the last frame."""
-    last = np.asarray(tokens)[:, -1]
-    return last.reshape(len(last), -1).astype(np.float64)
 
 
 @dataclass
@@ -119,11 +114,8 @@ class RidgeReadout:
         return np.exp(self.predict_log(tokens))
 
     def save(self, path: str | os.PathLike) -> None:
-        from imply.data.clips import write_npz_compressed
-
-        write_npz_compressed(
+        write_npz(
             path,
-            compress=False,
             format=np.asarray(RIDGE_FORMAT),
             mean=self.mean,
             scale=self.scale,

@@ -98,7 +98,7 @@ def test_render_is_deterministic_and_storage_byte_stable(tiny_cfg, rendered, tmp
     assert np.array_equal(frames, again)
     digests = []
     for k in range(2):
-        save_split(tmp_path / f"s{k}.npz", tmp_path / f"s{k}.csv", frames, meta, tiny_cfg)
+        save_split(tmp_path / f"s{k}.npz", tmp_path / f"s{k}.csv", frames=frames, meta=meta, cfg=tiny_cfg)
         digests.append([hashlib.sha256((tmp_path / f"s{k}.{e}").read_bytes()).hexdigest() for e in ("npz", "csv")])
     assert digests[0] == digests[1]
     f2, m2 = load_clips(tmp_path / "s0.npz")

@@ -1,4 +1,4 @@
-"""The action-conditioned predictor: block-causal mask, rotary positions of action and state tokens, rollouts."""
+"""The action-conditioned predictor: block-causal mask, rotary positions of action and state tokens."""
 
 from __future__ import annotations
 
@@ -6,14 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from imply.models.ac_predictor import (
-    ACPredictor,
-    PredictorConfig,
-    block_causal_mask,
-    rollout,
-    rollout_cached,
-    token_positions,
-)
+from imply.models.ac_predictor import ACPredictor, PredictorConfig, block_causal_mask, token_positions
 from imply.models.modules import rope_apply, rope_tables
 
 # tiny tensors: extra torch threads only contend with the rest of the suite
@@ -73,16 +66,3 @@ def test_predictor_and_encoder_share_one_rotary_implementation():
     cos_a, sin_a = rope_tables(pos, 12)
     cos_b, sin_b = rope_tables(pos, 12, spatial=torch.ones(7, dtype=torch.bool))
     assert torch.equal(cos_a, cos_b) and torch.equal(sin_a, sin_b)
-
-
-def test_rollout_keeps_context_and_matches_teacher_forcing_first_step():
-    model = tiny_model().eval()
-    x, a, s = torch.randn(2, 6, 4, 8), torch.randn(2, 6, 1), torch.randn(2, 6, 1)
-    with torch.no_grad():
-        r = rollout(model, x, a, s, 3)
-        tf = model(x, a, s)
-    assert torch.equal(r[:, :3], x[:, :3])
-    assert torch.allclose(r[:, 3], tf[:, 2], atol=1e-5)
-    # the key/value-cached inference rollout gives the same frames
-    assert torch.allclose(rollout_cached(model, x, a, s, 3), r, atol=1e-5)
-    assert torch.allclose(rollout_cached(model, x, a, s, 1), rollout(model, x, a, s, 1), atol=1e-5)

@@ -114,14 +114,34 @@ def test_cpu_pretrain_and_features(tmp_path):
     cfg = PretrainConfig(steps=8, batch_size=8, warmup=2, mask_cols=(1, 2), pred_dim=16, pred_heads=2)
     model, hist = pretrain_encoder(flat, ViTConfig.from_dict(TINY_ARCH), cfg, progress=False)
     assert np.isfinite(hist["loss"]).all()
-    save_cpu_encoder(tmp_path / "enc.pt", model, (16, 64))
+    save_cpu_encoder(tmp_path / "enc.pt", model, input_size=(16, 64))
     enc = load({"kind": "cpu", "device": "cpu"}, tmp_path / "enc.pt")
     tokens, grid = encode_clips(enc, frames, batch_size=7, progress=False)
     assert tokens.shape == (9, 4, 4, 24) and tokens.dtype == np.float16 and grid == (1, 4)
-    save_features(tmp_path / "f.npz", tokens, np.arange(9), grid, enc.name)
+    save_features(tmp_path / "f.npz", tokens, clip_id=np.arange(9), grid=grid, name=enc.name)
     back = load_features(tmp_path / "f.npz")
     assert np.array_equal(back["tokens"], tokens) and back["grid"] == (1, 4)
     # the same seed gives the same weights
     model2, _ = pretrain_encoder(flat, ViTConfig.from_dict(TINY_ARCH), cfg, progress=False)
     for a, b in zip(model.state_dict().values(), model2.state_dict().values(), strict=True):
         assert torch.equal(a, b)
+
+
+def test_pooled_features_are_the_one_pooling_of_each_frames_tokens(tmp_path):
+    from imply.models.features import pool_tokens
+
+    torch.manual_seed(0)
+    model = VisionTransformer(ViTConfig.from_dict(TINY_ARCH)).eval()
+    torch.save({"target_encoder": model.state_dict()}, tmp_path / "vit.pt")
+    enc = load({"kind": "vjepa2_pt", "weights": str(tmp_path / "vit.pt"), "arch": TINY_ARCH, "input_size": [32, 64]})
+    clips = np.random.default_rng(2).integers(0, 256, (3, 2, 32, 64, 3), dtype=np.uint8)
+    tokens, grid = encode_clips(enc, clips, batch_size=4, pool_grid=(1, 2), progress=False)
+    assert grid == (1, 2) and tokens.shape == (3, 2, 2, 24) and tokens.dtype == np.float16
+    each = enc.encode(clips.reshape(6, 32, 64, 3)).numpy()  # (6, 2*4, 24) on the 2 x 4 grid
+    expect = pool_tokens(each[:, None], (2, 4), (1, 2))[:, 0].astype(np.float16).reshape(3, 2, 2, 24)
+    assert np.allclose(tokens.astype(np.float32), expect.astype(np.float32), atol=2e-3)
+    # the right pooled token is the mean of the right half of the grid
+    right = each.reshape(6, 2, 4, 24)[:, :, 2:].mean(axis=(1, 2)).reshape(3, 2, 24)
+    assert np.allclose(tokens[:, :, 1].astype(np.float32), right, atol=2e-3)
+    with pytest.raises(ValueError, match="does not divide"):
+        encode_clips(enc, clips, pool_grid=(1, 3), progress=False)

@@ -6,14 +6,10 @@ import numpy as np
 import pytest
 
 from imply.models.ac_predictor import PredictorPreset
-from imply.models.rollout import (
-    final_tokens,
-    fit_latent_readout,
-    load_feature_split,
-    load_latent_readout,
-    training_objects,
-    training_sequences,
-)
+from imply.models.examples import training_objects, training_sequences
+from imply.models.features import load_feature_split
+from imply.models.latent_readout import fit_latent_readout, load_latent_readout
+from imply.models.rollout import final_tokens
 from imply.models.sequences import Layout
 from imply.models.train import TrainConfig, load_model, train_variant
 from synthetic_features import synth_split
@@ -28,14 +24,14 @@ def test_rollout_readout_reads_the_models_predictions(tmp_path):
     real = fit_latent_readout(split)
     payload = train_variant(
         split, preset=PredictorPreset(width=32, depth=1, heads=2, residual=True), layout=layout, config=config,
-        rest_state=1.0, data_seed=0, out=tmp_path / "m.pt", checkpoint=tmp_path / "c.pt", readout=real,
+        data_seed=0, out=tmp_path / "m.pt", checkpoint=tmp_path / "c.pt", readout=real,
         rollout_readout=tmp_path / "r.npz",
     )  # fmt: skip
     assert [h["epoch"] for h in payload["history"]] == [1, 2]
     own = load_latent_readout(tmp_path / "r.npz")
     model, _, _ = load_model(tmp_path / "m.pt")
     objects = training_objects(split)
-    tokens = final_tokens(model, training_sequences(split, layout, 1.0, objects), 64)
+    tokens = final_tokens(model, training_sequences(split, layout, objects), batch_size=64)
     truth = np.log(split.meta["displacement"].to_numpy()[objects.query])
     err_own = np.mean((own.predict_log(tokens) - truth) ** 2)
     err_real = np.mean((real.predict_log(tokens) - truth) ** 2)

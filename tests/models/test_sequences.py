@@ -1,4 +1,4 @@
-"""Predictor inputs: query frames of a layout, pooled tokens, every push as a query, the residual output."""
+"""Predictor inputs: query frames of a layout, frame states, pooled tokens, every push as a query, the residual output."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from imply.models.ac_predictor import ACPredictor, PredictorConfig
-from imply.models.rollout import load_feature_split, pool_tokens, training_objects, training_sequences
+from imply.models.examples import training_objects, training_sequences
+from imply.models.features import load_feature_split, pool_tokens
 from imply.models.sequences import Layout
 from synthetic_features import synth_split
 
@@ -34,22 +35,33 @@ def test_layout_query_frames_set_the_steps():
 
 def test_sequences_take_the_layouts_frames(split):
     layout = Layout(calib=True, calib_frames=(0, 7), query_context=1, query_frames=(0, 3, 7))
-    seqs = training_sequences(split, layout, 1.0)
+    seqs = training_sequences(split, layout)
     assert seqs.n_steps == 4 + 3 and seqs.n_context == 5
     assert np.array_equal(seqs.frame[0], [0, 7, 0, 7, 0, 3, 7])
     objects = training_objects(split)
     assert np.array_equal(seqs.clip[:, -1], objects.query) and np.array_equal(seqs.clip[:, 0], objects.calib[:, 0])
 
 
+def test_states_are_nominal_frame_times_then_the_layouts_rest_state(split):
+    layout = Layout(calib=False, query_context=1, query_frames=(0, 1, 4, 7), rest_state=0.5)
+    nominal = split.meta[[f"t{k}" for k in range(7)]].median(axis=0).to_numpy()
+    assert np.array_equal(layout.frame_states(split.meta), [*nominal, 0.5])
+    assert layout.without_calibration().rest_state == 0.5
+    seqs = training_sequences(split, layout)
+    # a step's state is its frame's, relative to the rest frame's
+    assert np.allclose(seqs.state[0], [nominal[0] / 0.5, nominal[1] / 0.5, nominal[4] / 0.5, 1.0])
+
+
 def test_pooling_averages_blocks_of_patches(split):
-    pooled = pool_tokens(split, (1, 2))
+    pooled = split.pooled((1, 2))
     assert pooled.grid == (1, 2) and pooled.tokens.shape == (*split.tokens.shape[:2], 2, split.tokens.shape[3])
     grid = split.tokens.astype(np.float32).reshape(*split.tokens.shape[:2], 2, 4, -1)
     expect = grid[:, :, :, 2:].mean(axis=(2, 3))  # the right half of the image
     assert np.allclose(pooled.tokens[:, :, 1].astype(np.float32), expect, atol=2e-3)
-    assert pool_tokens(split, None) is split and pool_tokens(split, (2, 4)) is split
+    assert np.array_equal(pooled.tokens, pool_tokens(split.tokens, (2, 4), (1, 2)))
+    assert split.pooled(None) is split and split.pooled((2, 4)) is split
     with pytest.raises(ValueError, match="does not divide"):
-        pool_tokens(split, (1, 3))
+        split.pooled((1, 3))
 
 
 def test_every_push_is_a_query_once_with_the_other_two_in_speed_order(split):

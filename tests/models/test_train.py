@@ -7,8 +7,9 @@ import pytest
 import torch
 from test_ac_predictor import TINY, tiny_model
 
-from imply.models.ac_predictor import PredictorConfig, rollout
-from imply.models.rollout import derangement, load_feature_split, training_sequences
+from imply.models.ac_predictor import PredictorConfig
+from imply.models.examples import derangement, training_sequences
+from imply.models.features import load_feature_split
 from imply.models.sequences import Layout
 from imply.models.train import TrainConfig, losses, train
 from synthetic_features import synth_split
@@ -23,20 +24,10 @@ def synth(tmp_path_factory):
     return {"train": synth_split(d, "train", 48, False, 1)}
 
 
-def test_training_rollout_term_matches_explicit_rollout():
-    model = tiny_model().eval()
-    x, a, s = torch.randn(2, 14, 4, 8), torch.randn(2, 14, 1), torch.randn(2, 14, 1)
-    cfg = TrainConfig(rollout_steps=4, final_weight=1.0)
-    tf, ar = losses(model, x, a, s, 8, 6, cfg)
-    r = rollout(model, x, a, s, 8)
-    assert torch.allclose(ar, (r[:, 8:12] - x[:, 8:12]).abs().mean(), atol=1e-5)
-    assert torch.allclose(tf, (model(x, a, s)[:, 6:-1] - x[:, 7:]).abs().mean(), atol=1e-6)
-
-
 def test_training_loss_falls(synth):
     split = load_feature_split(*synth["train"])
     layout = Layout(calib=True, query_context=2, query_frames=None)
-    seqs = training_sequences(split, layout, 1.0)
+    seqs = training_sequences(split, layout)
     assert len(seqs) == 48 and seqs.n_steps == 14 and seqs.n_context == 8
     cfg = TrainConfig(epochs=1, batch_size=48, lr=3e-3, start_lr=3e-3, warmup=0.0, anneal=0.0, rollout_steps=2,
                       final_weight=1.0)  # fmt: skip
@@ -45,7 +36,7 @@ def test_training_loss_falls(synth):
     batch = seqs.batch(np.arange(48))
     first = None
     for _ in range(25):
-        tf, ar = losses(model, *batch, seqs.n_context, layout.n_calib_steps, cfg)
+        tf, ar = losses(model, *batch, n_context=seqs.n_context, q0=layout.n_calib_steps, cfg=cfg)
         loss = tf + ar
         first = first if first is not None else loss.item()
         opt.zero_grad()
@@ -57,21 +48,33 @@ def test_training_loss_falls(synth):
 def test_resumed_run_matches_uninterrupted(synth, tmp_path):
     split = load_feature_split(*synth["train"])
     layout = Layout(calib=False, query_context=2, query_frames=None)
-    seqs = training_sequences(split, layout, 1.0)
-    pcfg = PredictorConfig(embed_dim=8, grid=(2, 2), max_steps=8, **TINY)
-    cfg = TrainConfig(epochs=3, batch_size=16, lr=5e-4, start_lr=5e-5, final_lr=0.0, warmup=0.1, rollout_steps=2,
-                      final_weight=1.0, val_objects=0)  # fmt: skip
-    full = train(seqs, layout, pcfg, cfg, 7, tmp_path / "a.pt", tmp_path / "a.ckpt")
-    assert train(seqs, layout, pcfg, cfg, 7, tmp_path / "b.pt", tmp_path / "b.ckpt", stop_after_epoch=1) == {}
-    assert not (tmp_path / "b.pt").exists()
+    seqs = training_sequences(split, layout)
+    run = {
+        "layout": layout,
+        "predictor": PredictorConfig(embed_dim=8, grid=(2, 2), max_steps=8, **TINY),
+        "config": TrainConfig(
+            epochs=3,
+            batch_size=16,
+            lr=5e-4,
+            start_lr=5e-5,
+            final_lr=0.0,
+            warmup=0.1,
+            rollout_steps=2,
+            final_weight=1.0,
+            val_objects=0,
+        ),
+    }
+    full = train(seqs, **run, data_seed=7, out=tmp_path / "a.pt", checkpoint=tmp_path / "a.ckpt")
+    stopped = train(seqs, **run, data_seed=7, out=tmp_path / "b.pt", checkpoint=tmp_path / "b.ckpt", stop_after_epoch=1)
+    assert stopped is None and not (tmp_path / "b.pt").exists()
     assert torch.load(tmp_path / "b.ckpt", weights_only=False)["epoch"] == 1
-    resumed = train(seqs, layout, pcfg, cfg, 7, tmp_path / "b.pt", tmp_path / "b.ckpt")
+    resumed = train(seqs, **run, data_seed=7, out=tmp_path / "b.pt", checkpoint=tmp_path / "b.ckpt")
     assert [h["epoch"] for h in resumed["history"]] == [1, 2, 3]
     for k, v in full["model"].items():
         assert torch.equal(v, resumed["model"][k]), k
     assert full["history"] == resumed["history"]
     # another data-order seed gives other weights
-    other = train(seqs, layout, pcfg, cfg, 8, tmp_path / "c.pt", tmp_path / "c.ckpt")
+    other = train(seqs, **run, data_seed=8, out=tmp_path / "c.pt", checkpoint=tmp_path / "c.ckpt")
     assert not torch.equal(other["model"]["out.weight"], full["model"]["out.weight"])
 
 

@@ -38,5 +38,5 @@ def cmd_render(args: argparse.Namespace) -> int:
     speeds = config_from_json(ScoreConfig, args.score_json, "--score-json")
     scene = config_from_json(SceneConfig, args.scene_json, "--scene-json")
     frames, meta = render_split(cfg, args.split, scene=scene, speeds=speeds, nthread=args.threads)
-    save_split(args.out_npz, args.out_csv, frames, meta, cfg)
+    save_split(args.out_npz, args.out_csv, frames=frames, meta=meta, cfg=cfg)
     return 0

@@ -67,7 +67,7 @@ def cmd_pretrain(args: argparse.Namespace) -> int:
     save_cpu_encoder(
         args.output,
         model,
-        tuple(flat.shape[1:3]),
+        input_size=tuple(flat.shape[1:3]),
         extra={"loss_first": float(losses[:k].mean()), "loss_last": float(losses[-k:].mean()), "steps": len(losses)},
     )
     return 0
@@ -86,5 +86,5 @@ def cmd_encode(args: argparse.Namespace) -> int:
     tokens, grid = encode_clips(
         encoder, frames, batch_size=enc.batch_size, pool_grid=enc.pool_grid, desc=f"encode {Path(args.clips).stem}"
     )
-    save_features(args.output, tokens, clip_id, grid, encoder.name)
+    save_features(args.output, tokens, clip_id=clip_id, grid=grid, name=encoder.name)
     return 0

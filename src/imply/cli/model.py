@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import logging
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, output_file, user_errors
@@ -117,14 +118,14 @@ def _setup_torch(threads: int) -> None:
 
 
 def _feature_split(features: Path, clips: Path):
-    from imply.models.rollout import load_feature_split
+    from imply.models.features import load_feature_split
 
     with user_errors(ValueError, KeyError):
         return load_feature_split(features, clips)
 
 
 def _readout(path: Path):
-    from imply.models.rollout import load_latent_readout
+    from imply.models.latent_readout import load_latent_readout
 
     with user_errors(ValueError, KeyError, message="--readout: {error}"):
         return load_latent_readout(path)
@@ -138,7 +139,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     _setup_torch(args.threads)
     preset = config_from_json(PredictorPreset, args.preset_json, "--preset-json")
-    layout = config_from_json(Layout, args.variant_json, "--variant-json")
+    # config keeps rest_state beside the variants (one value for all); it belongs to the layout
+    layout = replace(config_from_json(Layout, args.variant_json, "--variant-json"), rest_state=args.rest_state)
     config = config_from_json(TrainConfig, args.train_json, "--train-json")
     split = _feature_split(args.features, args.clips)
     readout = _readout(args.readout) if args.readout else None
@@ -151,7 +153,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     with user_errors(ValueError):
         payload = train_variant(
-            split, preset=preset, layout=layout, config=config, rest_state=args.rest_state, data_seed=args.seed,
+            split, preset=preset, layout=layout, config=config, data_seed=args.seed,
             out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
             token_grid=tuple(args.token_grid) if args.token_grid else None, readout=readout,
             rollout_readout=args.rollout_readout, device=args.device,
@@ -164,12 +166,12 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_readout(args: argparse.Namespace) -> int:
     from imply.io import write_json
-    from imply.models.rollout import fit_latent_readout, latent_readout_report, pool_tokens
+    from imply.models.latent_readout import fit_latent_readout, latent_readout_report
 
     grid = tuple(args.token_grid) if args.token_grid else None
     with user_errors(ValueError, message="--token-grid: {error}"):
-        readout = fit_latent_readout(pool_tokens(_feature_split(args.features, args.clips), grid))
-        heldout = {Path(f).stem: pool_tokens(_feature_split(f, c), grid) for f, c in args.heldout}
+        readout = fit_latent_readout(_feature_split(args.features, args.clips).pooled(grid))
+        heldout = {Path(f).stem: _feature_split(f, c).pooled(grid) for f, c in args.heldout}
     report = latent_readout_report(readout, heldout)
     readout.save(args.output)
     write_json(args.report, report)
@@ -178,7 +180,7 @@ def cmd_readout(args: argparse.Namespace) -> int:
 
 def cmd_rollout(args: argparse.Namespace) -> int:
     from imply.io import write_csv
-    from imply.models.rollout import CONTEXTS, pool_tokens, rollout_split
+    from imply.models.rollout import CONTEXTS, rollout_split
     from imply.models.train import load_model
 
     _setup_torch(args.threads)
@@ -190,18 +192,19 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     if not layout.calib and any(c != "none" for c in contexts):
         raise UserError("--contexts: a model trained without calibration context only takes 'none'")
     grid = payload.get("token_grid")
-    split = pool_tokens(_feature_split(args.features, args.clips), tuple(grid) if grid else None)
+    split = _feature_split(args.features, args.clips).pooled(tuple(grid) if grid else None)
     readout = _readout(args.readout)
     if (readout.ridge.n_patches, readout.ridge.dim) != split.tokens.shape[2:]:
         raise UserError(
             f"--readout: it reads {readout.ridge.n_patches} tokens of width {readout.ridge.dim}, the model's"
             f" tokens are {split.tokens.shape[2]} of width {split.tokens.shape[3]} (fit it with the model's --token-grid)"
         )
-    rest = args.rest_state if args.rest_state is not None else float(payload.get("rest_state", 1.0))
+    if args.rest_state is not None:
+        layout = replace(layout, rest_state=args.rest_state)
     t0 = time.perf_counter()
     table = rollout_split(
-        model, layout, split, readout, contexts,
-        rest_state=rest, derangement_seed=args.derangement_seed, batch_size=args.batch_size,
+        model, layout, split, readout=readout, contexts=contexts,
+        derangement_seed=args.derangement_seed, batch_size=args.batch_size,
     )  # fmt: skip
     write_csv(args.output, table)
     log.info("rollouts written to %s in %.1f s", args.output, time.perf_counter() - t0)

@@ -18,7 +18,7 @@ axis by a factor uniform in ``clips.size_scale``.
 
 Storage, per split ``S`` under the output folder (``results/clips/``):
 
-``S.npz`` (zip-compressed, byte-stable: fixed zip timestamps)
+``S.npz`` (zip-compressed; the same frames give the same bytes, :func:`imply.io.write_npz`)
     ``frames``   uint8 (n_clips, T, H, W, 3): T = len(frame_times) + 1 = 8 RGB frames;
                  H x W from ``clips.camera`` (32 x 128 by default, 1 cm per pixel, the
                  table from x = -0.13 m to 1.15 m; image columns run along the push
@@ -52,19 +52,17 @@ clip(s) in speed order. Read a split with :func:`load_clips` (frames, metadata).
 
 from __future__ import annotations
 
-import io
 import logging
 import time
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from imply.io import atomic_path, write_csv
+from imply.io import write_csv, write_npz
 from imply.options import Config, Range, option
 from imply.score import ScoreConfig
 from imply.sim.render import CameraConfig, ClipRenderer, record_pushes
@@ -234,29 +232,13 @@ def render_split(
     return frames, meta[order]
 
 
-def write_npz_compressed(path: str | Path, compress: bool = True, **arrays: Any) -> None:
-    """Atomic .npz (zip-deflated unless ``compress`` is False) with fixed entry timestamps.
-
-    ``np.savez`` stamps each entry with the current time; fixed stamps make the same
-    arrays give the same bytes, as the workflow's reproducibility rule asks.
-    """
-    method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    with atomic_path(path) as tmp:
-        with zipfile.ZipFile(tmp, "w", compression=method, allowZip64=True) as zf:
-            for name in sorted(arrays):
-                buf = io.BytesIO()
-                np.lib.format.write_array(buf, np.asarray(arrays[name]), allow_pickle=False)
-                info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-                info.compress_type = method
-                zf.writestr(info, buf.getvalue(), compresslevel=6 if compress else None)
-
-
 def save_split(
-    npz_path: str | Path, csv_path: str | Path, frames: np.ndarray, meta: pd.DataFrame, cfg: ClipsConfig
+    npz_path: str | Path, csv_path: str | Path, *, frames: np.ndarray, meta: pd.DataFrame, cfg: ClipsConfig
 ) -> None:
     """Write a split's frames (.npz) and metadata (.csv); format in the module docstring."""
-    write_npz_compressed(
+    write_npz(
         npz_path,
+        compressed=True,
         frames=frames,
         clip_id=meta["clip_id"].to_numpy(dtype=np.int64),
         frame_times_nominal=np.asarray(cfg.frame_times, dtype=float),

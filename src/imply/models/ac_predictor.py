@@ -38,45 +38,13 @@ of the paper's predictor) live in config (``model.presets``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 import torch.nn.functional as F
 from torch import nn
 
+from imply.models.config import PredictorConfig as PredictorConfig  # its home is imply.models.config
 from imply.models.config import PredictorPreset as PredictorPreset  # its home is imply.models.config
 from imply.models.modules import Block, KeyValue, init_weights, rope_tables, shrink_residual_branches
-from imply.options import Config
-
-
-@dataclass(frozen=True, kw_only=True)
-class PredictorConfig(Config):
-    """Shape of a predictor. ``embed_dim``/``grid`` come from the encoder features."""
-
-    embed_dim: int
-    grid: tuple[int, int]
-    width: int = 96
-    depth: int = 3
-    heads: int = 4
-    mlp_ratio: float = 4.0
-    action_dim: int = 1
-    state_dim: int = 1
-    max_steps: int = 32
-    rope_theta: float = 10000.0
-    residual: bool = False
-
-    def __post_init__(self) -> None:
-        if self.width % self.heads:
-            raise ValueError(f"width {self.width} is not divisible by {self.heads} heads")
-
-    @property
-    def n_patches(self) -> int:
-        return self.grid[0] * self.grid[1]
-
-    @property
-    def tokens_per_step(self) -> int:
-        # one action token, one state token, then the patches
-        return 2 + self.n_patches
 
 
 def normalise_tokens(x: torch.Tensor) -> torch.Tensor:
@@ -133,14 +101,21 @@ class ACPredictor(nn.Module):
         action_dim); states: (B, T, state_dim). Returns (B, T, P, embed_dim): entry t
         is the prediction of frame t + 1 from steps <= t.
         """
-        return self._run(frames, actions, states, 0, None)[0]
+        return self.run(frames, actions, states)[0]
 
-    def _run(
-        self, frames: torch.Tensor, actions: torch.Tensor, states: torch.Tensor, t0: int, cache: list[KeyValue] | None
+    def run(
+        self,
+        frames: torch.Tensor,
+        actions: torch.Tensor,
+        states: torch.Tensor,
+        *,
+        t0: int = 0,
+        cache: list[KeyValue] | None = None,
     ) -> tuple[torch.Tensor, list[KeyValue]]:
         """Steps t0 .. t0+T-1 given cached keys/values of steps < t0 (None when t0 = 0).
 
-        Returns (predictions (B, T, P, D), new cache covering steps < t0 + T).
+        Returns (predictions (B, T, P, D), new cache covering steps < t0 + T): what a
+        rollout (:func:`imply.models.rollout.rollout`) continues from.
         """
         b, t, p, _ = frames.shape
         cfg = self.cfg
@@ -173,55 +148,3 @@ class ACPredictor(nn.Module):
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
-
-
-def rollout(
-    model: ACPredictor,
-    frames: torch.Tensor,
-    actions: torch.Tensor,
-    states: torch.Tensor,
-    n_context: int,
-    first: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """Auto-regressive latent rollout: keep the first ``n_context`` steps of ``frames``
-    and replace every later frame by the model's prediction from the steps before it.
-
-    Returns (B, T, P, D): the context frames followed by predicted frames. Because
-    attention is block-causal, running the model on the first s steps gives exactly
-    the outputs it would give on a longer sequence, so each step runs on a prefix.
-    ``first``, when given, is the already computed prediction of step ``n_context``
-    from the true context (a teacher-forcing pass gives it for free). Differentiable
-    (used for the training rollout loss) and deterministic.
-    """
-    t = frames.shape[1]
-    if not 1 <= n_context <= t:
-        raise ValueError(f"n_context must be in 1..{t}, got {n_context}")
-    seq = [frames[:, s] for s in range(n_context)]
-    if first is not None and n_context < t:
-        seq.append(first)
-    for s in range(len(seq), t):
-        cur = torch.stack(seq, dim=1)
-        pred = model(cur, actions[:, :s], states[:, :s])[:, -1]
-        seq.append(pred)
-    return torch.stack(seq, dim=1)
-
-
-@torch.no_grad()
-def rollout_cached(
-    model: ACPredictor, frames: torch.Tensor, actions: torch.Tensor, states: torch.Tensor, n_context: int
-) -> torch.Tensor:
-    """:func:`rollout` for inference, with cached keys and values: the context runs once,
-    then each new step runs only its own tokens against the cache (same result, up to
-    floating-point summation order)."""
-    t = frames.shape[1]
-    if not 1 <= n_context <= t:
-        raise ValueError(f"n_context must be in 1..{t}, got {n_context}")
-    pred, cache = model._run(frames[:, :n_context], actions[:, :n_context], states[:, :n_context], 0, None)
-    seq = [frames[:, s] for s in range(n_context)]
-    nxt = pred[:, -1]
-    for s in range(n_context, t):
-        seq.append(nxt)
-        if s + 1 < t:
-            pred, cache = model._run(nxt[:, None], actions[:, s : s + 1], states[:, s : s + 1], s, cache)
-            nxt = pred[:, -1]
-    return torch.stack(seq, dim=1)

@@ -12,10 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
+import numpy as np
+
 from imply.options import Config, option
 
 if TYPE_CHECKING:
-    from imply.models.ac_predictor import PredictorConfig
+    import pandas as pd
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -61,9 +63,37 @@ class PredictorPreset(Config):
 
     def predictor(self, *, embed_dim: int, grid: tuple[int, int], max_steps: int) -> PredictorConfig:
         """The full :class:`PredictorConfig` for features of width ``embed_dim`` on a ``grid`` of patches."""
-        from imply.models.ac_predictor import PredictorConfig
-
         return PredictorConfig(embed_dim=embed_dim, grid=grid, max_steps=max_steps, **self.to_dict())
+
+
+@dataclass(frozen=True, kw_only=True)
+class PredictorConfig(PredictorPreset):
+    """Shape of a predictor: a preset plus what the encoder's features and the sequence fix.
+
+    ``embed_dim`` and ``grid`` come from the features, ``max_steps`` from the layout; built
+    by :meth:`PredictorPreset.predictor`, and saved with every model.
+    """
+
+    config_key: ClassVar[str] = "predictor"
+
+    embed_dim: int = option(doc="width of the encoder's tokens", minimum=1)
+    grid: tuple[int, int] = option(doc="patch grid of the encoder's tokens (rows, columns)")
+    action_dim: int = option(1, doc="action values per step", minimum=1)
+    state_dim: int = option(1, doc="state values per step", minimum=1)
+    max_steps: int = option(32, doc="time steps the positions cover", minimum=1)
+
+    def __post_init__(self) -> None:
+        if self.width % self.heads:
+            raise ValueError(f"width {self.width} is not divisible by {self.heads} heads")
+
+    @property
+    def n_patches(self) -> int:
+        return self.grid[0] * self.grid[1]
+
+    @property
+    def tokens_per_step(self) -> int:
+        # one action token, one state token, then the patches
+        return 2 + self.n_patches
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +115,9 @@ class Layout(Config):
         unique=True,
         items={"minimum": 0},
     )
+    rest_state: float = option(
+        1.0, doc="state token of the clip's last frame (the study sets it once, as model.rest_state)"
+    )
 
     def __post_init__(self) -> None:
         if self.query_context < 1 or self.n_frames < 2 or (self.calib and not self.calib_frames):
@@ -105,8 +138,28 @@ class Layout(Config):
     def without_calibration(self) -> Layout:
         """The same query steps with no calibration steps (the context-free condition)."""
         return Layout(
-            calib=False, query_context=self.query_context, n_frames=self.n_frames, query_frames=self.query_frames
+            calib=False,
+            query_context=self.query_context,
+            n_frames=self.n_frames,
+            query_frames=self.query_frames,
+            rest_state=self.rest_state,
         )
+
+    def frame_states(self, meta: pd.DataFrame) -> np.ndarray:
+        """(n_frames,) state of each frame index of the clips in ``meta`` (their metadata).
+
+        Frames 0..T-2 are at the clip's nominal frame times (the same for every clip;
+        the median of columns ``t0``.. where present, else evenly spaced); the last frame
+        shows the box at rest, at a time that depends on the object, so it gets the
+        constant ``rest_state`` instead: a state must not leak the outcome.
+        """
+        t = self.n_frames
+        cols = [f"t{k}" for k in range(t - 1)]
+        if all(c in meta.columns for c in cols):
+            nominal = meta[cols].median(axis=0).to_numpy(dtype=float)
+        else:
+            nominal = np.arange(t - 1, dtype=float) / max(t - 1, 1)
+        return np.append(nominal, self.rest_state)
 
     @property
     def n_calib_steps(self) -> int:

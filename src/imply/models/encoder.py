@@ -49,7 +49,9 @@ Cached features (:func:`encode_clips`, :func:`save_features`), one file per clip
     ``encoder``  str: the encoder's description
 
 ``encoder.pool_grid`` (optional) average-pools each frame's patch grid to that size before
-caching (needed for ViT-g, whose 16 x 16 x 1408 tokens per frame are too large to cache).
+caching (needed for ViT-g, whose 16 x 16 x 1408 tokens per frame are too large to cache),
+with the one pooling of :func:`imply.models.features.pool_tokens` (each side of the
+encoder's grid a multiple of the pooled one).
 """
 
 from __future__ import annotations
@@ -64,10 +66,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from torch import nn
 from tqdm.auto import tqdm
 
+from imply.io import write_npz
+from imply.models.features import pool_tokens
 from imply.models.pretrain import PretrainConfig
 from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, preprocess
 from imply.options import Config, option
@@ -207,7 +210,7 @@ def strip_prefixes(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
 
 
 def load_vjepa2_pt(
-    path: str | os.PathLike, arch: str | dict, input_size: tuple[int, int], key: str = "target_encoder"
+    path: str | os.PathLike, *, arch: str | dict, input_size: tuple[int, int], key: str = "target_encoder"
 ) -> ViTFrameEncoder:
     """An official V-JEPA 2 ``.pt`` checkpoint as a frozen frame encoder."""
     path = Path(path)
@@ -255,7 +258,7 @@ def _arch(arch: str | dict) -> ViTConfig:
 
 
 def save_cpu_encoder(
-    path: str | os.PathLike, model: VisionTransformer, input_size: tuple[int, int], extra: dict | None = None
+    path: str | os.PathLike, model: VisionTransformer, *, input_size: tuple[int, int], extra: dict | None = None
 ) -> None:
     """Write the CPU default's weights file (the frozen target encoder and its architecture)."""
     from imply.io import atomic_path
@@ -300,20 +303,8 @@ def load_encoder(cfg: EncoderConfig, weights: str | os.PathLike | None = None) -
     elif cfg.kind == "vjepa2_hf":
         enc = load_vjepa2_hf(path)
     else:
-        enc = load_vjepa2_pt(path, cfg.arch, cfg.input_size, cfg.checkpoint_key)
+        enc = load_vjepa2_pt(path, arch=cfg.arch, input_size=cfg.input_size, key=cfg.checkpoint_key)
     return enc.to(cfg.device)
-
-
-def pool_tokens(
-    tokens: torch.Tensor, grid: tuple[int, int], pool_grid: tuple[int, int] | None
-) -> tuple[torch.Tensor, tuple[int, int]]:
-    """Average-pool (N, rows*cols, D) tokens to ``pool_grid`` (rows, cols); None keeps them."""
-    if pool_grid is None or tuple(pool_grid) == tuple(grid):
-        return tokens, tuple(grid)
-    n, _, d = tokens.shape
-    x = tokens.transpose(1, 2).reshape(n, d, grid[0], grid[1])
-    x = F.adaptive_avg_pool2d(x, tuple(pool_grid))
-    return x.flatten(2).transpose(1, 2), (int(pool_grid[0]), int(pool_grid[1]))
 
 
 def encode_clips(
@@ -325,18 +316,24 @@ def encode_clips(
     progress: bool = True,
     desc: str = "encode",
 ) -> tuple[np.ndarray, tuple[int, int]]:
-    """Encode clips (n_clips, T, H, W, 3) uint8 -> (float16 tokens (n_clips, T, n_patches, dim), grid)."""
+    """Encode clips (n_clips, T, H, W, 3) uint8 -> (float16 tokens (n_clips, T, n_patches, dim), grid).
+
+    With ``pool_grid`` each frame's tokens are pooled to it (:func:`imply.models.features.pool_tokens`)
+    before they are cached.
+    """
     n, t = frames.shape[:2]
     flat = frames.reshape(n * t, *frames.shape[2:])
     out = None
-    grid = encoder.grid
+    grid = encoder.grid if pool_grid is None else (int(pool_grid[0]), int(pool_grid[1]))
     t0 = time.perf_counter()
     bar = tqdm(total=n * t, desc=desc, unit="frame", disable=not progress, mininterval=2.0)
     for lo in range(0, n * t, batch_size):
-        tok, grid = pool_tokens(encoder.encode(flat[lo : lo + batch_size]), encoder.grid, pool_grid)
+        tok = encoder.encode(flat[lo : lo + batch_size]).numpy()
+        if grid != encoder.grid:
+            tok = pool_tokens(tok[:, None], encoder.grid, grid)[:, 0]  # each frame a one-frame clip
         if out is None:
             out = np.zeros((n * t, tok.shape[1], tok.shape[2]), dtype=np.float16)
-        out[lo : lo + len(tok)] = tok.numpy().astype(np.float16)
+        out[lo : lo + len(tok)] = tok.astype(np.float16)
         bar.update(len(tok))
     bar.close()
     dt = time.perf_counter() - t0
@@ -346,14 +343,11 @@ def encode_clips(
 
 
 def save_features(
-    path: str | os.PathLike, tokens: np.ndarray, clip_id: np.ndarray, grid: tuple[int, int], name: str
+    path: str | os.PathLike, tokens: np.ndarray, *, clip_id: np.ndarray, grid: tuple[int, int], name: str
 ) -> None:
     """Write a features file (layout in the module docstring)."""
-    from imply.data.clips import write_npz_compressed
-
-    write_npz_compressed(
+    write_npz(
         path,
-        compress=False,
         tokens=tokens.astype(np.float16),
         clip_id=np.asarray(clip_id, dtype=np.int64),
         grid=np.asarray(grid, dtype=np.int64),

@@ -14,7 +14,8 @@ The last query frame must be the clip's last (the box at rest): that is the fram
 latent readout reads.
 
 The action of a step is its push's commanded speed (m/s); the state is the frame's
-time divided by the clip's last frame time (see :mod:`imply.models.ac_predictor`).
+nominal time divided by the layout's ``rest_state`` (:meth:`Layout.frame_states`; see
+:mod:`imply.models.ac_predictor`).
 Steps are gathered lazily from the float16 feature array, so a training set costs
 its feature file and a few index arrays in memory.
 """
@@ -28,6 +29,7 @@ import torch
 
 from imply.models.ac_predictor import normalise_tokens
 from imply.models.config import Layout as Layout  # its home is imply.models.config
+from imply.models.features import FeatureSplit
 
 
 @dataclass
@@ -62,20 +64,17 @@ class Sequences:
 
 
 def build_sequences(
-    features: np.ndarray,
-    query_clip: np.ndarray,
-    calib_clips: np.ndarray | None,
-    speed: np.ndarray,
-    frame_time: np.ndarray,
-    layout: Layout,
+    split: FeatureSplit, layout: Layout, *, query_clip: np.ndarray, calib_clips: np.ndarray | None
 ) -> Sequences:
-    """Sequences for N queries.
+    """Sequences of ``split``'s clips for N queries.
 
     query_clip: (N,) clip index of each query push; calib_clips: (N, 2) clip indices
     of the calibration pushes placed in context (any object's: the swap condition
-    passes another object's), required when ``layout.calib``; speed: (n_clips,)
-    commanded speed of every clip; frame_time: (n_clips, n_frames) seconds.
+    passes another object's), required when ``layout.calib``. The action of a step is
+    its clip's commanded speed (metadata ``speed``), its state from
+    :meth:`Layout.frame_states`.
     """
+    features = split.tokens
     n_frames = features.shape[1]
     if n_frames != layout.n_frames:
         raise ValueError(f"features have {n_frames} frames per clip, the layout expects {layout.n_frames}")
@@ -97,15 +96,14 @@ def build_sequences(
         frames.append(np.full(n, f))
     clip = np.stack(clips, axis=1)
     frame = np.stack(frames, axis=1)
-    speed = np.asarray(speed, dtype=np.float64)
-    frame_time = np.asarray(frame_time, dtype=np.float64)
-    last = np.maximum(frame_time[:, -1:], 1e-9)
-    rel_time = frame_time / last
+    speed = np.asarray(split.meta["speed"].to_numpy(), dtype=np.float64)
+    state = np.asarray(np.broadcast_to(layout.frame_states(split.meta), (len(split.meta), n_frames)), dtype=np.float64)
+    rel_state = state / np.maximum(state[:, -1:], 1e-9)  # the last frame's state is 1
     return Sequences(
         features=features,
         clip=clip,
         frame=frame,
         action=speed[clip],
-        state=rel_time[clip, frame],
+        state=rel_state[clip, frame],
         n_context=layout.n_context,
     )

@@ -6,8 +6,9 @@ Objective (as V-JEPA 2-AC's): an L1 loss on layer-normed encoder tokens, the sum
   frames, actions and states before it (one pass, thanks to the block-causal mask);
 * a rollout term: from the context (calibration steps, if any, and the query's first
   ``query_context`` frames) the model rolls out auto-regressively, feeding its own
-  predictions back, for ``rollout_steps`` steps; each predicted frame is compared
-  with the true one. The gradient flows through the whole rollout.
+  predictions back, for ``rollout_steps`` steps (:func:`imply.models.rollout.rollout`,
+  the loop every rollout runs); each predicted frame is compared with the true one.
+  The gradient flows through the whole rollout.
 
 In both terms the last query frame (the box at rest, the frame the readout reads) is
 weighted ``final_weight`` times the other frames: it is the only frame whose content
@@ -53,13 +54,10 @@ from imply.io import atomic_path
 from imply.models.ac_predictor import ACPredictor, PredictorConfig
 from imply.models.config import Layout, PredictorPreset
 from imply.models.config import TrainConfig as TrainConfig  # its home is imply.models.config
-from imply.models.rollout import (
-    FeatureSplit,
-    LatentReadout,
-    fit_rollout_readout,
-    pool_tokens,
-    training_sequences,
-)
+from imply.models.examples import training_sequences
+from imply.models.features import FeatureSplit
+from imply.models.latent_readout import LatentReadout, fit_rollout_readout
+from imply.models.rollout import rollout
 from imply.models.sequences import Sequences
 from imply.models.validation import split_validation, validator
 
@@ -80,7 +78,7 @@ def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
     return cfg.lr
 
 
-def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, last_is_final: bool, final_weight: float) -> torch.Tensor:
+def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, *, last_is_final: bool, final_weight: float) -> torch.Tensor:
     """Mean L1 over (B, S, P, D), the last of the S steps weighted ``final_weight`` when it is the final frame."""
     per_step = (pred - target).abs().mean(dim=(0, 2, 3))
     w = torch.ones_like(per_step)
@@ -89,38 +87,43 @@ def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, last_is_final: bool, 
     return (per_step * w).sum() / w.sum()
 
 
-def losses(model: ACPredictor, frames, actions, states, n_context: int, q0: int, cfg: TrainConfig):
+def losses(
+    model: ACPredictor,
+    frames: torch.Tensor,
+    actions: torch.Tensor,
+    states: torch.Tensor,
+    *,
+    n_context: int,
+    q0: int,
+    cfg: TrainConfig,
+) -> tuple[torch.Tensor, torch.Tensor]:
     """(teacher-forcing L1, rollout L1) for one batch; q0 is the query's first step.
 
     The teacher-forcing pass also yields the keys and values of the true context, so
-    the rollout continues from them: its first step is the teacher-forcing prediction
-    from the context, and each later step runs only its own tokens (gradients flow
-    through the fed-back predictions).
+    the rollout (:func:`imply.models.rollout.rollout`) continues from them: its first
+    step is the teacher-forcing prediction from the context, and each later step runs
+    only its own tokens (gradients flow through the fed-back predictions).
     """
-    pred, cache = model._run(frames, actions, states, 0, None)
-    tf = _weighted_l1(pred[:, q0:-1], frames[:, q0 + 1 :], True, cfg.final_weight)
+    tf_pass = model.run(frames, actions, states)
+    tf = _weighted_l1(tf_pass[0][:, q0:-1], frames[:, q0 + 1 :], last_is_final=True, final_weight=cfg.final_weight)
     t = frames.shape[1]
     steps = min(cfg.rollout_steps, t - n_context)
     if cfg.rollout_weight == 0 or steps <= 0:
         return tf, torch.zeros((), device=frames.device)
-    n_tok = n_context * model.cfg.tokens_per_step
-    cache = [(k[:, :, :n_tok], v[:, :, :n_tok]) for k, v in cache]
-    nxt = pred[:, n_context - 1]
-    rolled = [nxt]
-    for s in range(n_context, n_context + steps - 1):
-        out, cache = model._run(nxt[:, None], actions[:, s : s + 1], states[:, s : s + 1], s, cache)
-        nxt = out[:, -1]
-        rolled.append(nxt)
+    rolled = rollout(model, frames, actions, states, n_context=n_context, steps=steps, context_pass=tf_pass)
     target = frames[:, n_context : n_context + steps]
-    ar = _weighted_l1(torch.stack(rolled, dim=1), target, n_context + steps == t, cfg.final_weight)
+    ar = _weighted_l1(rolled, target, last_is_final=n_context + steps == t, final_weight=cfg.final_weight)
     return tf, ar
 
 
-def run_digest(pred_cfg: PredictorConfig, train_cfg: TrainConfig, layout: Layout, data_seed: int, data_key: str) -> str:
+def run_digest(
+    *, predictor: PredictorConfig, config: TrainConfig, layout: Layout, data_seed: int, data_key: str
+) -> str:
+    """What defines a training run, hashed: a checkpoint is resumed only by the run with the same digest."""
     blob = json.dumps(
         {
-            "predictor": pred_cfg.to_dict(),
-            "train": train_cfg.to_dict(),
+            "predictor": predictor.to_dict(),
+            "train": config.to_dict(),
             "layout": layout.to_dict(),
             "seed": data_seed,
             "data": data_key,
@@ -139,34 +142,36 @@ def _save(path: Path, obj: dict) -> None:
 
 def train(
     seqs: Sequences,
+    *,
     layout: Layout,
-    pred_cfg: PredictorConfig,
-    cfg: TrainConfig,
+    predictor: PredictorConfig,
+    config: TrainConfig,
     data_seed: int,
     out: str | os.PathLike,
     checkpoint: str | os.PathLike,
     data_key: str = "",
     stop_after_epoch: int | None = None,
     device: str = "cpu",
-    rest_state: float = 1.0,
     validate: Callable[[ACPredictor], dict[str, float]] | None = None,
     extra: dict | None = None,
-) -> dict:
+) -> dict | None:
     """Train (or resume) and write the final model to ``out``; returns its payload.
 
     ``checkpoint`` is rewritten after every epoch. ``stop_after_epoch`` ends the run
-    after that epoch without writing ``out`` (how tests simulate a killed run).
-    ``validate``, when given, is run on the model after every epoch and its metrics
-    join the epoch's history; ``extra`` entries are stored in the payload.
+    after that epoch without writing ``out`` and returns None (how tests simulate a
+    killed run). ``validate``, when given, is run on the model after every epoch and its
+    metrics join the epoch's history; ``extra`` entries are stored in the payload.
     """
     checkpoint = Path(checkpoint)
-    digest = run_digest(pred_cfg, cfg, layout, data_seed, data_key)
-    torch.manual_seed(cfg.init_seed)
-    model = ACPredictor(pred_cfg).to(device)
-    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, betas=(cfg.beta1, cfg.beta2), weight_decay=cfg.weight_decay)
+    digest = run_digest(predictor=predictor, config=config, layout=layout, data_seed=data_seed, data_key=data_key)
+    torch.manual_seed(config.init_seed)
+    model = ACPredictor(predictor).to(device)
+    opt = torch.optim.AdamW(
+        model.parameters(), lr=config.lr, betas=(config.beta1, config.beta2), weight_decay=config.weight_decay
+    )
     n = len(seqs)
-    per_epoch = math.ceil(n / cfg.batch_size)
-    total = per_epoch * cfg.epochs
+    per_epoch = math.ceil(n / config.batch_size)
+    total = per_epoch * config.epochs
     start_epoch, history = 0, []
     if checkpoint.exists():
         state = torch.load(checkpoint, map_location=device, weights_only=False)
@@ -182,27 +187,27 @@ def train(
         model.n_parameters(),
         n,
         seqs.n_steps,
-        cfg.epochs,
+        config.epochs,
         per_epoch,
     )
     q0 = layout.n_calib_steps
     model.train()
-    for epoch in range(start_epoch, cfg.epochs):
+    for epoch in range(start_epoch, config.epochs):
         order = np.random.default_rng([data_seed, epoch]).permutation(n)
         sums = np.zeros(2)
-        bar = tqdm(range(per_epoch), desc=f"epoch {epoch + 1}/{cfg.epochs}", mininterval=5.0, leave=False)
+        bar = tqdm(range(per_epoch), desc=f"epoch {epoch + 1}/{config.epochs}", mininterval=5.0, leave=False)
         for b in bar:
             step = epoch * per_epoch + b
             for group in opt.param_groups:
-                group["lr"] = lr_at(step, total, cfg)
-            idx = np.sort(order[b * cfg.batch_size : (b + 1) * cfg.batch_size])
+                group["lr"] = lr_at(step, total, config)
+            idx = np.sort(order[b * config.batch_size : (b + 1) * config.batch_size])
             frames, actions, states = (x.to(device) for x in seqs.batch(idx))
-            tf, ar = losses(model, frames, actions, states, seqs.n_context, q0, cfg)
-            loss = tf + cfg.rollout_weight * ar
+            tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, q0=q0, cfg=config)
+            loss = tf + config.rollout_weight * ar
             opt.zero_grad(set_to_none=True)
             loss.backward()
-            if cfg.grad_clip > 0:
-                torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+            if config.grad_clip > 0:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
             opt.step()
             sums += [tf.item(), ar.item()]
             bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}", refresh=False)
@@ -223,15 +228,14 @@ def train(
                 "history": history,
             },
         )
-        if stop_after_epoch is not None and epoch + 1 >= stop_after_epoch and epoch + 1 < cfg.epochs:
-            return {}
+        if stop_after_epoch is not None and epoch + 1 >= stop_after_epoch and epoch + 1 < config.epochs:
+            return None
     payload = {
         "digest": digest,
-        "predictor": pred_cfg.to_dict(),
+        "predictor": predictor.to_dict(),
         "layout": layout.to_dict(),
-        "train": cfg.to_dict(),
+        "train": config.to_dict(),
         "data_seed": data_seed,
-        "rest_state": rest_state,
         "history": history,
         **(extra or {}),
         "model": {k: v.cpu() for k, v in model.state_dict().items()},
@@ -246,7 +250,6 @@ def train_variant(
     preset: PredictorPreset,
     layout: Layout,
     config: TrainConfig,
-    rest_state: float,
     data_seed: int,
     out: str | os.PathLike,
     checkpoint: str | os.PathLike,
@@ -254,37 +257,37 @@ def train_variant(
     readout: LatentReadout | None = None,
     rollout_readout: str | os.PathLike | None = None,
     device: str = "cpu",
-) -> dict:
+) -> dict | None:
     """Train (or resume) one variant on a training split's cached features: one sequence per object.
 
-    The features are pooled to ``token_grid`` (:func:`imply.models.rollout.pool_tokens`;
+    The features are pooled to ``token_grid`` (:meth:`imply.models.features.FeatureSplit.pooled`;
     None keeps the encoder's grid). The predictor's width comes from ``preset``, its
     token width and patch grid from the pooled features. With ``config.val_objects`` > 0
     those objects are left out and validated after every epoch, which needs ``readout``
     (fit on tokens pooled the same way). With ``rollout_readout`` the trained model's own
-    readout (:func:`imply.models.rollout.fit_rollout_readout`, on its rollouts of the
+    readout (:func:`imply.models.latent_readout.fit_rollout_readout`, on its rollouts of the
     training objects) is written there. Returns the saved payload (see :func:`train`).
     """
-    split = pool_tokens(split, token_grid)
-    objects, val = split_validation(split, layout, rest_state, n_objects=config.val_objects, seed=config.val_seed)
+    split = split.pooled(token_grid)
+    objects, val = split_validation(split, layout, n_objects=config.val_objects, seed=config.val_seed)
     if val is not None and readout is None:
         raise ValueError("validation (val_objects > 0) needs the latent readout")
     examples = objects
     if config.every_push_as_query:
         examples = objects.every_push_as_query(split.meta["speed"].to_numpy(dtype=float))
-    seqs = training_sequences(split, layout, rest_state, examples)
+    seqs = training_sequences(split, layout, examples)
     pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
-    data_key = f"{split.tokens.shape}:{split.grid}:{len(seqs)}:{rest_state}"
+    data_key = f"{split.tokens.shape}:{split.grid}:{len(seqs)}:{layout.rest_state}"
     payload = train(
-        seqs, layout, pred_cfg, config, data_seed, out, checkpoint, data_key=data_key, device=device,
-        rest_state=rest_state, validate=None if val is None else validator(val, readout),
+        seqs, layout=layout, predictor=pred_cfg, config=config, data_seed=data_seed, out=out, checkpoint=checkpoint,
+        data_key=data_key, device=device, validate=None if val is None else validator(val, readout),
         extra={"token_grid": list(split.grid)},
     )  # fmt: skip
-    if rollout_readout is not None and payload:
+    if rollout_readout is not None and payload is not None:
         model = ACPredictor(pred_cfg)
         model.load_state_dict(payload["model"])
         model.eval()
-        own = seqs if examples is objects else training_sequences(split, layout, rest_state, objects)
+        own = seqs if examples is objects else training_sequences(split, layout, objects)
         slide = split.meta["displacement"].to_numpy(dtype=float)[objects.query]
         fitted = fit_rollout_readout(model, own, slide)
         fitted.save(rollout_readout)
@@ -300,4 +303,8 @@ def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:
     model = ACPredictor(PredictorConfig.from_dict(payload["predictor"]))
     model.load_state_dict(payload["model"])
     model.eval()
-    return model, Layout.from_dict(payload["layout"]), payload
+    # model files written before the layout carried rest_state kept it beside the layout
+    layout = (
+        {"rest_state": payload["rest_state"], **payload["layout"]} if "rest_state" in payload else payload["layout"]
+    )
+    return model, Layout.from_dict(layout), payload

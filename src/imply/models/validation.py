@@ -4,7 +4,7 @@ The slice (``val_objects`` objects, drawn once from ``val_seed``, the same for e
 data-order seed) is left out of training. After every epoch each of its objects' query
 push is rolled out from its context and read out to a slide with the latent readout,
 under the contexts the layout allows: ``own`` and ``swap`` calibration (another
-object of the slice, by :func:`imply.models.rollout.derangement`) for a calibrated
+object of the slice, by :func:`imply.models.examples.derangement`) for a calibrated
 layout, ``none`` for the context-free one. Reported per context:
 
 * ``log_error``: mean |log predicted - log true slide|;
@@ -26,21 +26,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from imply.models.ac_predictor import ACPredictor
+from imply.models.examples import TrainingObjects, derangement, training_objects, training_sequences
+from imply.models.features import FeatureSplit
+from imply.models.latent_readout import LatentReadout
 from imply.models.object_blind import TypicalSlide, typical_slide_of_clips
-from imply.models.rollout import (
-    FeatureSplit,
-    LatentReadout,
-    TrainingObjects,
-    derangement,
-    final_tokens,
-    training_objects,
-    training_sequences,
-)
+from imply.models.rollout import final_tokens
 from imply.models.sequences import Layout, Sequences
 from imply.stats import pearson
 
 
-@dataclass
+@dataclass(frozen=True)
 class ValidationSlice:
     """The held-out training objects, their sequences per context and their true and typical log slides."""
 
@@ -50,7 +45,7 @@ class ValidationSlice:
 
 
 def split_validation(
-    split: FeatureSplit, layout: Layout, rest_state: float, *, n_objects: int, seed: int
+    split: FeatureSplit, layout: Layout, *, n_objects: int, seed: int
 ) -> tuple[TrainingObjects, ValidationSlice | None]:
     """(the objects to train on, the validation slice or None when ``n_objects`` is 0)."""
     objects = training_objects(split)
@@ -63,9 +58,7 @@ def split_validation(
     held[np.random.default_rng(seed).choice(n, size=n_objects, replace=False)] = True
     val = objects.subset(np.flatnonzero(held))
     contexts = {"own": None, "swap": derangement(n_objects, seed)} if layout.calib else {"none": None}
-    seqs = {
-        ctx: training_sequences(split, layout, rest_state, val, calib_of=partner) for ctx, partner in contexts.items()
-    }
+    seqs = {ctx: training_sequences(split, layout, val, calib_of=partner) for ctx, partner in contexts.items()}
     typical: TypicalSlide = typical_slide_of_clips(split.meta[~split.meta["object_id"].isin(val.object_ids)])
     speed = split.meta["speed"].to_numpy(dtype=float)[val.query]
     disp = split.meta["displacement"].to_numpy(dtype=float)[val.query]
@@ -82,7 +75,7 @@ def validator(
         rel_true = slice_.log_true - slice_.log_typical
         out = {"blind_log_error": float(np.mean(np.abs(rel_true)))}
         for ctx, seqs in slice_.sequences.items():
-            pred = readout.predict_log(final_tokens(model, seqs, batch_size, desc=f"validate {ctx}"))
+            pred = readout.predict_log(final_tokens(model, seqs, batch_size=batch_size, desc=f"validate {ctx}"))
             out[f"{ctx}_log_error"] = float(np.mean(np.abs(pred - slice_.log_true)))
             out[f"{ctx}_track_r"] = pearson(pred - slice_.log_typical, rel_true)
         return out
