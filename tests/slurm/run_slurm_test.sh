@@ -194,11 +194,14 @@ export PATH="$D/bin:$PATH"
 cd "$WF"
 step "run 1: snakemake --profile (derived from profiles/slurm) $TARGET (limit ${RUN_LIMIT}s)"
 rc=0
-timeout "$RUN_LIMIT" "$PY" -m snakemake --profile "$WORK/profile" "$TARGET" >"$WORK/run1.log" 2>&1 || rc=$?
+timeout -s INT -k 30 "$RUN_LIMIT" "$PY" -m snakemake --profile "$WORK/profile" "$TARGET" >"$WORK/run1.log" 2>&1 || rc=$?
 if [ "$rc" -ne 0 ]; then
-    tail -n 30 "$WORK/run1.log"
+    tail -n 15 "$WORK/run1.log"
     echo "--- squeue:"; squeue --states=all -o '%i %j %T %r' || true
-    [ "$rc" -eq 124 ] && fail "snakemake did not finish in ${RUN_LIMIT}s (a job pending or its state never read)"
+    # 124: stopped with SIGINT at the limit (Snakemake cancels its jobs), 137: killed 30 s later
+    if [ "$rc" -eq 124 ] || [ "$rc" -eq 137 ]; then
+        fail "snakemake did not finish in ${RUN_LIMIT}s (a job pending, or its state never read: see squeue above)"
+    fi
     fail "snakemake exited $rc (log: $WORK/run1.log)"
 fi
 mapfile -t JOBIDS < <(grep -o 'submitted with SLURM jobid [0-9]*' "$WORK/run1.log" | awk '{print $NF}')
@@ -213,7 +216,7 @@ step "run 1: ${#JOBIDS[@]} jobs through sbatch, all completed (SLURM job ids ${J
 grep -h "^\(Job\|Finished\|Nothing\|Complete\|[0-9]* of\)" "$WORK/run1.log" | tail -n 4 || true
 
 step "run 2: the same command again"
-timeout 180 "$PY" -m snakemake --profile "$WORK/profile" "$TARGET" >"$WORK/run2.log" 2>&1 \
+timeout -s INT -k 30 180 "$PY" -m snakemake --profile "$WORK/profile" "$TARGET" >"$WORK/run2.log" 2>&1 \
     || { tail -n 20 "$WORK/run2.log"; fail "the rerun failed (log: $WORK/run2.log)"; }
 grep -q "Nothing to be done" "$WORK/run2.log" || { tail -n 20 "$WORK/run2.log"; fail "the rerun was not a no-op"; }
 if grep -q "submitted with SLURM jobid" "$WORK/run2.log"; then fail "the rerun submitted jobs"; fi
