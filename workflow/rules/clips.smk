@@ -63,10 +63,10 @@ rule encoder_encode:
     params:
         encoder=as_json(config["encoder"]),
         weights=encode_weights_option,
-    threads: config["threads"]
+    threads: config["model"]["resources"]["encode_threads"]
     resources:
-        mem_mb=8000,
-        runtime=60,
+        mem_mb=config["model"]["resources"]["encode_mem_mb"],
+        runtime=config["model"]["resources"]["encode_runtime"],
         gpu=int(config["encoder"]["kind"] != "cpu"),
     log:
         "results/logs/encoder_encode_{feature_split}.log",

@@ -7,12 +7,14 @@ from pathlib import Path
 from snakemake.utils import min_version
 
 from imply.config_check import validate_workflow_config
+from imply.models.weights import encoder_weight_files, validate_encoder_weights
 from imply.realworld.cases import BenchmarkConfig, case_ids
 
 min_version("8.0")
 
 # the whole config, every stage's section, before any job runs (one line on error)
 validate_workflow_config(config, Path(workflow.current_basedir).parent / "schemas")
+validate_encoder_weights(config)  # released weights: present and a checkpoint of encoder.kind
 
 # the software environment of every rule under `snakemake --use-conda` (pinned versions)
 IMPLY_ENV = "../../envs/imply.yaml"
@@ -52,12 +54,16 @@ def score_subset(*keys):
 
 
 def encoder_weights(wildcards):
-    """The CPU default encoder is built by the workflow; released weights are a local file given in config."""
-    return ["results/encoder/encoder.pt"] if config["encoder"]["kind"] == "cpu" else []
+    """The CPU default encoder is built by the workflow; released weights are local files given in config
+    (inputs all the same, so replacing them reruns the features)."""
+    if config["encoder"]["kind"] == "cpu":
+        return ["results/encoder/encoder.pt"]
+    return encoder_weight_files(config["encoder"])
 
 
 def encode_weights_option(wildcards, input):
-    return f"--weights {input.weights}" if input.weights else ""
+    """The CPU default's weights file; released weights are read from encoder.weights in the encoder JSON."""
+    return f"--weights {input.weights}" if config["encoder"]["kind"] == "cpu" else ""
 
 
 def split_files(split):

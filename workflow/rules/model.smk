@@ -50,7 +50,7 @@ rule model_train:
         train=as_json(config["model"]["train"]),
         rest_state=config["model"]["rest_state"],
         device=config["model"]["device"],
-    threads: config["model"]["train_threads"]
+    threads: config["model"]["resources"]["train_threads"]
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
         runtime=config["model"]["resources"]["train_runtime"],
@@ -102,7 +102,7 @@ rule model_rollout:
         contexts=lambda wildcards: ROLLOUT_CONTEXTS[wildcards.variant],
         derangement_seed=config["model"]["derangement_seed"],
         batch=config["model"]["rollout_batch"],
-    threads: config["threads"]
+    threads: config["model"]["resources"]["rollout_threads"]
     resources:
         mem_mb=config["model"]["resources"]["rollout_mem_mb"],
         runtime=config["model"]["resources"]["rollout_runtime"],

@@ -204,13 +204,21 @@ class TrainConfig(Config):
 
 @dataclass(frozen=True, kw_only=True)
 class ModelResources(Config):
-    """Config ``model.resources``: what the workflow asks the scheduler for, per training and rollout job."""
+    """Config ``model.resources``: what the Section 5 rules ask for (threads, memory, runtime, GPUs): the one place for them."""
 
     config_key: ClassVar[str] = "model.resources"
 
-    gpu: int = option(0, doc="GPUs per job", minimum=0, required=True)
+    gpu: int = option(0, doc="GPUs per model job (encoder_encode asks for one unless encoder.kind is cpu)", minimum=0,
+                      required=True)  # fmt: skip
+    encode_threads: int = option(2, doc="CPU threads of encoder_encode", minimum=1, required=True)
+    encode_mem_mb: int = option(8000, doc="memory of encoder_encode (MB)", minimum=100, required=True)
+    encode_runtime: int = option(60, doc="minutes of encoder_encode", minimum=1, required=True)
+    train_threads: int = option(
+        1, doc="torch threads per training run (two small runs side by side beat one with 2)", minimum=1, required=True
+    )
     train_mem_mb: int = option(4000, doc="memory of a training job (MB)", minimum=100, required=True)
     train_runtime: int = option(30, doc="minutes of a training job", minimum=1, required=True)
+    rollout_threads: int = option(2, doc="CPU threads of a rollout job", minimum=1, required=True)
     rollout_mem_mb: int = option(4000, doc="memory of a rollout job (MB)", minimum=100, required=True)
     rollout_runtime: int = option(15, doc="minutes of a rollout job", minimum=1, required=True)
 
@@ -255,7 +263,6 @@ class ModelConfig(Config):
         "rollouts", doc="rollouts read with each model's own readout (rollouts) or the real-token one (real)",
         required=True, choices=("rollouts", "real"),
     )  # fmt: skip
-    train_threads: int = option(1, doc="torch threads per training run", minimum=1, required=True)
     rollout_batch: int = option(100, doc="held-out objects rolled out per batch", minimum=1, required=True)
     derangement_seed: int = option(
         11, doc="which object's calibration each object gets in the swap condition", minimum=0, required=True
