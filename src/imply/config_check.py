@@ -106,7 +106,9 @@ def check_schemas(config: dict[str, Any], schema_dir: str | os.PathLike) -> None
     if not path.is_file():
         raise ConfigError(f"no {SCHEMA_FILE} in {schema_dir}: cannot check the config")
     with open(path) as fh:
-        check_against(yaml.safe_load(fh), config, "")
+        # libyaml's loader where present: the schema is long, and this runs at every `snakemake -n`
+        schema = yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    check_against(schema, config, "")
 
 
 def check_against(schema: dict[str, Any], instance: Any, prefix: str) -> None:

@@ -24,12 +24,10 @@ from __future__ import annotations
 import importlib.util
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import torch
-
-from imply.models.encoder import EncoderConfig, strip_prefixes
-from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig
+if TYPE_CHECKING:
+    from imply.models.encoder import EncoderConfig
 
 # the kinds whose weights are a local file given in config (the CPU default is built by the workflow)
 RELEASED_KINDS = ("vjepa2_pt", "vjepa2_hf")
@@ -43,9 +41,11 @@ def check_encoder_weights(section: dict[str, Any]) -> None:
 
     Raises ValueError with one line naming ``encoder.weights``; does nothing for the CPU default.
     """
+    if section.get("kind", "cpu") not in RELEASED_KINDS:
+        return  # before importing torch: every `snakemake -n` of the default study passes here
+    from imply.models.encoder import EncoderConfig
+
     cfg = EncoderConfig.from_dict(section)
-    if cfg.kind not in RELEASED_KINDS:
-        return
     if not cfg.weights:
         raise ValueError(f"encoder.weights: encoder.kind {cfg.kind!r} needs a local path to the weights")
     path = Path(cfg.weights)
@@ -76,6 +76,10 @@ def validate_encoder_weights(config: dict[str, Any]) -> None:
 
 
 def _check_pt(path: Path, cfg: EncoderConfig) -> None:
+    import torch
+
+    from imply.models.encoder import strip_prefixes
+
     what = "a V-JEPA 2 .pt checkpoint"
     if not path.is_file():
         raise ValueError(f"encoder.weights: {path} does not exist ({what}; encoder.kind vjepa2_pt)")
@@ -103,6 +107,10 @@ def _check_pt(path: Path, cfg: EncoderConfig) -> None:
 
 def _check_fits_arch(path: Path, state: dict[str, Any], arch: str | dict[str, Any]) -> None:
     """Parameter names and shapes against ``encoder.arch`` built on the meta device (nothing allocated)."""
+    import torch
+
+    from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig
+
     vit = ViTConfig.from_dict(arch, "encoder.arch") if isinstance(arch, dict) else PRESETS.get(arch)
     if vit is None:
         raise ValueError(f"encoder.arch: {arch!r} is not one of {', '.join(PRESETS)}")
