@@ -11,7 +11,7 @@ from imply.paper.latex_tables import table1_tex, table2_tex
 from imply.paper.macros import macros_tex, merge_parts, numbers_json
 from imply.paper.parts import build_part, read_part, stage_numbers, write_part
 from imply.paper.registry import load_registry
-from imply.paper.report import reproduction_frame, reproduction_md
+from imply.paper.report import reproduction_frame, reproduction_html, reproduction_md
 from imply.paper.results import read_results, write_result
 from imply.results import NOT_PRODUCED, Claim, UnknownNumberError
 from imply.study.section4.scoring import standin_metrics
@@ -70,6 +70,11 @@ def test_merge_and_report(tmp_path):
     md = reproduction_md(reg, merged, frame)
     assert "oracle small" in md and "FAILS" in md and "gapFalseAlarm" in md
     assert "hold: 1; fail: 1" in md
+    page = reproduction_html(reg, merged, frame)  # the same report, as the page the Snakemake report shows
+    assert "hold: 1; fail: 1" in page and "<span class='fails'>FAILS</span> [gap / c2] x fails" in page
+    assert (
+        "<td>OrSelf</td>" in page and page.count("<tr>") == md.count("\n| ") - 2
+    )  # every data row; md also has 2 header rows
     with pytest.raises(ValueError, match="registered to stage 'section4'"):
         write_part(tmp_path / "dup.json", stage="gap", numbers={"OrSelf": 0.1}, claims=[])
     (tmp_path / "dup.json").write_text(json.dumps({"stage": "gap", "numbers": {"OrSelf": 0.1}, "claims": []}))

@@ -144,6 +144,12 @@ rule paper_merge:
             category="Paper numbers",
             subcategory="Reproduction report",
         ),
+        report_html=report(
+            "results/paper/reproduction.html",
+            caption="../report/reproduction.rst",
+            category="Paper numbers",
+            subcategory="Reproduction report",
+        ),
     resources:
         mem_mb=500,
         runtime=1,
@@ -151,4 +157,4 @@ rule paper_merge:
         "results/logs/paper_merge.log",
     shell:
         "imply paper merge {input} --macros {output.macros} --numbers {output.numbers}"
-        " --report-md {output.report_md} --report-csv {output.report_csv} > {log} 2>&1"
+        " --report-md {output.report_md} --report-csv {output.report_csv} --report-html {output.report_html} > {log} 2>&1"

@@ -63,6 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--numbers", required=True, help="numbers.json to write")
     m.add_argument("--report-md", required=True, help="reproduction.md to write")
     m.add_argument("--report-csv", required=True, help="reproduction.csv to write")
+    m.add_argument("--report-html", help="reproduction.html to write (the page the Snakemake report shows)")
     m.set_defaults(func=cmd_merge)
 
 
@@ -154,7 +155,9 @@ def cmd_merge(args: argparse.Namespace) -> int:
     with user_errors(KeyError, ValueError):
         merged = merge_parts(args.parts)
     write_macros(merged, args.macros, args.numbers)
-    frame = write_report(load_registry(), merged, args.report_md, args.report_csv)
+    frame = write_report(
+        load_registry(), merged, md_path=args.report_md, csv_path=args.report_csv, html_path=args.report_html
+    )
     counts = frame["status"].value_counts().to_dict()
     log.info("merged %d parts, %d numbers; paper numbers: %s", len(merged.stages), len(merged.numbers), counts)
     return 0

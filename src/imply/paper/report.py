@@ -16,6 +16,7 @@ Status of a number:
 
 from __future__ import annotations
 
+import html
 import math
 import os
 
@@ -111,10 +112,56 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
     return "\n".join(out) + "\n"
 
 
+_HTML_STYLE = (
+    "body{font-family:sans-serif;margin:1.5em;max-width:75em}"
+    "table{border-collapse:collapse;font-size:90%}td,th{border:1px solid #ccc;padding:2px 8px;text-align:left}"
+    ".holds{color:#1a7f37}.fails{color:#cf222e;font-weight:bold}"
+)
+
+
+def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
+    """The reproduction report as one HTML page (what `snakemake --report` shows inline): the
+    same summary, claims and numbers as :func:`reproduction_md`."""
+    counts = frame["status"].value_counts()
+    n_hold = sum(1 for _, c in merged.claims if c.holds)
+    produced = int((frame["status"] != "not produced").sum())
+    status = "; ".join(f"{s}: {int(counts.get(s, 0))}" for s in STATUSES)
+    out = [
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Reproduction report</title>"
+        f"<style>{_HTML_STYLE}</style></head><body>",
+        "<h1>Reproduction report</h1>",
+        f"<p>Paper numbers: {len(frame)}; produced: {produced}; {html.escape(status)}.<br>"
+        f"Claims checked: {len(merged.claims)}; hold: {n_hold}; fail: {len(merged.claims) - n_hold}.</p>",
+        "<h2>Claims</h2><ul>",
+    ]
+    for stage, c in merged.claims:
+        mark = "<span class='holds'>holds</span>" if c.holds else "<span class='fails'>FAILS</span>"
+        out.append(f"<li>{mark} [{html.escape(stage)} / {html.escape(c.id)}] {html.escape(c.statement)}"
+                   f" <i>({html.escape(c.detail)})</i></li>")  # fmt: skip
+    out += ["</ul>", "<h2>Numbers</h2>"]
+    out.append(frame[["name", "section", "paper", "reproduced", "status"]].to_html(index=False, na_rep=""))
+    known = {e.name for e in registry.in_paper()}
+    extra = [n for n in merged.numbers.values() if n.name not in known]
+    if extra:
+        out.append("<h2>Reproduced numbers the paper does not print</h2>")
+        rows = pd.DataFrame([(n.name, n.stage, n.text) for n in extra], columns=["name", "stage", "value"])
+        out.append(rows.to_html(index=False))
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
 def write_report(
-    registry: Registry, merged: Merged, md_path: str | os.PathLike, csv_path: str | os.PathLike
+    registry: Registry,
+    merged: Merged,
+    *,
+    md_path: str | os.PathLike,
+    csv_path: str | os.PathLike,
+    html_path: str | os.PathLike | None = None,
 ) -> pd.DataFrame:
+    """Write the reproduction report (Markdown, CSV and, if asked, HTML); returns its numbers frame."""
     frame = reproduction_frame(registry, merged)
     write_csv(csv_path, frame)
     write_text(md_path, reproduction_md(registry, merged, frame))
+    if html_path is not None:
+        write_text(html_path, reproduction_html(registry, merged, frame))
     return frame
