@@ -16,6 +16,7 @@ SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
     "results/paper/reproduction.md",
     "results/paper/reproduction.csv",
+    "results/paper/reproduction.html",
     "results/paper/macros.tex",
     "results/paper/numbers.json",
     "results/paper/tables/table1.tex",

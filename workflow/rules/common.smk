@@ -165,5 +165,5 @@ def final_outputs():
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
     out += paper_parts()
-    out += [f"results/paper/{name}" for name in ("macros.tex", "numbers.json", "reproduction.md", "reproduction.csv")]
+    out += [f"results/paper/{name}" for name in ("macros.tex", "numbers.json", "reproduction.md", "reproduction.csv", "reproduction.html")]
     return out
