@@ -87,7 +87,7 @@ rule readout_fit:
         metrics=report(
             "results/readout/metrics.json",
             caption="../report/readout_metrics.rst",
-            category="Section 5: readout on clips",
+            category="Section 5, readout on clips",
             subcategory="Result documents",
         ),
     params:

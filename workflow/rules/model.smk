@@ -75,7 +75,7 @@ rule model_training_plot:
         report(
             "results/model/training.png",
             caption="../report/training.rst",
-            category="Section 5: learned model",
+            category="Section 5, learned model",
             subcategory="Figures",
         ),
     threads: 1

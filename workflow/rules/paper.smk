@@ -29,13 +29,13 @@ rule paper_tables_section4:
         table1=report(
             "results/paper/tables/table1.tex",
             caption="../report/table1.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Tables",
         ),
         table2=report(
             "results/paper/tables/table2.tex",
             caption="../report/table2.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Tables",
         ),
     resources:
@@ -56,7 +56,7 @@ rule paper_table3:
         report(
             "results/paper/tables/table3.tex",
             caption="../report/table3.rst",
-            category="Section 5: learned model",
+            category="Section 5, learned model",
             subcategory="Tables",
         ),
     resources:
@@ -79,7 +79,7 @@ rule paper_figure1:
         png=report(
             "results/paper/figures/figure1.png",
             caption="../report/figure1.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Figures",
         ),
     resources:
@@ -102,7 +102,7 @@ rule paper_figure2:
         png=report(
             "results/paper/figures/figure2.png",
             caption="../report/figure2.rst",
-            category="Section 5: learned model",
+            category="Section 5, learned model",
             subcategory="Figures",
         ),
     resources:

@@ -104,7 +104,7 @@ rule s4_metrics:
         report(
             "results/section4/metrics.json",
             caption="../report/section4_metrics.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Result documents",
         ),
     params:
@@ -131,7 +131,7 @@ rule s4_noise:
         report(
             "results/section4/noise.json",
             caption="../report/section4_noise.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Result documents",
         ),
     params:
@@ -159,7 +159,7 @@ rule s4_selection:
         summary=report(
             "results/section4/selection.json",
             caption="../report/section4_selection.rst",
-            category="Section 4: controlled validation",
+            category="Section 4, controlled validation",
             subcategory="Result documents",
         ),
         choices="results/section4/selection_choices.csv",

@@ -13,13 +13,13 @@ rule section5:
         metrics=report(
             "results/section5/metrics.json",
             caption="../report/section5_metrics.rst",
-            category="Section 5: learned model",
+            category="Section 5, learned model",
             subcategory="Result documents",
         ),
         per_object=report(
             "results/section5/per_object.csv",
             caption="../report/section5_per_object.rst",
-            category="Section 5: learned model",
+            category="Section 5, learned model",
             subcategory="Result documents",
         ),
     params:
