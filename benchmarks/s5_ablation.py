@@ -25,13 +25,12 @@ from pathlib import Path
 import torch
 import yaml
 
-from imply.models.ac_predictor import PredictorPreset
+from imply.models.config import Layout, PredictorPreset, TrainConfig
 from imply.models.features import load_feature_split
 from imply.models.latent_readout import fit_latent_readout, load_latent_readout
 from imply.models.object_blind import typical_slide_of_clips
 from imply.models.rollout import rollout_split
-from imply.models.sequences import Layout
-from imply.models.train import TrainConfig, load_model, train_variant
+from imply.models.train import load_model, train_variant
 from imply.score import ScoreConfig
 from imply.study.section5.rollouts import object_blind_rollouts, rollouts_by_context
 from imply.study.section5.scoring import context_scores, own_lt_swap, score_context

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from imply.models.ac_predictor import ACPredictor, PredictorConfig, block_causal_mask, token_positions
+from imply.models.ac_predictor import ACPredictor, block_causal_mask, token_positions
+from imply.models.config import PredictorConfig
 from imply.models.modules import rope_apply, rope_tables
 
 # tiny tensors: extra torch threads only contend with the rest of the suite

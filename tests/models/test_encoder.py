@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from imply.models.config import ViTConfig
 from imply.models.encoder import EncoderConfig, EncoderError, encode_clips, load_encoder, strip_prefixes
-from imply.models.vision_transformer import VisionTransformer, ViTConfig, preprocess
+from imply.models.vision_transformer import VisionTransformer, preprocess
 
 TINY_ARCH = {"patch_size": 16, "tubelet_size": 2, "embed_dim": 24, "depth": 2, "num_heads": 2}
 

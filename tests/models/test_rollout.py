@@ -7,11 +7,11 @@ import pytest
 import torch
 from test_ac_predictor import tiny_model
 
+from imply.models.config import Layout, TrainConfig
 from imply.models.examples import training_sequences
 from imply.models.features import load_feature_split
 from imply.models.rollout import final_tokens, rollout
-from imply.models.sequences import Layout
-from imply.models.train import TrainConfig, losses
+from imply.models.train import losses
 from synthetic_features import synth_split
 
 # tiny tensors: extra torch threads only contend with the rest of the suite

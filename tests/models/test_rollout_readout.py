@@ -5,13 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imply.models.ac_predictor import PredictorPreset
+from imply.models.config import Layout, PredictorPreset, TrainConfig
 from imply.models.examples import training_objects, training_sequences
 from imply.models.features import load_feature_split
 from imply.models.latent_readout import fit_latent_readout, load_latent_readout
 from imply.models.rollout import final_tokens
-from imply.models.sequences import Layout
-from imply.models.train import TrainConfig, load_model, train_variant
+from imply.models.train import load_model, train_variant
 from synthetic_features import synth_split
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")

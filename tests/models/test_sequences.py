@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from imply.models.ac_predictor import ACPredictor, PredictorConfig
+from imply.models.ac_predictor import ACPredictor
+from imply.models.config import Layout, PredictorConfig
 from imply.models.examples import training_objects, training_sequences
 from imply.models.features import load_feature_split, pool_tokens
-from imply.models.sequences import Layout
 from synthetic_features import synth_split
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")

@@ -7,11 +7,10 @@ import pytest
 import torch
 from test_ac_predictor import TINY, tiny_model
 
-from imply.models.ac_predictor import PredictorConfig
+from imply.models.config import Layout, PredictorConfig, TrainConfig
 from imply.models.examples import derangement, training_sequences
 from imply.models.features import load_feature_split
-from imply.models.sequences import Layout
-from imply.models.train import TrainConfig, losses, train
+from imply.models.train import losses, train
 from synthetic_features import synth_split
 
 # tiny tensors: extra torch threads only contend with the rest of the suite

@@ -12,8 +12,9 @@ import torch
 import yaml
 from snakemake.utils import update_config
 
+from imply.models.config import ViTConfig
 from imply.models.encoder import EncoderConfig, load_encoder
-from imply.models.vision_transformer import VisionTransformer, ViTConfig
+from imply.models.vision_transformer import VisionTransformer
 from imply.models.weights import check_encoder_weights, encoder_weight_files
 from workflow_helpers import copy_workflow, snakemake
 

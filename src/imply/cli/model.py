@@ -133,9 +133,8 @@ def _readout(path: Path):
 
 def cmd_train(args: argparse.Namespace) -> int:
     from imply.io import write_json
-    from imply.models.ac_predictor import PredictorPreset
-    from imply.models.sequences import Layout
-    from imply.models.train import TrainConfig, train_variant
+    from imply.models.config import Layout, PredictorPreset, TrainConfig
+    from imply.models.train import train_variant
 
     _setup_torch(args.threads)
     preset = config_from_json(PredictorPreset, args.preset_json, "--preset-json")

@@ -42,8 +42,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from imply.models.config import PredictorConfig as PredictorConfig  # its home is imply.models.config
-from imply.models.config import PredictorPreset as PredictorPreset  # its home is imply.models.config
+from imply.models.config import PredictorConfig
 from imply.models.modules import Block, KeyValue, init_weights, rope_tables, shrink_residual_branches
 
 

@@ -70,9 +70,10 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from imply.io import write_npz
+from imply.models.config import PRESETS, ViTConfig
 from imply.models.features import pool_tokens
 from imply.models.pretrain import PretrainConfig
-from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig, preprocess
+from imply.models.vision_transformer import VisionTransformer, preprocess
 from imply.options import Config, option
 
 log = logging.getLogger("imply.encoder")

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from imply.models.config import Layout
 from imply.models.features import FeatureSplit
-from imply.models.sequences import Layout, Sequences, build_sequences
+from imply.models.sequences import Sequences, build_sequences
 
 log = logging.getLogger("imply.models.examples")
 

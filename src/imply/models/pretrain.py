@@ -26,9 +26,10 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
+from imply.models.config import ViTConfig
 from imply.models.masked_predictor import MaskedPredictor
 from imply.models.modules import grid_positions
-from imply.models.vision_transformer import VisionTransformer, ViTConfig, preprocess
+from imply.models.vision_transformer import VisionTransformer, preprocess
 from imply.options import Config, option
 
 log = logging.getLogger("imply.encoder")

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from imply.models.ac_predictor import normalise_tokens
-from imply.models.config import Layout as Layout  # its home is imply.models.config
+from imply.models.config import Layout
 from imply.models.features import FeatureSplit
 
 

@@ -51,9 +51,8 @@ import torch
 from tqdm import tqdm
 
 from imply.io import atomic_path
-from imply.models.ac_predictor import ACPredictor, PredictorConfig
-from imply.models.config import Layout, PredictorPreset
-from imply.models.config import TrainConfig as TrainConfig  # its home is imply.models.config
+from imply.models.ac_predictor import ACPredictor
+from imply.models.config import Layout, PredictorConfig, PredictorPreset, TrainConfig
 from imply.models.examples import training_sequences
 from imply.models.features import FeatureSplit
 from imply.models.latent_readout import LatentReadout, fit_rollout_readout

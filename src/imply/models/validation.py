@@ -26,12 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from imply.models.ac_predictor import ACPredictor
+from imply.models.config import Layout
 from imply.models.examples import TrainingObjects, derangement, training_objects, training_sequences
 from imply.models.features import FeatureSplit
 from imply.models.latent_readout import LatentReadout
 from imply.models.object_blind import TypicalSlide, typical_slide_of_clips
 from imply.models.rollout import final_tokens
-from imply.models.sequences import Layout, Sequences
+from imply.models.sequences import Sequences
 from imply.stats import pearson
 
 

@@ -27,7 +27,6 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from imply.models.config import PRESETS as PRESETS  # the presets' home is imply.models.config
 from imply.models.config import ViTConfig
 from imply.models.modules import Block, grid_positions, init_weights, rope_tables, shrink_residual_branches
 

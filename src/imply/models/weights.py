@@ -109,7 +109,8 @@ def _check_fits_arch(path: Path, state: dict[str, Any], arch: str | dict[str, An
     """Parameter names and shapes against ``encoder.arch`` built on the meta device (nothing allocated)."""
     import torch
 
-    from imply.models.vision_transformer import PRESETS, VisionTransformer, ViTConfig
+    from imply.models.config import PRESETS, ViTConfig
+    from imply.models.vision_transformer import VisionTransformer
 
     vit = ViTConfig.from_dict(arch, "encoder.arch") if isinstance(arch, dict) else PRESETS.get(arch)
     if vit is None:
