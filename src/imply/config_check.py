@@ -273,11 +273,22 @@ def _check_model_inputs(model: dict[str, Any], clips: dict[str, Any] | None, enc
 
 
 def check_config(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:
-    """The whole study config: schemas, then the rules across fields. Raises :class:`ConfigError`."""
+    """The whole study config: schemas, the rules across fields, then released weights. Raises :class:`ConfigError`."""
     if not isinstance(config, dict):
         raise ConfigError("config: expected a mapping of sections")
     check_schemas(config, schema_dir)
     check_rules(config)
+    check_weights(config)
+
+
+def check_weights(config: dict[str, Any]) -> None:
+    """Released encoder weights (``encoder.weights``) present and a checkpoint of ``encoder.kind``."""
+    from imply.models.weights import check_encoder_weights  # imports torch only for released weights
+
+    try:
+        check_encoder_weights(config["encoder"])
+    except ValueError as exc:
+        raise ConfigError(" ".join(str(exc).split())) from None
 
 
 def validate_workflow_config(config: dict[str, Any], schema_dir: str | os.PathLike) -> None:

@@ -7,14 +7,13 @@ from pathlib import Path
 from snakemake.utils import min_version
 
 from imply.config_check import validate_workflow_config
-from imply.models.weights import encoder_weight_files, validate_encoder_weights
+from imply.models.weights import encoder_weight_files
 from imply.realworld.cases import BenchmarkConfig, case_ids
 
 min_version("8.0")
 
-# the whole config, every stage's section, before any job runs (one line on error)
+# the whole config, every stage's section and released encoder weights, before any job runs (one line on error)
 validate_workflow_config(config, Path(workflow.current_basedir).parent / "schemas")
-validate_encoder_weights(config)  # released weights: present and a checkpoint of encoder.kind
 
 # the software environment of every rule under `snakemake --use-conda` (pinned versions)
 IMPLY_ENV = "../../envs/imply.yaml"

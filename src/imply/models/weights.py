@@ -67,14 +67,6 @@ def encoder_weight_files(section: dict[str, Any]) -> list[str]:
     return sorted(str(f) for f in files)
 
 
-def validate_encoder_weights(config: dict[str, Any]) -> None:
-    """:func:`check_encoder_weights` for the Snakefile: bad weights end Snakemake with one ``config error:`` line."""
-    try:
-        check_encoder_weights(config["encoder"])
-    except ValueError as exc:
-        raise SystemExit(f"config error: {' '.join(str(exc).split())}") from None
-
-
 def _check_pt(path: Path, cfg: EncoderConfig) -> None:
     import torch
 
