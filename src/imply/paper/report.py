@@ -65,11 +65,26 @@ def reproduction_frame(registry: Registry, merged: Merged) -> pd.DataFrame:
     )
 
 
-def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
+def _summary(merged: Merged, frame: pd.DataFrame) -> tuple[str, str]:
+    """The report's two summary sentences: the paper's numbers by status, and the claims."""
     counts = frame["status"].value_counts()
-    n_claims = len(merged.claims)
     n_hold = sum(1 for _, c in merged.claims if c.holds)
     produced = int((frame["status"] != "not produced").sum())
+    numbers = f"Paper numbers: {len(frame)}; produced: {produced}; " + "; ".join(
+        f"{s}: {int(counts.get(s, 0))}" for s in STATUSES
+    )
+    claims = f"Claims checked: {len(merged.claims)}; hold: {n_hold}; fail: {len(merged.claims) - n_hold}."
+    return numbers + ".", claims
+
+
+def _unprinted(registry: Registry, merged: Merged) -> list:
+    """Reproduced numbers the paper does not print."""
+    known = {e.name for e in registry.in_paper()}
+    return [n for n in merged.numbers.values() if n.name not in known]
+
+
+def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
+    numbers_line, claims_line = _summary(merged, frame)
     out = [
         "# Reproduction report",
         "",
@@ -79,10 +94,8 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
         "",
         "## Summary",
         "",
-        f"- Paper numbers: {len(frame)}; produced: {produced}; "
-        + "; ".join(f"{s}: {int(counts.get(s, 0))}" for s in STATUSES)
-        + ".",
-        f"- Claims checked: {n_claims}; hold: {n_hold}; fail: {n_claims - n_hold}.",
+        f"- {numbers_line}",
+        f"- {claims_line}",
         "",
         "A number *matches* when it equals the paper's at the paper's printed precision, is *close* "
         "within 10% (or 5 units of the last printed digit), and *differs* otherwise.",
@@ -98,8 +111,7 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
     out += ["", "## Numbers", "", "| name | section | paper | reproduced | status |", "|---|---|---|---|---|"]
     for r in frame.itertuples(index=False):
         out.append(f"| {r.name} | {r.section} | {r.paper} | {r.reproduced} | {r.status} |")
-    known = {e.name for e in registry.in_paper()}
-    extra = [n for n in merged.numbers.values() if n.name not in known]
+    extra = _unprinted(registry, merged)
     if extra:
         out += [
             "",
@@ -122,16 +134,12 @@ _HTML_STYLE = (
 def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
     """The reproduction report as one HTML page (what `snakemake --report` shows inline): the
     same summary, claims and numbers as :func:`reproduction_md`."""
-    counts = frame["status"].value_counts()
-    n_hold = sum(1 for _, c in merged.claims if c.holds)
-    produced = int((frame["status"] != "not produced").sum())
-    status = "; ".join(f"{s}: {int(counts.get(s, 0))}" for s in STATUSES)
+    numbers_line, claims_line = _summary(merged, frame)
     out = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Reproduction report</title>"
         f"<style>{_HTML_STYLE}</style></head><body>",
         "<h1>Reproduction report</h1>",
-        f"<p>Paper numbers: {len(frame)}; produced: {produced}; {html.escape(status)}.<br>"
-        f"Claims checked: {len(merged.claims)}; hold: {n_hold}; fail: {len(merged.claims) - n_hold}.</p>",
+        f"<p>{html.escape(numbers_line)}<br>{html.escape(claims_line)}</p>",
         "<h2>Claims</h2><ul>",
     ]
     for stage, c in merged.claims:
@@ -140,8 +148,7 @@ def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -
                    f" <i>({html.escape(c.detail)})</i></li>")  # fmt: skip
     out += ["</ul>", "<h2>Numbers</h2>"]
     out.append(frame[["name", "section", "paper", "reproduced", "status"]].to_html(index=False, na_rep=""))
-    known = {e.name for e in registry.in_paper()}
-    extra = [n for n in merged.numbers.values() if n.name not in known]
+    extra = _unprinted(registry, merged)
     if extra:
         out.append("<h2>Reproduced numbers the paper does not print</h2>")
         rows = pd.DataFrame([(n.name, n.stage, n.text) for n in extra], columns=["name", "stage", "value"])
