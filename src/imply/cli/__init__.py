@@ -27,7 +27,7 @@ from typing import Any
 from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
 
 GROUPS: list[str] = [
-    "score", "table", "sim", "diagnose", "section4", "clips", "encoder", "readout", "model", "section5", "gap", "paper",
+    "score", "table", "sim", "diagnose", "evaluate", "section4", "clips", "encoder", "readout", "model", "section5", "gap", "paper",
 ]  # fmt: skip
 
 

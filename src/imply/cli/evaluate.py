@@ -1,0 +1,96 @@
+"""``imply evaluate``: score world models' rollouts on a frozen suite, in one report.
+
+``imply evaluate --model MODULE:FACTORY [--model ...] --suite DIR -o REPORT`` runs models
+in this process; ``--rollouts FILE`` (repeatable) scores rollouts generated elsewhere; the
+two may be mixed. The report folder is written only when every model has been scored.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import shutil
+from pathlib import Path
+
+from imply.cli.common import UserError, int_range, output_dir, positive_float, user_errors
+
+log = logging.getLogger("imply")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from imply.evaluate.config import EvaluateConfig
+    from imply.options import default_of
+
+    p = sub.add_parser(
+        "evaluate",
+        help="score world models on a suite: tracking, error, self and anchored disagreement, selection",
+        description="Asks each model for its rollouts of the suite's held-out pushes (own calibration, another "
+        "object's, none), reads them with a readout fitted on the suite's real clips (never on the rollouts), and "
+        "writes one report comparing the models: results.json, report.md, figures. A model is MODULE:FACTORY "
+        "(an importable module or a .py file) whose factory returns an object with kind and rollout(request); "
+        "see the README's 'Evaluate your world model'.",
+    )
+    p.add_argument("--model", action="append", default=[], metavar="MODULE:FACTORY",
+                   help="a model to run in process (repeatable)")  # fmt: skip
+    p.add_argument("--rollouts", action="append", default=[], metavar="FILE",
+                   help="rollouts generated elsewhere (.npz, or .csv of displacements; repeatable)")  # fmt: skip
+    p.add_argument("--suite", required=True, help="suite folder (results/suite from the workflow)")
+    p.add_argument("-o", "--output", required=True, help="report folder to write")
+    p.add_argument("--force", action="store_true", help="replace a report written there before")
+    p.add_argument("--conditions", default=",".join(default_of(EvaluateConfig, "conditions")),
+                   help="calibration conditions to ask, comma-separated (default %(default)s)")  # fmt: skip
+    p.add_argument("--samples", type=int_range(1), default=default_of(EvaluateConfig, "samples"),
+                   help="sample sets per object for a stochastic model (default %(default)d)")  # fmt: skip
+    p.add_argument("--bootstrap", type=int_range(0), default=default_of(EvaluateConfig, "bootstrap"),
+                   help="bootstrap resamples for the 95%% intervals (default %(default)d)")  # fmt: skip
+    p.add_argument("--seed", type=int_range(0), default=default_of(EvaluateConfig, "seed"),
+                   help="seed of the bootstrap and the random selection rule (default %(default)d)")  # fmt: skip
+    p.add_argument("--static-limit", type=positive_float, default=default_of(EvaluateConfig, "static_limit"),
+                   help="a set whose every slide is below this many metres is flagged static (default %(default)g)")  # fmt: skip
+    p.add_argument("--cache", help="folder for finished batches, so an interrupted run resumes "
+                   "(default: REPORT.cache beside the report; removed once the report is written)")  # fmt: skip
+    p.add_argument("--no-cache", action="store_true", help="keep no batches on disk")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_evaluate)
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from imply.evaluate.config import EvaluateConfig
+    from imply.evaluate.harness import evaluate
+    from imply.evaluate.interface import ModelError
+    from imply.evaluate.report import write_report
+    from imply.evaluate.rollouts_file import RolloutsFileError
+    from imply.evaluate.suite import SuiteError, load_suite
+    from imply.io import OutputError, check_folder
+    from imply.table import OutOfRangeError
+
+    if not args.model and not args.rollouts:
+        raise UserError("give at least one --model MODULE:FACTORY or --rollouts FILE")
+    out = output_dir(args.output)
+    conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
+    with user_errors(ValueError, message="--conditions: {error}"):
+        settings = EvaluateConfig(
+            conditions=conditions, samples=args.samples, bootstrap=args.bootstrap, seed=args.seed,
+            static_limit=args.static_limit,
+        )  # fmt: skip
+    inputs = [Path(f) for f in args.rollouts]
+    with user_errors(OutputError):
+        check_folder(out, [], force=args.force, inputs=inputs)
+    with user_errors(SuiteError, message="--suite: {error}"):
+        suite = load_suite(args.suite)
+    cache = None if args.no_cache else Path(args.cache) if args.cache else out.with_name(out.name + ".cache")
+    with user_errors(ModelError, RolloutsFileError, SuiteError, OutOfRangeError):
+        evaluations = evaluate(
+            args.model, suite=suite, rollouts=args.rollouts, settings=settings, cache_dir=cache,
+            progress=not args.no_progress,
+        )  # fmt: skip
+    with user_errors(OutputError):
+        write_report(evaluations, out, force=args.force, inputs=inputs)
+    if cache is not None and args.cache is None and cache.exists():
+        shutil.rmtree(cache, ignore_errors=True)
+    for ev in evaluations:
+        own = ev.condition("own") or ev.conditions[0]
+        log.info("%s (%s, %s readout): %s tracking r %s, log error %s", ev.model, ev.kind, ev.readout.name,
+                 own.condition, own.track.format(".2f"), own.error.format(".3f"))  # fmt: skip
+    log.info("report -> %s", out)
+    return 0

@@ -1,0 +1,169 @@
+"""One readout per output kind, fitted on the suite's real clips and never on the outputs it reads.
+
+* ``frames`` -- the frame-difference readout (:class:`imply.readout.FrameDiffReadout`):
+  the box's shift between the query's first context frame and the model's last frame,
+  mapped to metres by a line fitted on the suite's real training clips.
+* ``latents`` -- a ridge (:class:`imply.readout.RidgeReadout`) from the model's own
+  ``encode()`` of the real training clips' rest frames to their log slides (the paper's
+  protocol): the model's encoder is part of the instrument, its rollouts are not.
+* ``displacements`` -- taken as given.
+
+Each readout reports its R^2 of log slide and mean |log error| on the suite's check
+clips: real clips it was not fitted on (:class:`~imply.evaluate.evaluation.ReadoutInfo`).
+A model whose readout cannot read the world is visible there before any of its rollouts
+are scored.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from imply.evaluate.evaluation import ReadoutInfo
+from imply.evaluate.suite import Suite, SuiteTruth
+from imply.readout import FrameDiffReadout, ReadoutConfig, RidgeReadout, saliency
+
+# a rest frame whose box saliency mass is below this share of the context frame's holds no
+# box the frame-difference readout can follow (the box left the view, or was never drawn)
+MIN_BOX_MASS = 0.5
+MAX_PSNR = 99.0  # identical frames: reported as this instead of infinity
+
+
+@dataclass(frozen=True)
+class BatchReadings:
+    """(B, K) arrays read off one batch: displacement (m), box_found, saliency_ratio, psnr."""
+
+    displacement: np.ndarray
+    box_found: np.ndarray
+    saliency_ratio: np.ndarray
+    psnr: np.ndarray
+
+
+class Readout:
+    """A fitted readout: :meth:`read` turns a batch of model outputs into :class:`BatchReadings`."""
+
+    info: ReadoutInfo
+    fingerprint: str
+
+    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+        """outputs: the model's (B, K, ...) array; first_frames, true_rest: uint8 (B, K, H, W, 3)."""
+        raise NotImplementedError
+
+
+def _check_scores(true_d: np.ndarray, read_d: np.ndarray) -> tuple[float, float]:
+    t = np.log(np.asarray(true_d, dtype=float))
+    p = np.log(np.asarray(read_d, dtype=float))
+    ss = ((t - t.mean()) ** 2).sum()
+    r2 = float(1.0 - ((t - p) ** 2).sum() / ss) if ss > 0 else float("nan")
+    return r2, float(np.abs(p - t).mean())
+
+
+def _nan(shape: tuple[int, ...]) -> np.ndarray:
+    return np.full(shape, np.nan)
+
+
+class FrameReadout(Readout):
+    def __init__(self, suite: Suite, truth: SuiteTruth) -> None:
+        self._line = FrameDiffReadout.fit(suite.train_frames, suite.train_displacement)
+        check = self._line.predict(suite.check_frames)
+        r2, err = _check_scores(truth.check_displacement, check)
+        self.info = ReadoutInfo(
+            name="frame difference",
+            fitted_on=f"first and rest frames of {len(suite.train_frames)} real training clips of the suite",
+            n_fit=len(suite.train_frames),
+            n_check=len(suite.check_frames),
+            r2_check=r2,
+            error_check=err,
+        )
+        self.fingerprint = f"frames:{self._line.slope!r}:{self._line.intercept!r}"
+
+    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+        b, k = outputs.shape[:2]
+        rest = outputs[:, :, -1]
+        hw3 = rest.shape[2:]
+        pairs = np.stack([first_frames.reshape(-1, *hw3), rest.reshape(-1, *hw3)], axis=1)
+        d = self._line.predict(pairs).reshape(b, k)
+        mass_first = saliency(first_frames).sum(axis=(-2, -1))
+        mass_rest = saliency(rest).sum(axis=(-2, -1))
+        mass_true = saliency(true_rest).sum(axis=(-2, -1))
+        box_found = mass_rest >= MIN_BOX_MASS * mass_first
+        ratio = mass_rest / np.maximum(mass_true, 1e-9)
+        mse = ((rest.astype(np.float32) - true_rest.astype(np.float32)) ** 2).mean(axis=(-3, -2, -1))
+        with np.errstate(divide="ignore"):
+            psnr = np.minimum(10.0 * np.log10(255.0**2 / mse), MAX_PSNR)
+        return BatchReadings(d, box_found, ratio, psnr)
+
+
+class LatentReadout(Readout):
+    def __init__(self, train_tokens: np.ndarray, check_tokens: np.ndarray, suite: Suite, truth: SuiteTruth) -> None:
+        self.token_shape = tuple(train_tokens.shape[1:])
+        if tuple(check_tokens.shape[1:]) != self.token_shape:
+            raise ValueError(f"encode() gave check tokens {check_tokens.shape[1:]}, training ones {self.token_shape}")
+        flat = np.asarray(train_tokens, dtype=np.float64).reshape(len(train_tokens), 1, -1)
+        self._ridge = RidgeReadout.fit(flat, suite.train_displacement, alphas=ReadoutConfig().alphas())
+        check = self._ridge.predict(np.asarray(check_tokens, dtype=np.float64).reshape(len(check_tokens), -1))
+        r2, err = _check_scores(truth.check_displacement, check)
+        self.info = ReadoutInfo(
+            name="ridge on encode()",
+            fitted_on=f"the model's encode() of the rest frames of {len(train_tokens)} real training clips",
+            n_fit=len(train_tokens),
+            n_check=len(check_tokens),
+            r2_check=r2,
+            error_check=err,
+        )
+        digest = hashlib.sha256(self._ridge.coef.tobytes() + self._ridge.mean.tobytes()).hexdigest()[:16]
+        self.fingerprint = f"latents:{digest}"
+
+    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+        b, k = outputs.shape[:2]
+        d = self._ridge.predict(np.asarray(outputs, dtype=np.float64).reshape(b * k, -1)).reshape(b, k)
+        return BatchReadings(d, np.ones((b, k), dtype=bool), _nan((b, k)), _nan((b, k)))
+
+
+class GivenReadout(Readout):
+    info = ReadoutInfo(
+        name="as given", fitted_on="nothing: the model returns slides", n_fit=0, n_check=0,
+        r2_check=float("nan"), error_check=float("nan"),
+    )  # fmt: skip
+    fingerprint = "displacements"
+
+    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+        b, k = outputs.shape[:2]
+        return BatchReadings(np.asarray(outputs, dtype=float), np.ones((b, k), dtype=bool), _nan((b, k)), _nan((b, k)))
+
+
+def encode_in_batches(encode: Callable[[np.ndarray], np.ndarray], frames: np.ndarray, batch: int) -> np.ndarray:
+    """``encode`` over uint8 (N, H, W, 3) frames, ``batch`` at a time, as one float array (N, ...)."""
+    parts = []
+    for lo in range(0, len(frames), batch):
+        out = np.asarray(encode(frames[lo : lo + batch]))
+        n = len(frames[lo : lo + batch])
+        if out.ndim < 2 or out.shape[0] != n:
+            raise ValueError(f"encode() of {n} frames returned shape {out.shape}, expected ({n}, ...)")
+        if not np.isfinite(out).all():
+            raise ValueError("encode() returned NaN or infinite values on real frames")
+        parts.append(out.astype(np.float32, copy=False))
+    return np.concatenate(parts)
+
+
+def fit_readout(
+    kind: str,
+    *,
+    suite: Suite,
+    truth: SuiteTruth,
+    train_tokens: np.ndarray | None = None,
+    check_tokens: np.ndarray | None = None,
+) -> Readout:
+    """The readout for ``kind``; latents need the model's encoding of the suite's train and check rest frames."""
+    if kind == "frames":
+        return FrameReadout(suite, truth)
+    if kind == "latents":
+        if train_tokens is None or check_tokens is None:
+            raise ValueError("a latents readout needs the model's encode() of the suite's real rest frames")
+        return LatentReadout(train_tokens, check_tokens, suite, truth)
+    if kind == "displacements":
+        return GivenReadout()
+    raise ValueError(f"unknown output kind {kind!r}")
