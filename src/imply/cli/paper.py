@@ -89,6 +89,10 @@ def stage_claims(stage: str) -> ClaimsFunction:
         from imply.diagnose.benchmark_report import benchmark_claims
 
         return benchmark_claims
+    if stage == "evaluate":
+        from imply.study.section4.through_evaluate import known_answer_claims
+
+        return known_answer_claims
     from imply.paper.registry import STAGES
 
     raise UserError(f"unknown stage {stage!r} (one of {', '.join(STAGES)})")

@@ -92,6 +92,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     step("selection", "selection among candidates, Table 2 bottom (a result document)", cmd_selection,
          ["truth", "rollouts", "table"], ["output", "choices"], ["seed", "selection", "score"])  # fmt: skip
+    p = ssub.add_parser(
+        "through-evaluate",
+        help="the four stand-ins through imply evaluate: their report and known answers (a result document)",
+    )
+    p.add_argument("--suite", required=True, help="the suite folder (results/suite)")
+    p.add_argument("--report", required=True, help="the evaluation report folder to write")
+    p.add_argument("-o", "--output", required=True, help="the known answers (a result document)")
+    p.add_argument("--evaluate-json", type=json_arg, required=True, help="config key 'evaluate' as JSON")
+    p.add_argument("--score-json", type=json_arg, required=True, help="config key 'score' as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_user_errors(cmd_through_evaluate))
 
 
 def _user_errors(func):
@@ -234,4 +245,21 @@ def cmd_selection(args: argparse.Namespace) -> int:
     write_csv(args.choices, choices)
     write_result(args.output, selection_study, result)
     log.info("selection -> %s", args.output)
+    return 0
+
+
+def cmd_through_evaluate(args: argparse.Namespace) -> int:
+    from imply.evaluate.config import EvaluateConfig
+    from imply.evaluate.report import write_report
+    from imply.evaluate.suite import SuiteError
+    from imply.paper.results import write_result
+    from imply.study.section4.through_evaluate import known_answers, run_standins
+
+    settings = config_from_json(EvaluateConfig, args.evaluate_json, "--evaluate-json")
+    score = _score(args)
+    with user_errors(SuiteError, message="--suite: {error}"):
+        evaluations = run_standins(args.suite, settings=settings, score=score, progress=not args.no_progress)
+    write_report(evaluations, args.report, force=True)
+    write_result(args.output, known_answers, known_answers(evaluations, suite_dir=args.suite, score=score))
+    log.info("stand-ins through imply evaluate: report -> %s, known answers -> %s", args.report, args.output)
     return 0

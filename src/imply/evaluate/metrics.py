@@ -187,7 +187,7 @@ def degenerate(condition: str, ci: int, readings: Readings, *, static_limit: flo
         n_sets=int(static.size),
         n_rollouts=int(d.size),
         static=int(static.sum()),
-        not_growing=int((slope <= 0).sum()),
+        not_growing=int((slope <= 1e-9).sum()),  # a flat set's slope is rounding, not growth
         no_box=int((~readings.box_found[ci]).sum()),
     )
 

@@ -9,10 +9,11 @@ does not produce. Columns:
     ``macros.tex`` and the row of the reproduction report, so grepping it leads here.
 ``section``
     The paper section that reports it (``3``, ``4``, ``5``), or ``gap`` for the
-    diagnostic's benchmark, which the paper does not have.
+    diagnostic's benchmark and ``evaluate`` for the stand-ins measured through
+    ``imply evaluate``, which the paper does not have.
 ``stage``
     The workflow stage whose result part reports it (``section4``, ``clips``,
-    ``section5``, ``gap``); empty for a paper number the study does not produce.
+    ``section5``, ``gap``, ``evaluate``); empty for a paper number the study does not produce.
 ``source``
     The dotted name of the function that computes it: the value is read from that
     function's result document (written with :func:`imply.paper.results.write_result`).
@@ -46,7 +47,7 @@ from pathlib import Path
 from imply.results import Entry, Registry
 
 COLUMNS = ["name", "section", "stage", "source", "path", "format", "paper", "label"]
-STAGES = ("section4", "clips", "section5", "gap")
+STAGES = ("section4", "clips", "section5", "gap", "evaluate")
 _NAME = re.compile(r"^[A-Za-z]+$")
 
 
