@@ -91,7 +91,7 @@ def test_standins_show_the_known_answers_from_pixels(standin_evaluations, known_
 
     ev = by_model(standin_evaluations)
     auroc = known_answers(standin_evaluations, suite_dir=known_answers_suite, score=ScoreConfig())["standins"]
-    oracle, blind, jitter, collapse = ev["oracle"], ev["object-blind"], ev["jitter"], ev["collapse"]
+    oracle, blind, collapse = ev["oracle"], ev["object-blind"], ev["collapse"]
     assert oracle.readout.name == "frame difference" and oracle.readout.r2_check > 0.95
     # the oracle's rollouts are the truth: its anchored disagreement is the readout's noise
     assert oracle.condition("own").anchored_disagreement.value <= 1.5 * oracle.readout.error_check
