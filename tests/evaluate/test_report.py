@@ -269,7 +269,7 @@ def test_an_input_in_the_folder_is_never_replaced(written, plain, tmp_path):
     out = _copy(written, tmp_path)
     first = _files(out)
     with pytest.raises(OutputError, match="is an input"):
-        report.write_report([plain], out, force=True, inputs=iter([out / "results.json"]))
+        report.write_report([plain], out, force=True, inputs=iter([out / "per_object.csv"]))  # a one-pass iterable
     assert _files(out) == first
 
 
