@@ -58,10 +58,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from imply.evaluate.config import EvaluateConfig
     from imply.evaluate.harness import evaluate
     from imply.evaluate.interface import ModelError
-    from imply.evaluate.report import write_report
+    from imply.evaluate.report import check_report_folder, write_report
     from imply.evaluate.rollouts_file import RolloutsFileError
     from imply.evaluate.suite import SuiteError, load_suite
-    from imply.io import OutputError, check_folder
+    from imply.io import OutputError
     from imply.table import OutOfRangeError
 
     if not args.model and not args.rollouts:
@@ -75,7 +75,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         )  # fmt: skip
     inputs = [Path(f) for f in args.rollouts]
     with user_errors(OutputError):
-        check_folder(out, [], force=args.force, inputs=inputs)
+        check_report_folder(out, force=args.force, inputs=inputs)
     with user_errors(SuiteError, message="--suite: {error}"):
         suite = load_suite(args.suite)
     cache = None if args.no_cache else Path(args.cache) if args.cache else out.with_name(out.name + ".cache")
@@ -84,7 +84,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             args.model, suite=suite, rollouts=args.rollouts, settings=settings, cache_dir=cache,
             progress=not args.no_progress,
         )  # fmt: skip
-    with user_errors(OutputError):
+    with user_errors(OutputError, ValueError):
         write_report(evaluations, out, force=args.force, inputs=inputs)
     if cache is not None and args.cache is None and cache.exists():
         shutil.rmtree(cache, ignore_errors=True)

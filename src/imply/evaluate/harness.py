@@ -293,6 +293,10 @@ def evaluate(
         sources.append(ModelSource(model, label=label, samples=n_samples))
     for path in rollouts:
         sources.append(FileSource(read_rollouts_file(path, suite=suite, conditions=settings.conditions)))
+    names = [src.name for src in sources]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ModelError(f"two models are named {twice[0]!r}; give each a distinct name (its name attribute)")
     root = Path(cache_dir) if cache_dir is not None else None
     return [
         evaluate_source(
