@@ -55,12 +55,19 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from imply.options import Config, option
 from imply.sim.render import CameraConfig
+
+if TYPE_CHECKING:  # the build's settings; imported where used (pandas, the clips' planning)
+    import pandas as pd
+
+    from imply.data.clips import ClipsConfig
+    from imply.score import ScoreConfig
+    from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.suite")
 
@@ -199,7 +206,7 @@ class SuiteTruth:
 # -- building -----------------------------------------------------------------------
 
 
-def suite_view(cfg: SuiteConfig, clips: Any) -> tuple[tuple[float, ...], CameraConfig]:
+def suite_view(cfg: SuiteConfig, clips: ClipsConfig) -> tuple[tuple[float, ...], CameraConfig]:
     """The frame times and camera a suite renders with, after checking ``cfg`` against the clips settings.
 
     Raises :class:`SuiteError` naming the option when the suite asks for more objects
@@ -231,7 +238,7 @@ def suite_view(cfg: SuiteConfig, clips: Any) -> tuple[tuple[float, ...], CameraC
 class _Plan:
     """Every push of a suite, in one table: held-out pushes (object-major, 2 + K each), then readout, then check."""
 
-    pushes: Any  # DataFrame: speed, mass, friction, size_x/y/z
+    pushes: pd.DataFrame  # plan_clips rows: speed, mass, friction, size_x/y/z, ...
     n_objects: int
     n_speeds: int
     n_train: int  # M
@@ -243,7 +250,7 @@ class _Plan:
         return self.n_objects * (2 + self.n_speeds)
 
 
-def _plan(cfg: SuiteConfig, clips: Any, scene: Any, speeds: Any) -> _Plan:
+def _plan(cfg: SuiteConfig, clips: ClipsConfig, scene: SceneConfig, speeds: ScoreConfig) -> _Plan:
     import pandas as pd
 
     from imply.data.clips import plan_clips
@@ -264,7 +271,7 @@ def _simulate_and_draw(
     *,
     frame_times: tuple[float, ...],
     camera: CameraConfig,
-    scene: Any,
+    scene: SceneConfig,
     batch: int,
     nthread: int,
     progress: bool,
@@ -359,9 +366,9 @@ def _simulate_and_draw(
 def build_suite(
     cfg: SuiteConfig,
     *,
-    clips: Any,
-    scene: Any,
-    speeds: Any,
+    clips: ClipsConfig,
+    scene: SceneConfig,
+    speeds: ScoreConfig,
     table_path: str | Path,
     out_dir: str | Path,
     nthread: int = 1,
