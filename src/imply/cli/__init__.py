@@ -3,8 +3,9 @@
 Groups (modules of this package, each with ``register(subparsers)``): ``score``,
 ``table``, ``sim``, ``diagnose`` (what a user runs), and the study's steps, one group
 per stage of the workflow: ``section4``, ``clips``, ``encoder``, ``readout``,
-``model``, ``section5``, ``gap``, ``paper``. A handler parses its options, calls one
-library function and writes its outputs; the logic lives in the library.
+``model``, ``section5``, ``gap``, ``paper``, ``suite`` (the evaluation suite). A
+handler parses its options, calls one library function and writes its outputs; the
+logic lives in the library.
 
 A user error (bad input, bad option, an output that would overwrite an input) is a
 :class:`~imply.cli.common.UserError`, raised by a handler or turned from the library's
@@ -27,7 +28,8 @@ from typing import Any
 from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
 
 GROUPS: list[str] = [
-    "score", "table", "sim", "diagnose", "evaluate", "section4", "clips", "encoder", "readout", "model", "section5", "gap", "paper",
+    "score", "table", "sim", "diagnose", "suite", "evaluate", "section4", "clips", "encoder", "readout", "model",
+    "section5", "gap", "paper",
 ]  # fmt: skip
 
 

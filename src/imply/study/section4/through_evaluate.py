@@ -130,4 +130,3 @@ def known_answer_claims(v: Values, results: Mapping[str, Any] | None = None) -> 
             f"self {v['evJitterAurocSelf']:.3f}, anchored {v['evJitterAurocAnch']:.3f}",
         ),
     ]
-

@@ -1,0 +1,73 @@
+"""``imply suite build`` and ``imply suite show``: the frozen evaluation suite that ``imply evaluate`` scores models on."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+from imply.cli.common import config_from_json, int_range, json_arg, output_dir, user_errors
+
+log = logging.getLogger("imply")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("suite", help="the frozen evaluation suite of imply evaluate")
+    ssub = s.add_subparsers(dest="suite_command", required=True)
+    b = ssub.add_parser(
+        "build", help="simulate and render the suite: manifest.json, suite.npz, truth.npz, table.npz, README.md"
+    )
+    b.add_argument("--suite-json", type=json_arg, help="config section 'suite' as JSON (default: its defaults)")
+    b.add_argument("--clips-json", type=json_arg, help="config section 'clips' as JSON (default: its defaults)")
+    b.add_argument("--scene-json", type=json_arg, help="config section 'scene' as JSON (default: its defaults)")
+    b.add_argument(
+        "--score-json", type=json_arg, help="calibration_speeds and query_speeds as JSON (default: the study's)"
+    )
+    b.add_argument("--table", required=True, help="the push table (.npz of imply table build), copied into the suite")
+    b.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
+    b.add_argument("-o", "--out", required=True, help="the suite folder (a previous suite there is replaced)")
+    b.set_defaults(func=cmd_build)
+    w = ssub.add_parser("show", help="check a suite's checksums and print its sizes, camera and settings")
+    w.add_argument("suite", help="the suite folder")
+    w.set_defaults(func=cmd_show)
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    from imply.data.clips import ClipsConfig
+    from imply.evaluate.suite import SuiteConfig, SuiteError, build_suite
+    from imply.io import OutputError
+    from imply.score import ScoreConfig
+    from imply.sim import SceneConfig
+
+    out = output_dir(args.out)
+    cfg = config_from_json(SuiteConfig, args.suite_json, "--suite-json")
+    clips = config_from_json(ClipsConfig, args.clips_json, "--clips-json")
+    speeds = config_from_json(ScoreConfig, args.score_json, "--score-json")
+    scene = config_from_json(SceneConfig, args.scene_json, "--scene-json")
+    with user_errors(SuiteError, OutputError):
+        build_suite(cfg, clips=clips, scene=scene, speeds=speeds, table_path=args.table, out_dir=out,
+                    nthread=args.threads)  # fmt: skip
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from imply.evaluate.suite import SuiteError, load_suite
+
+    with user_errors(SuiteError):
+        suite = load_suite(args.suite)
+    m = suite.manifest
+    s = m["sizes"]
+    cam = m["camera"]
+    lines = [
+        f"suite {suite.path}: {m['format']} version {m['version']}, built by imply {m['imply_version']}",
+        f"  objects    {s['N']} of split {m['split']}, each with 2 calibration clips of {s['T']} frames",
+        f"  queries    {s['K']} speeds ({', '.join(f'{v:g}' for v in m['query_speeds'])} m/s), "
+        f"{s['C']} context frame(s) each",
+        f"  readout    {s['M']} training clips, {s['M_c']} check clips (first and rest frames)",
+        f"  frames     {s['H']} x {s['W']} px at times {', '.join(f'{t:g}' for t in m['frame_times'])} s, then at rest",
+        f"  camera     x {cam['x_min']:g} to {cam['x_max']:g} m, {m['metres_per_pixel']:.4g} m per pixel, "
+        f"multisample {cam['multisample']}, supersample {cam['supersample']}",
+        f"  failed     {m['failed_pushes']} push(es) failed the simulator's checks",
+        f"  checksums  OK ({', '.join(m['files'])}); suite sha256 {suite.checksum}",
+    ]
+    print("\n".join(lines))
+    return 0
