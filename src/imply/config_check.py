@@ -29,7 +29,7 @@ from typing import Any
 SCHEMA_FILE = "config.schema.yaml"
 
 # stages whose result parts the paper merge knows (config paper.stages)
-PAPER_STAGES = ("section4", "gap", "clips", "section5")
+PAPER_STAGES = ("section4", "gap", "clips", "section5", "evaluate")
 
 # relative slack for "inside the table": config speeds are written in decimal
 TOL = 1e-9

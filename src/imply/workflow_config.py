@@ -23,6 +23,7 @@ from imply.config_check import PAPER_STAGES
 from imply.data.clips import ClipsConfig
 from imply.diagnose.analysis import DiagnosisConfig
 from imply.diagnose.effect_tables import CoarseGrid
+from imply.evaluate.config import EvaluateConfig
 from imply.evaluate.suite import SuiteConfig
 from imply.models.config import ModelConfig
 from imply.models.encoder import EncoderConfig
@@ -84,6 +85,7 @@ class StudyConfig(Config):
     readout: ReadoutConfig = option(ReadoutConfig(), doc="displacement readouts", required=True)
     model: ModelConfig = option(ModelConfig(), doc="the predictor and Section 5 scoring", required=True)
     suite: SuiteConfig = option(SuiteConfig(), doc="the frozen evaluation suite of imply evaluate", required=True)
+    evaluate: EvaluateConfig = option(EvaluateConfig(), doc="how imply evaluate asks and scores", required=True)
     paper: PaperConfig = option(PaperConfig(), doc="the paper merge")
 
 

@@ -29,13 +29,14 @@ ROLLOUT_CONTEXTS = {"calib": "own,swap,none", "nocalib": "none"}
 GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
 GAP_SHARDS = list(range(config["threads"]))
-PAPER_STAGES = ["section4", "clips", "section5", "gap"]
+PAPER_STAGES = ["section4", "clips", "section5", "gap", "evaluate"]
 # each stage's result documents, from which its part reads the registered numbers
 STAGE_RESULTS = {
     "section4": ["results/section4/metrics.json", "results/section4/noise.json", "results/section4/selection.json"],
     "clips": ["results/readout/metrics.json"],
     "section5": ["results/section5/metrics.json"],
     "gap": ["results/gap/benchmark.json"],
+    "evaluate": ["results/evaluate/standins.json"],
 }
 
 
@@ -149,6 +150,10 @@ def paper_parts(wildcards=None):
     return [f"results/paper/parts/{stage}.json" for stage in PAPER_STAGES if stage in stages]
 
 
+# the files of an imply evaluate report that the workflow names (imply.evaluate.report writes them all)
+EVALUATE_REPORT_FILES = ["results.json", "report.md", "per_object.csv", "slides.png", "scores.png"]
+
+
 def final_outputs():
     """What `snakemake` builds by default: every stage's outputs and the merged paper outputs."""
     stages = config.get("paper", {}).get("stages", PAPER_STAGES)
@@ -163,6 +168,8 @@ def final_outputs():
         out += ["results/model/training.png"]
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
+    if "evaluate" in stages:
+        out += [f"results/evaluate/standins/{name}" for name in EVALUATE_REPORT_FILES]
     out += paper_parts()
     out += [f"results/paper/{name}" for name in ("macros.tex", "numbers.json", "reproduction.md", "reproduction.csv", "reproduction.html")]
     return out

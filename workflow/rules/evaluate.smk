@@ -44,3 +44,41 @@ rule suite_build:
     shell:
         "imply suite build --suite-json {params.suite} --clips-json {params.clips} --scene-json {params.scene}"
         " --score-json {params.score} --table {input.table} --threads {threads} -o {params.out} > {log} 2>&1"
+
+
+rule evaluate_standins:
+    conda:
+        IMPLY_ENV
+    input:
+        manifest="results/suite/manifest.json",
+        suite="results/suite/suite.npz",
+        truth="results/suite/truth.npz",
+        table="results/suite/table.npz",
+    output:
+        summary="results/evaluate/standins.json",
+        results="results/evaluate/standins/results.json",
+        report="results/evaluate/standins/report.md",
+        per_object="results/evaluate/standins/per_object.csv",
+        slides=report(
+            "results/evaluate/standins/slides.png",
+            caption="../report/evaluate_slides.rst",
+            category="imply evaluate, known answers",
+        ),
+        scores=report(
+            "results/evaluate/standins/scores.png",
+            caption="../report/evaluate_scores.rst",
+            category="imply evaluate, known answers",
+        ),
+    params:
+        suite=lambda wildcards, input: Path(input.manifest).parent,
+        report=lambda wildcards, output: Path(output.results).parent,
+        evaluate=as_json(config["evaluate"]),
+        score=score_subset("grid", "readout_floor"),
+    resources:
+        mem_mb=4000,
+        runtime=15,
+    log:
+        "results/logs/evaluate_standins.log",
+    shell:
+        "imply section4 through-evaluate --suite {params.suite} --report {params.report} -o {output.summary}"
+        " --evaluate-json {params.evaluate} --score-json {params.score} --no-progress > {log} 2>&1"

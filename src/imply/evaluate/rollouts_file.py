@@ -177,7 +177,7 @@ def read_rollouts_file(path: str | Path, *, suite: Suite, conditions: Sequence[s
     n_idx = np.array([object_index.get(o, -1) for o in obj], dtype=np.int64)
     if (n_idx < 0).any():
         i = int(np.flatnonzero(n_idx < 0)[0])
-        raise _fail(path, f"{line(i)}: object {obj[i]!r} is not in the suite")
+        raise _fail(path, f"{line(i)}: object {str(obj[i])!r} is not in the suite")
     k_idx = np.full(r, -1, dtype=np.int64)
     for k, v in enumerate(suite.query_speeds):
         k_idx[np.isclose(speed, v, rtol=0, atol=1e-9)] = k
@@ -192,7 +192,7 @@ def read_rollouts_file(path: str | Path, *, suite: Suite, conditions: Sequence[s
     unknown = ~np.isin(cond, ["own", "other", "none"])
     if unknown.any():
         i = int(np.flatnonzero(unknown)[0])
-        raise _fail(path, f"{line(i)}: condition {cond[i]!r} is not own, other or none")
+        raise _fail(path, f"{line(i)}: condition {str(cond[i])!r} is not own, other or none")
     n_samples = int(sample[keep].max()) + 1 if keep.any() else 1
     shape = (len(conditions), n_samples, suite.n_objects, suite.n_speeds)
     c_idx = np.array([list(conditions).index(c) if c in conditions else -1 for c in cond], dtype=np.int64)
