@@ -155,6 +155,20 @@ def frame_diff_shift(first: np.ndarray, last: np.ndarray) -> np.ndarray:
     return moment / np.maximum(mass, 1e-9)
 
 
+def saliency_moments(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(column moment, mass) of the box saliency of uint8 frames (..., H, W, 3): sum_x x * S and sum S.
+
+    :func:`frame_diff_shift` of two frames is (moment(last) - moment(first)) / mass(first);
+    computed per frame in integers, so a frame's moments are computed once however many
+    frames it is compared with (``imply evaluate`` compares every rollout with its context).
+    """
+    f = np.asarray(frames)
+    s = np.maximum(f[..., 0].astype(np.int16) - f[..., 1].astype(np.int16), 0)
+    columns = s.sum(axis=-2, dtype=np.int64)
+    cols = np.arange(columns.shape[-1], dtype=np.int64)
+    return (columns * cols).sum(axis=-1).astype(np.float64), columns.sum(axis=-1).astype(np.float64)
+
+
 @dataclass
 class FrameDiffReadout:
     """displacement (m) = slope * shift_px + intercept, shift from :func:`frame_diff_shift`."""
@@ -170,8 +184,11 @@ class FrameDiffReadout:
 
     def predict(self, clips: np.ndarray) -> np.ndarray:
         """Displacement (metres, floored at 1 mm) of clips (N, T, H, W, 3): last frame against first."""
-        shift = frame_diff_shift(clips[:, 0], clips[:, -1])
-        return np.maximum(self.slope * shift + self.intercept, FLOOR)
+        return self.from_shift(frame_diff_shift(clips[:, 0], clips[:, -1]))
+
+    def from_shift(self, shift_px: np.ndarray) -> np.ndarray:
+        """Displacement (metres, floored at 1 mm) of a box shifted ``shift_px`` pixels along the push."""
+        return np.maximum(self.slope * np.asarray(shift_px) + self.intercept, FLOOR)
 
 
 def r2_log(true_d: np.ndarray, pred_d: np.ndarray) -> float:

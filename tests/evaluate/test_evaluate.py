@@ -268,3 +268,13 @@ def test_the_readme_example_model_evaluates_with_one_command(tiny_suite, tmp_pat
     assert results["models"][0]["kind"] == "displacements"
     assert (out / "report.md").is_file()
     assert not (tmp_path / "my_report.cache").exists()
+
+
+def test_saliency_moments_give_the_frame_difference_shift():
+    from imply.readout import frame_diff_shift, saliency_moments
+
+    rng = np.random.default_rng(3)
+    first, last = rng.integers(0, 256, size=(2, 7, 12, 40, 3), dtype=np.uint8)
+    m0, mass0 = saliency_moments(first)
+    m1, _ = saliency_moments(last)
+    np.testing.assert_allclose((m1 - m0) / mass0, frame_diff_shift(first, last), rtol=1e-9, atol=1e-9)

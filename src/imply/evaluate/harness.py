@@ -179,7 +179,6 @@ def read_source(
     starts = range(0, n, source.batch_size)
     token_shape = getattr(readout, "token_shape", None)
     bar = tqdm(total=c * s * len(starts), desc=f"evaluate {source.name}", unit="batch", disable=not progress)
-    first = suite.context_frames[:, :, 0]
     for ci, condition in enumerate(conditions):
         for sample in range(s):
             for lo in starts:
@@ -191,7 +190,7 @@ def read_source(
                         source.outputs(request, index), kind=source.kind, request=request,
                         frame_shape=suite.frame_shape, token_shape=token_shape,
                     )  # fmt: skip
-                    got = readout.read(out, first_frames=first[index], true_rest=truth.rest_frames[index])
+                    got = readout.read(out, index=index, true_rest=truth.rest_frames[index])
                     cache.save(condition, sample, lo, got)
                 sl = (ci, sample, slice(lo, lo + len(index)))
                 disp[sl], box[sl], ratio[sl], psnr[sl] = got.displacement, got.box_found, got.saliency_ratio, got.psnr

@@ -24,7 +24,7 @@ import numpy as np
 
 from imply.evaluate.evaluation import ReadoutInfo
 from imply.evaluate.suite import Suite, SuiteTruth
-from imply.readout import FrameDiffReadout, ReadoutConfig, RidgeReadout, saliency
+from imply.readout import FrameDiffReadout, ReadoutConfig, RidgeReadout, saliency_moments
 
 # a rest frame whose box saliency mass is below this share of the context frame's holds no
 # box the frame-difference readout can follow (the box left the view, or was never drawn)
@@ -48,8 +48,9 @@ class Readout:
     info: ReadoutInfo
     fingerprint: str
 
-    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
-        """outputs: the model's (B, K, ...) array; first_frames, true_rest: uint8 (B, K, H, W, 3)."""
+    def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+        """outputs: the model's (B, K, ...) array for the suite's objects ``index`` (B,); true_rest: their
+        true rest frames, uint8 (B, K, H, W, 3)."""
         raise NotImplementedError
 
 
@@ -79,19 +80,20 @@ class FrameReadout(Readout):
             error_check=err,
         )
         self.fingerprint = f"frames:{self._line.slope!r}:{self._line.intercept!r}"
+        # every rollout is compared with its query's first frame and its true rest frame:
+        # their box moments once for the suite, (N, K) each
+        self._first_moment, self._first_mass = saliency_moments(suite.context_frames[:, :, 0])
+        _, self._true_mass = saliency_moments(truth.rest_frames)
 
-    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
-        b, k = outputs.shape[:2]
+    def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
         rest = outputs[:, :, -1]
-        hw3 = rest.shape[2:]
-        pairs = np.stack([first_frames.reshape(-1, *hw3), rest.reshape(-1, *hw3)], axis=1)
-        d = self._line.predict(pairs).reshape(b, k)
-        mass_first = saliency(first_frames).sum(axis=(-2, -1))
-        mass_rest = saliency(rest).sum(axis=(-2, -1))
-        mass_true = saliency(true_rest).sum(axis=(-2, -1))
-        box_found = mass_rest >= MIN_BOX_MASS * mass_first
-        ratio = mass_rest / np.maximum(mass_true, 1e-9)
-        mse = ((rest.astype(np.float32) - true_rest.astype(np.float32)) ** 2).mean(axis=(-3, -2, -1))
+        moment, mass = saliency_moments(rest)
+        shift = (moment - self._first_moment[index]) / np.maximum(self._first_mass[index], 1e-9)
+        d = self._line.from_shift(shift)
+        box_found = mass >= MIN_BOX_MASS * self._first_mass[index]
+        ratio = mass / np.maximum(self._true_mass[index], 1e-9)
+        diff = rest.astype(np.int16) - true_rest.astype(np.int16)
+        mse = np.einsum("...ijc,...ijc->...", diff, diff, dtype=np.int64) / np.prod(diff.shape[-3:])
         with np.errstate(divide="ignore"):
             psnr = np.minimum(10.0 * np.log10(255.0**2 / mse), MAX_PSNR)
         return BatchReadings(d, box_found, ratio, psnr)
@@ -117,7 +119,7 @@ class LatentReadout(Readout):
         digest = hashlib.sha256(self._ridge.coef.tobytes() + self._ridge.mean.tobytes()).hexdigest()[:16]
         self.fingerprint = f"latents:{digest}"
 
-    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+    def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
         b, k = outputs.shape[:2]
         d = self._ridge.predict(np.asarray(outputs, dtype=np.float64).reshape(b * k, -1)).reshape(b, k)
         return BatchReadings(d, np.ones((b, k), dtype=bool), _nan((b, k)), _nan((b, k)))
@@ -130,7 +132,7 @@ class GivenReadout(Readout):
     )  # fmt: skip
     fingerprint = "displacements"
 
-    def read(self, outputs: np.ndarray, *, first_frames: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
+    def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
         b, k = outputs.shape[:2]
         return BatchReadings(np.asarray(outputs, dtype=float), np.ones((b, k), dtype=bool), _nan((b, k)), _nan((b, k)))
 
