@@ -17,3 +17,27 @@ The pieces, bottom up:
 * :mod:`~imply.evaluate.report` -- ``results.json``, ``report.md`` and figures for one or
   several models.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+# the names a user's script needs, loaded on first use: the command line imports this
+# package for its settings and must not pay for the readouts' scikit-learn or the renderer
+_EXPORTS = {
+    "RolloutRequest": "imply.evaluate.interface",
+    "WorldModel": "imply.evaluate.interface",
+    "evaluate": "imply.evaluate.harness",
+    "EvaluateConfig": "imply.evaluate.config",
+    "load_suite": "imply.evaluate.suite",
+    "write_report": "imply.evaluate.report",
+    "write_rollouts_file": "imply.evaluate.rollouts_file",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'imply.evaluate' has no attribute {name!r}")
+    return getattr(importlib.import_module(_EXPORTS[name]), name)
