@@ -65,7 +65,7 @@ from tqdm.auto import tqdm
 from imply.io import write_csv, write_npz
 from imply.options import Config, Range, option
 from imply.score import ScoreConfig
-from imply.sim.render import CameraConfig, ClipRenderer, record_pushes
+from imply.sim.render import CameraConfig, ClipRenderer, PushRecording, record_pushes
 from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.clips")
@@ -171,6 +171,19 @@ def plan_clips(cfg: ClipsConfig, split: str, *, scene: SceneConfig, speeds: Scor
     return plan
 
 
+def record_planned(plan: pd.DataFrame, frame_times, *, scene: SceneConfig, nthread: int = 1) -> PushRecording:
+    """Simulate the pushes of planned clip rows (speed, mass, friction, size_x/y/z) in one batch."""
+    return record_pushes(
+        plan["speed"].to_numpy(),
+        plan["mass"].to_numpy(),
+        plan["friction"].to_numpy(),
+        plan[["size_x", "size_y", "size_z"]].to_numpy(),
+        frame_times,
+        scene=scene,
+        nthread=nthread,
+    )
+
+
 def render_split(
     cfg: ClipsConfig,
     split: str,
@@ -196,15 +209,7 @@ def render_split(
         for lo in range(0, n, cfg.batch):
             part = plan.iloc[lo : lo + cfg.batch]
             t0 = time.perf_counter()
-            rec = record_pushes(
-                part["speed"].to_numpy(),
-                part["mass"].to_numpy(),
-                part["friction"].to_numpy(),
-                part[["size_x", "size_y", "size_z"]].to_numpy(),
-                cfg.frame_times,
-                scene=scene,
-                nthread=nthread,
-            )
+            rec = record_planned(part, cfg.frame_times, scene=scene, nthread=nthread)
             t1 = time.perf_counter()
             for j in range(len(part)):
                 frames[lo + j] = renderer.render(rec, j)

@@ -156,8 +156,22 @@ class Readings:
 
 
 @dataclass(frozen=True, eq=False)
-class Evaluation:
-    """Everything the report says about one model (``readings`` is kept out of the JSON form)."""
+class Scores:
+    """The scores of one model's readings (:func:`imply.evaluate.metrics.score_readings`)."""
+
+    conditions: tuple[ConditionScores, ...]
+    own_vs_other: OwnVsOther | None
+    selection_conditions: Selection | None
+    selection_samples: tuple[Selection, ...]
+    spread: dict[str, Estimate]
+    degenerate: tuple[Degenerate, ...]
+    frame_quality: FrameQuality | None
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation(Scores):
+    """Everything the report says about one model: who and what was measured, then its :class:`Scores`
+    (``readings`` is kept out of the JSON form)."""
 
     model: str
     kind: str
@@ -168,25 +182,15 @@ class Evaluation:
     n_speeds: int
     n_samples: int
     bootstrap: int
-    conditions: tuple[ConditionScores, ...]
-    own_vs_other: OwnVsOther | None
-    selection_conditions: Selection | None
-    selection_samples: tuple[Selection, ...]
-    spread: dict[str, Estimate]
-    degenerate: tuple[Degenerate, ...]
-    frame_quality: FrameQuality | None
     readings: Readings = field(repr=False)
 
     def condition(self, name: str) -> ConditionScores | None:
         return next((c for c in self.conditions if c.condition == name), None)
 
     def to_dict(self) -> dict[str, Any]:
-        out = {}
-        for f in fields(self):
-            if f.name == "readings":
-                continue
-            out[f.name] = _plain(getattr(self, f.name))
-        return out
+        scores = [f.name for f in fields(Scores)]
+        who = [f.name for f in fields(self) if f.name not in scores and f.name != "readings"]
+        return {name: _plain(getattr(self, name)) for name in who + scores}
 
 
 def _plain(obj: Any) -> Any:

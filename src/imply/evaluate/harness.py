@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import logging
 from collections.abc import Sequence
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -238,6 +239,7 @@ def evaluate_source(
             static_limit=settings.static_limit,
         )  # fmt: skip
     return Evaluation(
+        **{f.name: getattr(scored, f.name) for f in fields(scored)},
         model=source.name,
         kind=source.kind,
         suite=suite.checksum,
@@ -247,13 +249,6 @@ def evaluate_source(
         n_speeds=suite.n_speeds,
         n_samples=source.n_samples,
         bootstrap=settings.bootstrap,
-        conditions=scored.conditions,
-        own_vs_other=scored.own_vs_other,
-        selection_conditions=scored.selection_conditions,
-        selection_samples=scored.selection_samples,
-        spread=scored.spread,
-        degenerate=scored.degenerate,
-        frame_quality=scored.frame_quality,
         readings=readings,
     )
 

@@ -35,6 +35,7 @@ from imply.evaluate.evaluation import (
     FrameQuality,
     OwnVsOther,
     Readings,
+    Scores,
     Selection,
     SelectionRow,
 )
@@ -203,19 +204,6 @@ def frame_quality(readings: Readings, boot: Bootstrap) -> FrameQuality | None:
     )
 
 
-@dataclass(frozen=True)
-class Scored:
-    """Everything :class:`~imply.evaluate.evaluation.Evaluation` holds besides who and what."""
-
-    conditions: tuple[ConditionScores, ...]
-    own_vs_other: OwnVsOther | None
-    selection_conditions: Selection | None
-    selection_samples: tuple[Selection, ...]
-    spread: dict[str, Estimate]
-    degenerate: tuple[Degenerate, ...]
-    frame_quality: FrameQuality | None
-
-
 def score_readings(
     readings: Readings,
     scorer: Scorer,
@@ -223,7 +211,7 @@ def score_readings(
     bootstrap: int,
     seed: int,
     static_limit: float,
-) -> Scored:
+) -> Scores:
     """All scores of one model's readings (see the module docstring)."""
     conds = readings.conditions
     sets = score_sets(readings, scorer)
@@ -261,7 +249,7 @@ def score_readings(
                 )
             )
             spread[c] = boot.mean(sets.mean_log[i].std(axis=0, ddof=1))
-    return Scored(
+    return Scores(
         conditions=per_condition,
         own_vs_other=own_vs_other(conds, sets, boot),
         selection_conditions=by_conditions,

@@ -37,7 +37,7 @@ What is in it (sizes: N objects, K query speeds, C context frames, T frames a cl
   ``suite.n_readout_check`` training objects' 3 clips (M_c) are the check clips whose
   slides are sealed.
 
-Every push is simulated (:func:`imply.sim.render.record_pushes`) at the clips' frame
+Every push is simulated (:func:`imply.data.clips.record_planned`) at the clips' frame
 times and drawn by :class:`imply.sim.render.ClipRenderer`, as the clips rule does, so with
 the study's camera a suite frame equals the frame of the same push in ``results/clips``.
 Only the frames a suite holds are drawn.
@@ -283,7 +283,8 @@ def _simulate_and_draw(
     """
     from tqdm.auto import tqdm
 
-    from imply.sim.render import ClipRenderer, record_pushes
+    from imply.data.clips import record_planned
+    from imply.sim.render import ClipRenderer
 
     n, k = plan.n_objects, plan.n_speeds
     per_object = 2 + k
@@ -334,15 +335,7 @@ def _simulate_and_draw(
         for lo in range(0, n_push, batch):
             part = pushes.iloc[lo : lo + batch]
             t0 = time.perf_counter()
-            rec = record_pushes(
-                part["speed"].to_numpy(),
-                part["mass"].to_numpy(),
-                part["friction"].to_numpy(),
-                part[["size_x", "size_y", "size_z"]].to_numpy(),
-                frame_times,
-                scene=scene,
-                nthread=nthread,
-            )
+            rec = record_planned(part, frame_times, scene=scene, nthread=nthread)
             t1 = time.perf_counter()
             for j in range(len(part)):
                 indices, put = todo[lo + j]
