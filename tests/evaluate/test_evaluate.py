@@ -85,12 +85,11 @@ def standin_evaluations(known_answers_suite):
     return evaluate([f(suite) for f in STANDINS.values()], suite=suite, settings=FAST)
 
 
-def test_standins_show_the_known_answers_from_pixels(standin_evaluations, known_answers_suite):
-    from imply.score import ScoreConfig
+def test_standins_show_the_known_answers_from_pixels(standin_evaluations):
     from imply.study.section4.through_evaluate import known_answers
 
     ev = by_model(standin_evaluations)
-    auroc = known_answers(standin_evaluations, suite_dir=known_answers_suite, score=ScoreConfig())["standins"]
+    auroc = known_answers(standin_evaluations)["standins"]
     oracle, blind, collapse = ev["oracle"], ev["object-blind"], ev["collapse"]
     assert oracle.readout.name == "frame difference" and oracle.readout.r2_check > 0.95
     # the oracle's rollouts are the truth: its anchored disagreement is the readout's noise

@@ -22,6 +22,7 @@ from imply.evaluate.evaluation import (
     ReadoutInfo,
     Selection,
     SelectionRow,
+    SetScores,
 )
 from imply.io import MANIFEST, OutputError
 
@@ -120,6 +121,7 @@ def make_evaluation(
         degenerate=degenerate,
         frame_quality=FrameQuality("own", _estimate(rng), _estimate(rng, 30)) if frames else None,
         readings=_readings(rng, conditions=conditions, n_samples=n_samples, frames=frames),
+        sets=SetScores(*rng.random((4, len(conditions), n_samples, N_OBJECTS))),
     )
 
 

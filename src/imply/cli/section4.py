@@ -260,6 +260,6 @@ def cmd_through_evaluate(args: argparse.Namespace) -> int:
     with user_errors(SuiteError, message="--suite: {error}"):
         evaluations = run_standins(args.suite, settings=settings, score=score, progress=not args.no_progress)
     write_report(evaluations, args.report, force=True)
-    write_result(args.output, known_answers, known_answers(evaluations, suite_dir=args.suite, score=score))
+    write_result(args.output, known_answers, known_answers(evaluations))
     log.info("stand-ins through imply evaluate: report -> %s, known answers -> %s", args.report, args.output)
     return 0

@@ -156,8 +156,19 @@ class Readings:
 
 
 @dataclass(frozen=True, eq=False)
+class SetScores:
+    """Per set arrays of shape (n_conditions, S, N): self and anchored disagreement, log error, mean log slide."""
+
+    self_disagreement: np.ndarray
+    anchored_disagreement: np.ndarray
+    error: np.ndarray
+    mean_log: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class Scores:
-    """The scores of one model's readings (:func:`imply.evaluate.metrics.score_readings`)."""
+    """The scores of one model's readings (:func:`imply.evaluate.metrics.score_readings`); ``sets``, the
+    per-set scores they summarise, is kept out of the JSON form."""
 
     conditions: tuple[ConditionScores, ...]
     own_vs_other: OwnVsOther | None
@@ -166,6 +177,7 @@ class Scores:
     spread: dict[str, Estimate]
     degenerate: tuple[Degenerate, ...]
     frame_quality: FrameQuality | None
+    sets: SetScores = field(repr=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,8 +200,8 @@ class Evaluation(Scores):
         return next((c for c in self.conditions if c.condition == name), None)
 
     def to_dict(self) -> dict[str, Any]:
-        scores = [f.name for f in fields(Scores)]
-        who = [f.name for f in fields(self) if f.name not in scores and f.name != "readings"]
+        scores = [f.name for f in fields(Scores) if f.name != "sets"]
+        who = [f.name for f in fields(self) if f.name not in scores and f.name not in ("readings", "sets")]
         return {name: _plain(getattr(self, name)) for name in who + scores}
 
 

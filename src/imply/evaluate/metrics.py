@@ -38,6 +38,7 @@ from imply.evaluate.evaluation import (
     Scores,
     Selection,
     SelectionRow,
+    SetScores,
 )
 from imply.score import Scorer
 
@@ -86,16 +87,6 @@ def _pearson_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     flat_x = sx <= 1e-9 * np.sqrt(n) * (1.0 + np.abs(x).max(axis=1))
     flat_y = sy <= 1e-9 * np.sqrt(n) * (1.0 + np.abs(y).max(axis=1))
     return np.where(flat_x | flat_y, np.nan, r)
-
-
-@dataclass(frozen=True)
-class SetScores:
-    """Per set arrays of shape (n_conditions, S, N): self and anchored disagreement, log error, mean log slide."""
-
-    self_disagreement: np.ndarray
-    anchored_disagreement: np.ndarray
-    error: np.ndarray
-    mean_log: np.ndarray
 
 
 def score_sets(readings: Readings, scorer: Scorer) -> SetScores:
@@ -250,6 +241,7 @@ def score_readings(
             )
             spread[c] = boot.mean(sets.mean_log[i].std(axis=0, ddof=1))
     return Scores(
+        sets=sets,
         conditions=per_condition,
         own_vs_other=own_vs_other(conds, sets, boot),
         selection_conditions=by_conditions,

@@ -24,12 +24,10 @@ from imply import stats
 from imply.evaluate.config import EvaluateConfig
 from imply.evaluate.evaluation import Evaluation
 from imply.evaluate.harness import evaluate
-from imply.evaluate.metrics import score_sets
 from imply.evaluate.standins import STANDINS
-from imply.evaluate.suite import load_suite, suite_table_path
+from imply.evaluate.suite import load_suite
 from imply.results import Claim, Values
 from imply.score import ScoreConfig
-from imply.table import PushTable
 
 # the readout's floor: the oracle's anchored disagreement may exceed the readout's own mean
 # |log error| on real clips by at most this factor (its rollouts are the truth, read)
@@ -53,15 +51,13 @@ def run_standins(
     return evaluate(models, suite=suite, settings=settings, score=score, cache_dir=cache_dir, progress=progress)
 
 
-def known_answers(evaluations: Sequence[Evaluation], *, suite_dir: str | Path, score: ScoreConfig) -> dict[str, Any]:
+def known_answers(evaluations: Sequence[Evaluation]) -> dict[str, Any]:
     """The result document of stage ``evaluate``: per stand-in its own-condition scores and AUROCs against the oracle."""
     by_name = dict(zip(STANDINS, evaluations, strict=True))
-    scorer = score.scorer(PushTable.load(suite_table_path(load_suite(suite_dir))))
     per_object = {}
     for name, ev in by_name.items():
         ci = ev.readings.conditions.index("own") if "own" in ev.readings.conditions else 0
-        sets = score_sets(ev.readings, scorer)
-        per_object[name] = {"self": sets.self_disagreement[ci, 0], "anchored": sets.anchored_disagreement[ci, 0]}
+        per_object[name] = {"self": ev.sets.self_disagreement[ci, 0], "anchored": ev.sets.anchored_disagreement[ci, 0]}
     oracle = per_object["oracle"]
     out: dict[str, Any] = {}
     for name, ev in by_name.items():
