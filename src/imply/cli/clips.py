@@ -15,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = sub.add_parser("clips", help="rendered push clips (paper Section 5 data)")
     csub = c.add_subparsers(dest="clips_command", required=True)
     r = csub.add_parser("render", help="simulate and render one split of clips: frames (.npz) and metadata (.csv)")
-    r.add_argument("--split", required=True, help="train | heldout_calib | heldout_nocalib | pretrain")
+    r.add_argument("--split", required=True, help="train | heldout_calib | heldout_nocalib | pretrain | validation")
     r.add_argument("--clips-json", type=json_arg, required=True, help="config section 'clips' as JSON")
     r.add_argument("--score-json", type=json_arg, required=True, help="calibration_speeds and query_speeds as JSON")
     r.add_argument("--scene-json", type=json_arg, help="config section 'scene' as JSON")

@@ -53,15 +53,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
     _add_token_grid(tr, "pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)")
     tr.add_argument(
-        "--readout",
-        type=existing_file,
-        help="the latent readout (imply model readout), needed for per-epoch validation",
-    )
-    tr.add_argument("--history", help="also write the per-epoch losses and validation metrics here (.json)")
+        "--validation", nargs=2, type=existing_file, metavar=("FEATURES", "CLIPS"),
+        help="the validation split (results/features/validation.npz, results/clips/validation.csv): every Table 3 "
+        "quantity on it after every epoch (needs --readout and --table)",
+    )  # fmt: skip
     tr.add_argument(
-        "--rollout-readout",
-        help="also fit the model's own readout on its rollouts of the training objects and write it here",
-    )
+        "--readout", type=existing_file,
+        help="the latent readout fitted on real training clips (imply model readout), for validation",
+    )  # fmt: skip
+    tr.add_argument("--table", type=existing_file, help="the push table (results/table/table.npz), for validation")
+    tr.add_argument("--score-json", type=json_arg, default={}, help="scoring settings (config score): grid, floor")
+    tr.add_argument("--derangement-seed", type=int_range(0), default=default_of(ModelConfig, "derangement_seed"),
+                    help="which validation object's calibration each object gets in the swap context")  # fmt: skip
+    tr.add_argument("--history", help="also write the per-epoch losses and validation metrics here (.json)")
     tr.add_argument("--threads", type=int_range(1), default=2)
     tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
     tr.add_argument("--device", default=default_of(ModelConfig, "device"), help="torch device (cpu, cuda)")
@@ -131,6 +135,28 @@ def _readout(path: Path):
         return load_latent_readout(path)
 
 
+def _validator(args: argparse.Namespace, layout, train_meta, token_grid):
+    """Section 5's per-epoch validation on ``--validation``, or None without it."""
+    from imply.models.object_blind import typical_slide_of_clips
+    from imply.score import ScoreConfig, Scorer
+    from imply.study.section5.validation import section5_validator
+    from imply.table import PushTable
+
+    if not args.validation:
+        return None
+    if not args.readout or not args.table:
+        raise UserError("--validation needs --readout and --table")
+    score = config_from_json(ScoreConfig, args.score_json, "--score-json")
+    with user_errors(ValueError, OSError, KeyError, message="--table: {error}"):
+        table = PushTable.load(args.table)
+    split = _feature_split(*args.validation).pooled(token_grid)
+    readout = _readout(args.readout)
+    return section5_validator(
+        split, layout, readout=readout, scorer=Scorer(table, grid=score.grid, floor=score.readout_floor),
+        typical=typical_slide_of_clips(train_meta), derangement_seed=args.derangement_seed,
+    )  # fmt: skip
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from imply.io import write_json
     from imply.models.config import Layout, PredictorPreset, TrainConfig
@@ -142,20 +168,20 @@ def cmd_train(args: argparse.Namespace) -> int:
     layout = replace(config_from_json(Layout, args.variant_json, "--variant-json"), rest_state=args.rest_state)
     config = config_from_json(TrainConfig, args.train_json, "--train-json")
     split = _feature_split(args.features, args.clips)
-    readout = _readout(args.readout) if args.readout else None
+    grid = tuple(args.token_grid) if args.token_grid else None
+    with user_errors(ValueError, message="--token-grid: {error}"):
+        validate = _validator(args, layout, split.meta, grid)
     # every output checked before training: a bad path found after minutes of training loses them
-    inputs = [args.features, args.clips, args.readout]
+    inputs = [args.features, args.clips, args.readout, args.table, *(args.validation or [])]
     out = output_file(args.output, inputs)
-    for option, path in (("--history", args.history), ("--rollout-readout", args.rollout_readout)):
-        if path:
-            output_file(path, [*inputs, out], option=option)
+    if args.history:
+        output_file(args.history, [*inputs, out], option="--history")
     t0 = time.perf_counter()
     with user_errors(ValueError):
         payload = train_variant(
             split, preset=preset, layout=layout, config=config, data_seed=args.seed,
             out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
-            token_grid=tuple(args.token_grid) if args.token_grid else None, readout=readout,
-            rollout_readout=args.rollout_readout, device=args.device,
+            token_grid=grid, validate=validate, device=args.device,
         )  # fmt: skip
     if args.history:
         write_json(args.history, {"seed": args.seed, "layout": layout.to_dict(), "history": payload["history"]})

@@ -11,6 +11,10 @@ Splits (config ``clips``; object draws are independent per split, so no object i
   query push at each of the K ``score.query_speeds`` -> 2 + K clips per object.
 * ``pretrain``: ``n_pretrain_episodes`` objects laid out like ``train``, used only to
   pretrain the CPU encoder (never for the readout or the predictor).
+* ``validation``: ``n_validation`` (200) objects laid out like the held-out splits (2
+  calibration pushes, a query push at each of the K query speeds), in no training or
+  held-out set: the predictor's per-epoch validation computes every Table 3 quantity on
+  them exactly as on the held-out objects, and every recipe choice is made there.
 
 Objects: mass and friction log-uniform over ``clips.masses`` / ``clips.frictions`` (the
 table's range by default); box half-extents are the scene's canonical box scaled per
@@ -70,7 +74,10 @@ from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.clips")
 
-SPLITS = ("train", "heldout_calib", "heldout_nocalib", "pretrain")
+# appended, never reordered: a split's index seeds its objects' draws
+SPLITS = ("train", "heldout_calib", "heldout_nocalib", "pretrain", "validation")
+# splits laid out like the held-out ones: every object pushed at each query speed
+QUERY_SPEED_SPLITS = ("heldout_calib", "heldout_nocalib", "validation")
 ROLES = ("calibration_0", "calibration_1", "query")
 
 
@@ -87,6 +94,9 @@ class ClipsConfig(Config):
     n_heldout_nocalib: int = option(500, doc="held-out objects for the model without it", minimum=1, required=True)
     n_pretrain_episodes: int = option(
         600, doc="frames for the CPU encoder's JEPA pretraining only", minimum=1, required=True
+    )
+    n_validation: int = option(
+        200, doc="validation objects (2 + K clips each): the predictor's per-epoch validation", minimum=2
     )
     train_speed: Range = option(Range(min=0.15, max=1.05), doc="training query speeds, uniform (m/s)")
     masses: Range = option(Range(min=0.2, max=2.0), doc="log-uniform (kg)")
@@ -105,6 +115,7 @@ class ClipsConfig(Config):
             "heldout_calib": self.n_heldout_calib,
             "heldout_nocalib": self.n_heldout_nocalib,
             "pretrain": self.n_pretrain_episodes,
+            "validation": self.n_validation,
         }[split]
 
 
@@ -141,7 +152,7 @@ def plan_clips(cfg: ClipsConfig, split: str, *, scene: SceneConfig, speeds: Scor
     ``speeds.query_speeds``.
     """
     objects = sample_objects(cfg, split, scene)
-    heldout = split.startswith("heldout")
+    heldout = split in QUERY_SPEED_SPLITS
     rows = []
     for obj in objects.itertuples(index=False):
         calib = speeds.calibration_speeds

@@ -12,7 +12,8 @@ A model is any object with
 and optionally ``name`` (the report's label), ``batch_size`` (objects per call) and
 ``stochastic`` (True: it is asked for several sample sets per object). A factory
 ``MODULE:FUNCTION`` named on the command line builds it; the factory may take the suite as
-keyword ``suite`` (to read the camera, say).
+keyword ``suite`` (to read the camera, say), and ``MODULE:FUNCTION,KEY=VALUE,...`` passes
+string options (a checkpoint path, say).
 
 One request holds one condition and one sample index for a batch of objects, and all K
 query speeds of each: a model can keep one hypothesis of an object across the K pushes
@@ -83,11 +84,30 @@ class WorldModel(Protocol):
     def rollout(self, request: RolloutRequest) -> np.ndarray: ...
 
 
-def load_model(spec: str, *, suite: Any = None) -> Any:
-    """Build the model named ``MODULE:FACTORY`` (module importable, or a path to a .py file)."""
-    module_name, sep, attr = spec.partition(":")
+def parse_model_spec(spec: str) -> tuple[str, str, dict[str, str]]:
+    """``MODULE:FACTORY[,KEY=VALUE...]`` -> (module, factory, keyword arguments as strings)."""
+    target, *pairs = spec.split(",")
+    module_name, sep, attr = target.partition(":")
     if not sep or not module_name or not attr:
-        raise ModelError(f"--model {spec!r}: expected MODULE:FACTORY, e.g. my_model:build")
+        raise ModelError(f"--model {spec!r}: expected MODULE:FACTORY[,KEY=VALUE...], e.g. my_model:build")
+    kwargs: dict[str, str] = {}
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        if not eq or not key.strip().isidentifier():
+            raise ModelError(f"--model {spec!r}: {pair!r} is not KEY=VALUE")
+        if key.strip() in kwargs or key.strip() == "suite":
+            raise ModelError(f"--model {spec!r}: {key.strip()!r} given twice (or reserved: suite)")
+        kwargs[key.strip()] = value
+    return module_name, attr, kwargs
+
+
+def load_model(spec: str, *, suite: Any = None) -> Any:
+    """Build the model named ``MODULE:FACTORY[,KEY=VALUE...]`` (module importable, or a path to a .py file).
+
+    Each ``KEY=VALUE`` is passed to the factory as a keyword argument (a string), e.g.
+    ``imply.models.world_model:trained_predictor,checkpoint=model.pt,encoder=encoder.pt``.
+    """
+    module_name, attr, kwargs = parse_model_spec(spec)
     try:
         if module_name.endswith(".py"):
             module = _module_from_file(module_name)
@@ -98,8 +118,17 @@ def load_model(spec: str, *, suite: Any = None) -> Any:
     factory = getattr(module, attr, None)
     if not callable(factory):
         raise ModelError(f"--model {spec!r}: {module_name} has no callable {attr!r}")
-    takes_suite = "suite" in inspect.signature(factory).parameters
-    model = factory(suite=suite) if takes_suite else factory()
+    params = inspect.signature(factory).parameters
+    takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+    unknown = [k for k in kwargs if k not in params and not takes_any]
+    if unknown:
+        raise ModelError(f"--model {spec!r}: {attr} takes no option {', '.join(map(repr, unknown))}")
+    if "suite" in params:
+        kwargs = {**kwargs, "suite": suite}
+    try:
+        model = factory(**kwargs)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ModelError(f"--model {spec!r}: {exc}") from exc
     check_model(model, spec)
     return model
 

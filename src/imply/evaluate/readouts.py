@@ -100,13 +100,36 @@ class FrameReadout(Readout):
 
 
 class LatentReadout(Readout):
+    """Ridge from ``encode()`` of real rest frames to log slide, centred but not scaled, read values clipped.
+
+    Two choices make it read *predicted* encodings as well as real ones, both fixed before
+    any rollout is read and neither fitted on one: features are centred but not divided by
+    their spread on real frames (a feature that barely varies on real frames, a background
+    patch, would otherwise get a weight that turns a model's small error there into a huge
+    slide: with per-feature scaling the study's predictor read log errors above 2 on the
+    validation objects, where the unscaled ridge reads them near 0.2); and a read log slide
+    is clipped to the training slides' range widened by ``MARGIN`` on each side, so one wild
+    rollout cannot dominate a mean.
+    """
+
+    MARGIN = float(np.log(2.0))
+
     def __init__(self, train_tokens: np.ndarray, check_tokens: np.ndarray, suite: Suite, truth: SuiteTruth) -> None:
+        from sklearn.linear_model import RidgeCV
+
         self.token_shape = tuple(train_tokens.shape[1:])
         if tuple(check_tokens.shape[1:]) != self.token_shape:
             raise ValueError(f"encode() gave check tokens {check_tokens.shape[1:]}, training ones {self.token_shape}")
-        flat = np.asarray(train_tokens, dtype=np.float64).reshape(len(train_tokens), 1, -1)
-        self._ridge = RidgeReadout.fit(flat, suite.train_displacement, alphas=ReadoutConfig().alphas())
-        check = self._ridge.predict(np.asarray(check_tokens, dtype=np.float64).reshape(len(check_tokens), -1))
+        flat = np.asarray(train_tokens, dtype=np.float64).reshape(len(train_tokens), -1)
+        log_d = np.log(np.asarray(suite.train_displacement, dtype=float))
+        mean = flat.mean(axis=0)
+        fit = RidgeCV(alphas=ReadoutConfig().alphas()).fit(flat - mean, log_d)
+        self._ridge = RidgeReadout(
+            mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_),
+            1, flat.shape[1],
+        )  # fmt: skip
+        self._log_range = (float(log_d.min() - self.MARGIN), float(log_d.max() + self.MARGIN))
+        check = self._predict(np.asarray(check_tokens, dtype=np.float64).reshape(len(check_tokens), -1))
         r2, err = _check_scores(truth.check_displacement, check)
         self.info = ReadoutInfo(
             name="ridge on encode()",
@@ -119,9 +142,12 @@ class LatentReadout(Readout):
         digest = hashlib.sha256(self._ridge.coef.tobytes() + self._ridge.mean.tobytes()).hexdigest()[:16]
         self.fingerprint = f"latents:{digest}"
 
+    def _predict(self, flat: np.ndarray) -> np.ndarray:
+        return np.exp(np.clip(self._ridge.predict_log(flat), *self._log_range))
+
     def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
         b, k = outputs.shape[:2]
-        d = self._ridge.predict(np.asarray(outputs, dtype=np.float64).reshape(b * k, -1)).reshape(b, k)
+        d = self._predict(np.asarray(outputs, dtype=np.float64).reshape(b * k, -1)).reshape(b, k)
         return BatchReadings(d, np.ones((b, k), dtype=bool), _nan((b, k)), _nan((b, k)))
 
 

@@ -198,8 +198,6 @@ class TrainConfig(Config):
     )
     every_push_as_query: bool = option(False, doc="also train on the calibration pushes as queries")
     init_seed: int = option(0, doc="seed of the predictor's initial weights", minimum=0)
-    val_objects: int = option(200, doc="training objects held out and validated after every epoch", minimum=0)
-    val_seed: int = option(0, doc="which objects are held out", minimum=0)
 
 
 @dataclass(frozen=True, kw_only=True)

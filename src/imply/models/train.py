@@ -19,8 +19,10 @@ With ``every_push_as_query`` each training object gives three examples, each of 
 pushes predicted with the other two in context (calibration pushes are ordinary pushes
 at fixed speeds), which triples the examples of inferring an object from two pushes.
 
-Validation: with ``val_objects`` > 0 that many training objects are left out and
-scored after every epoch (:mod:`imply.models.validation`); the history keeps it.
+Validation: a ``validate`` function of the model, when given, runs after every epoch and
+its numbers join the epoch's history (the study passes Section 5's validation on the
+validation objects, :mod:`imply.study.section5.validation`; a model does not know what
+validates it).
 
 Optimiser: AdamW; learning rate warms up linearly from ``start_lr`` to ``lr`` over the
 first ``warmup`` fraction of steps, stays constant, and anneals linearly to
@@ -53,12 +55,10 @@ from tqdm import tqdm
 from imply.io import atomic_path
 from imply.models.ac_predictor import ACPredictor
 from imply.models.config import Layout, PredictorConfig, PredictorPreset, TrainConfig
-from imply.models.examples import training_sequences
+from imply.models.examples import training_objects, training_sequences
 from imply.models.features import FeatureSplit
-from imply.models.latent_readout import LatentReadout, fit_rollout_readout
 from imply.models.rollout import rollout
 from imply.models.sequences import Sequences
-from imply.models.validation import split_validation, validator
 
 log = logging.getLogger("imply.models.train")
 
@@ -253,47 +253,28 @@ def train_variant(
     out: str | os.PathLike,
     checkpoint: str | os.PathLike,
     token_grid: tuple[int, int] | None = None,
-    readout: LatentReadout | None = None,
-    rollout_readout: str | os.PathLike | None = None,
+    validate: Callable[[ACPredictor], dict[str, float]] | None = None,
     device: str = "cpu",
 ) -> dict | None:
     """Train (or resume) one variant on a training split's cached features: one sequence per object.
 
     The features are pooled to ``token_grid`` (:meth:`imply.models.features.FeatureSplit.pooled`;
     None keeps the encoder's grid). The predictor's width comes from ``preset``, its
-    token width and patch grid from the pooled features. With ``config.val_objects`` > 0
-    those objects are left out and validated after every epoch, which needs ``readout``
-    (fit on tokens pooled the same way). With ``rollout_readout`` the trained model's own
-    readout (:func:`imply.models.latent_readout.fit_rollout_readout`, on its rollouts of the
-    training objects) is written there. Returns the saved payload (see :func:`train`).
+    token width and patch grid from the pooled features. ``validate`` runs after every
+    epoch (see :func:`train`). Returns the saved payload (see :func:`train`).
     """
     split = split.pooled(token_grid)
-    objects, val = split_validation(split, layout, n_objects=config.val_objects, seed=config.val_seed)
-    if val is not None and readout is None:
-        raise ValueError("validation (val_objects > 0) needs the latent readout")
+    objects = training_objects(split)
     examples = objects
     if config.every_push_as_query:
         examples = objects.every_push_as_query(split.meta["speed"].to_numpy(dtype=float))
     seqs = training_sequences(split, layout, examples)
     pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
     data_key = f"{split.tokens.shape}:{split.grid}:{len(seqs)}:{layout.rest_state}"
-    payload = train(
+    return train(
         seqs, layout=layout, predictor=pred_cfg, config=config, data_seed=data_seed, out=out, checkpoint=checkpoint,
-        data_key=data_key, device=device, validate=None if val is None else validator(val, readout),
-        extra={"token_grid": list(split.grid)},
+        data_key=data_key, device=device, validate=validate, extra={"token_grid": list(split.grid)},
     )  # fmt: skip
-    if rollout_readout is not None and payload is not None:
-        model = ACPredictor(pred_cfg)
-        model.load_state_dict(payload["model"])
-        model.eval()
-        own = seqs if examples is objects else training_sequences(split, layout, objects)
-        slide = split.meta["displacement"].to_numpy(dtype=float)[objects.query]
-        fitted = fit_rollout_readout(model, own, slide)
-        fitted.save(rollout_readout)
-        log.info(
-            "rollout readout: alpha %.3g on %d training rollouts -> %s", fitted.ridge.alpha, len(own), rollout_readout
-        )
-    return payload
 
 
 def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:
