@@ -2,8 +2,8 @@
 
 Figure 1, the controlled validation at a glance: (a) self and anchored disagreement of
 every object under each stand-in (log scale, one dot per object, a bar at the mean);
-(b) anchored disagreement's AUROC against the oracle as readout noise grows, one line
-per stand-in.
+(b) anchored (solid) and self (dashed) disagreement's AUROC against the oracle as readout
+noise grows, one colour per stand-in.
 
 Figure 2, the learned model: (a) predicted against true slide per object, (b) own
 against swapped disagreement, (c, d) self and anchored disagreement against true error.
@@ -20,6 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 
 from imply import stats  # noqa: E402
 from imply.io import atomic_path  # noqa: E402
@@ -60,14 +61,24 @@ def figure1(
 
     sds = [level["sd"] for level in noise["levels"]]
     for name in standins[1:]:
-        auroc = [level["standins"][name]["auroc_anchored"] for level in noise["levels"]]
-        ax_b.plot(sds, auroc, marker="o", ms=3, color=COLORS[name], label=NAMES[name])
+        for key, ls, marker, mfc in (("auroc_anchored", "-", "o", COLORS[name]), ("auroc_self", "--", "^", "white")):
+            auroc = [level["standins"][name][key] for level in noise["levels"]]
+            ax_b.plot(sds, auroc, ls=ls, marker=marker, ms=3, color=COLORS[name], mfc=mfc, lw=1.2)
     ax_b.axhline(0.5, color="grey", lw=0.8, ls=":")
-    ax_b.set_ylim(0.4, 1.02)
+    ax_b.set_ylim(0.3, 1.02)  # room below chance for the stand-ins' legend
     ax_b.set_xlabel("readout noise (log sd)")
-    ax_b.set_ylabel("anchored AUROC vs oracle")
+    ax_b.set_ylabel("AUROC vs oracle")
     ax_b.set_title("(b) robustness to readout noise", loc="left")
-    ax_b.legend(frameon=False)
+    # one legend for the colours (stand-ins), one for the line styles (which disagreement)
+    colours = [Line2D([], [], color=COLORS[n], lw=1.2, label=NAMES[n]) for n in standins[1:]]
+    styles = [
+        Line2D([], [], color="black", ls="-", marker="o", ms=3, lw=1.2, label="anchored"),
+        Line2D([], [], color="black", ls="--", marker="^", ms=3, mfc="white", lw=1.2, label="self"),
+    ]
+    ax_b.add_artist(
+        ax_b.legend(handles=colours, frameon=False, loc="lower left", ncol=3, fontsize=7, columnspacing=1.2)
+    )
+    ax_b.legend(handles=styles, frameon=False, loc="center left", bbox_to_anchor=(0.3, 0.62), fontsize=7)
     fig.tight_layout()
     with atomic_path(pdf_path) as tmp:
         fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "Producer": None, "Creator": None})

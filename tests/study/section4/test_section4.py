@@ -11,9 +11,13 @@ from imply.paper.results import producer_name
 from imply.score import ScoreConfig
 from imply.study.section4 import objects as objects_step
 from imply.study.section4 import standins
-from imply.study.section4.claims import section4_claims
+from imply.study.section4.claims import (
+    NOISY_BLIND_ANCHORED_AUROC_MIN,
+    NOISY_BLIND_SELF_AUROC_MAX,
+    section4_claims,
+)
 from imply.study.section4.config import NoiseConfig, ObjectsConfig, SelectionConfig, StandinsConfig
-from imply.study.section4.scoring import noise_sweep, score_rollouts, standin_metrics
+from imply.study.section4.scoring import noise_sweep, score_rollouts, smallest_nonzero_level, standin_metrics
 from imply.study.section4.selection import selection_study
 
 SEED = 7
@@ -117,6 +121,17 @@ def test_study_results_by_construction(study, tiny_table):
     assert [lv["sd"] for lv in levels] == [0.0, 0.1, 0.2]
     # noise level 0 reproduces the clean scores exactly
     assert levels[0]["standins"]["blind"]["mean_anchored"] == pytest.approx(st["blind"]["anchored"])
+    assert levels[0]["standins"]["blind"]["auroc_self"] == pytest.approx(st["blind"]["auroc_self"])
+    # self AUROC beside anchored: jitter is plain to see by itself without noise; under noise the
+    # object-blind model's constant rollouts look as self-consistent as the oracle's, anchoring still sees it
+    assert levels[0]["standins"]["jitter"]["auroc_self"] >= 0.9
+    assert levels[0]["standins"]["oracle"]["auroc_self"] is None
+    for lv in levels[1:]:
+        assert lv["standins"]["blind"]["auroc_self"] < lv["standins"]["blind"]["auroc_anchored"]
+    assert results[producer_name(noise_sweep)]["smallest_nonzero"] == {
+        "level": 1, "sd": 0.1, "blind_auroc_self": levels[1]["standins"]["blind"]["auroc_self"],
+        "blind_auroc_anchored": levels[1]["standins"]["blind"]["auroc_anchored"],
+    }  # fmt: skip
     sel = results[producer_name(selection_study)]
     assert set(sel["rules"]) == {"first", "consensus", "anchored", "oracle", "self", "medoid"}
     assert sel["rules"]["oracle"]["picked_oracle"] == 1.0 and sel["rules"]["consensus"]["picked_oracle"] is None
@@ -125,9 +140,10 @@ def test_study_results_by_construction(study, tiny_table):
     # every registered section4 number is read from these results, except the noise
     # levels this config does not have (three of five)
     registered = {e.name for e in load_registry().of_stage("section4")}
-    assert registered - set(numbers) == {f"noise{L}{k}" for L in "DE" for k in ("Sd", "Oracle", "Jitter", "Blind",
-                                                                                "Collapse")}  # fmt: skip
-    assert numbers["noiseCSd"] == 0.2 and numbers["noiseMax"] == 0.2
+    assert registered - set(numbers) == {f"noise{L}{k}" for L in "DE" for k in (
+        "Sd", "Oracle", "Jitter", "Blind", "Collapse", "JitterSelf", "BlindSelf", "CollapseSelf")}  # fmt: skip
+    assert numbers["noiseCSd"] == 0.2 and numbers["noiseMax"] == 0.2 and numbers["noiseMinSd"] == 0.1
+    assert numbers["noiseBBlindSelf"] == levels[1]["standins"]["blind"]["auroc_self"] == numbers["noiseMinBlindSelf"]
     assert numbers["selPickedOracle"] == 100.0 * sel["rules"]["anchored"]["picked_oracle"]
     assert {c.id for c in claims} >= {"s4-oracle-near-zero", "s4-sel-consensus-no-better"}
     assert all(c.section == "4" and c.detail for c in claims)
@@ -162,17 +178,22 @@ def test_selection_config_errors(study, tiny_table):
         SELECTION.replace(k=1)
 
 
-def _claims(**over):
+def _values(**over):
     v = {
         "OrSelf": 0.005, "orMassR": 0.98, "orFricR": 0.97, "JitAurocSelf": 1.0, "ColAurocSelf": 1.0, "BlSelf": 0.006,
         "BlAurocSelf": 0.7, "BlAurocAnch": 1.0, "BlErr": 0.37, "JitErr": 0.37, "BlAnch": 0.165, "JitCorr": 0.96,
         "BlCorr": 1.0, "ColSelf": 4.7, "ColAnch": 4.1, "noiseASd": 0.0, "noiseAOracle": 0.006, "noiseAJitter": 1.0,
         "noiseACollapse": 1.0, "noiseBSd": 0.2, "noiseBOracle": 0.147, "noiseBJitter": 0.91, "noiseBCollapse": 1.0,
         "noiseMax": 0.2, "noiseMaxAurocBlind": 0.78, "selPickedOracle": 98, "selAnchMiss": 1.5, "selFirstMiss": 7.1,
-        "selConsMiss": 8.6, "selOracMiss": 1.6,
+        "selConsMiss": 8.6, "selOracMiss": 1.6, "noiseMinSd": 0.03, "noiseMinBlindSelf": 0.54,
+        "noiseMinBlindAnch": 0.99,
     }  # fmt: skip
     v.update(over)
-    return {c.id: c.holds for c in section4_claims(load_registry().values(v))}
+    return v
+
+
+def _claims(**over):
+    return {c.id: c.holds for c in section4_claims(load_registry().values(_values(**over)))}
 
 
 def test_claims_follow_the_results():
@@ -182,3 +203,29 @@ def test_claims_follow_the_results():
     assert not _claims(selPickedOracle=40)["s4-sel-anchored-picks-oracle"]
     assert not _claims(noiseBOracle=0.001)["s4-noise-oracle-rises"]
     assert not _claims(OrSelf=0.05)["s4-oracle-near-zero"]
+
+
+def test_smallest_nonzero_level_is_found_not_assumed():
+    def level(sd, auroc_self, auroc_anchored):
+        return {"sd": sd, "standins": {"blind": {"auroc_self": auroc_self, "auroc_anchored": auroc_anchored}}}
+
+    # two zero levels first, and out of order: the lowest sd above zero is picked, wherever it sits
+    found = smallest_nonzero_level([level(0.0, 0.99, 1.0), level(0.0, 0.98, 1.0), level(0.2, 0.5, 0.8),
+                                    level(0.05, 0.6, 0.95)])  # fmt: skip
+    assert found == {"level": 3, "sd": 0.05, "blind_auroc_self": 0.6, "blind_auroc_anchored": 0.95}
+    assert smallest_nonzero_level([level(0.0, 0.99, 1.0)])["sd"] is None
+
+
+def test_claim_self_misses_blind_under_noise():
+    cid = "s4-noise-self-misses-blind"
+    assert _claims()[cid]
+    assert _claims(noiseMinBlindSelf=NOISY_BLIND_SELF_AUROC_MAX)[cid]  # the bounds are inclusive
+    assert _claims(noiseMinBlindAnch=NOISY_BLIND_ANCHORED_AUROC_MIN)[cid]
+    assert not _claims(noiseMinBlindSelf=NOISY_BLIND_SELF_AUROC_MAX + 0.01)[cid]  # self sees it after all
+    assert not _claims(noiseMinBlindAnch=NOISY_BLIND_ANCHORED_AUROC_MIN - 0.01)[cid]  # nor does anchoring
+    # a sweep with no nonzero level (the result's fields are None, read as NaN) cannot support the claim
+    assert not _claims(noiseMinSd=float("nan"), noiseMinBlindSelf=float("nan"), noiseMinBlindAnch=float("nan"))[cid]
+    # the zero-noise self AUROC is reported, not claimed: a high one does not fail the claim
+    assert _claims(noiseABlindSelf=0.995)[cid]
+    text = {c.id: c for c in section4_claims(load_registry().values(_values()))}[cid].statement
+    assert "sd 0.03" in text and "at most 0.75" in text and "at least 0.9" in text

@@ -3,7 +3,7 @@
 :func:`score_rollouts` -> ``scores.csv`` (self and anchored disagreement, implied physics
 and log error per stand-in and object); :func:`standin_metrics` -> ``metrics.json``
 (Table 1 and the oracle's recovery of mass and friction); :func:`noise_sweep` ->
-``noise.json``. The result documents are what the registry of reported numbers
+``noise.json`` (self and anchored AUROC per stand-in and readout-noise level). The result documents are what the registry of reported numbers
 (:mod:`imply.paper.registry`) reads the Section 4 numbers from.
 """
 
@@ -109,8 +109,12 @@ def noise_sweep(
     The same standard normal draws z are scaled for every sd (common random numbers),
     so the levels differ only by the noise's size; calibration pushes stay exact.
     Returns ``levels``, in increasing sd: each with its ``sd`` and, per stand-in,
-    ``mean_self``, ``mean_anchored``, ``auroc_self`` and ``auroc_anchored`` (against the
-    oracle at the same sd; None for the oracle itself).
+    ``mean_self``, ``mean_anchored``, ``auroc_self`` and ``auroc_anchored`` (self and
+    anchored disagreement's AUROC against the oracle at the same sd and the same draws;
+    None for the oracle itself); and ``smallest_nonzero``, the lowest level with sd > 0
+    as ``level`` (its index in ``levels``), ``sd``, ``blind_auroc_self`` and
+    ``blind_auroc_anchored`` (all None when no level is above zero), where the claim
+    that self-consistency cannot see the object-blind model is checked.
     """
     t = truth_arrays(truth, query_speeds=score.query_speeds, calibration_speeds=score.calibration_speeds)
     r = rollout_arrays(rollouts, t["ids"], score.query_speeds)
@@ -138,4 +142,23 @@ def noise_sweep(
                 "auroc_anchored": None if j == 0 else stats.auroc(anch[i, 0], anch[i, j]),
             }
         levels.append({"sd": float(sd), "standins": per_standin})
-    return {"levels": levels}
+    return {"levels": levels, "smallest_nonzero": smallest_nonzero_level(levels)}
+
+
+def smallest_nonzero_level(levels: list[dict[str, Any]]) -> dict[str, Any]:
+    """The lowest readout-noise level above zero of a sweep's ``levels``, and the object-blind model's AUROCs there.
+
+    Returns ``level`` (index into ``levels``), ``sd``, ``blind_auroc_self`` and
+    ``blind_auroc_anchored``; every field None when no level has sd > 0.
+    """
+    nonzero = [i for i, level in enumerate(levels) if level["sd"] > 0]
+    if not nonzero:
+        return {"level": None, "sd": None, "blind_auroc_self": None, "blind_auroc_anchored": None}
+    i = min(nonzero, key=lambda j: levels[j]["sd"])
+    blind = levels[i]["standins"]["blind"]
+    return {
+        "level": i,
+        "sd": levels[i]["sd"],
+        "blind_auroc_self": blind["auroc_self"],
+        "blind_auroc_anchored": blind["auroc_anchored"],
+    }
