@@ -18,14 +18,16 @@ validate_workflow_config(config, Path(workflow.current_basedir).parent / "schema
 # the software environment of every rule under `snakemake --use-conda` (pinned versions)
 IMPLY_ENV = "../../envs/imply.yaml"
 
-CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain"]
-FEATURE_SPLITS = ["train", "heldout_calib", "heldout_nocalib"]
+CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain", "validation"]
+FEATURE_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "validation"]
 HELDOUT_SPLITS = ["heldout_calib", "heldout_nocalib"]
 MODEL_VARIANTS = ["nocalib", "calib"]
 MODEL_SEEDS = [int(s) for s in config["model"]["seeds"]]
-# which held-out split and contexts each variant is rolled out on
-ROLLOUT_SPLIT = {"calib": "heldout_calib", "nocalib": "heldout_nocalib"}
-ROLLOUT_CONTEXTS = {"calib": "own,swap,none", "nocalib": "none"}
+# the suite each variant is evaluated on (the main suite holds heldout_calib's objects), and the
+# conditions it is asked (a model trained without calibration is asked with none only)
+SECTION5_SUITE = {"calib": "results/suite", "nocalib": "results/section5/suite_nocalib"}
+EVALUATE_CONDITIONS = {"calib": "own,other,none", "nocalib": "none"}
+SUITE_FILES = ["manifest.json", "suite.npz", "truth.npz", "table.npz", "README.md"]
 GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
 GAP_SHARDS = list(range(config["threads"]))
@@ -89,37 +91,55 @@ def token_grid_option(wildcards=None):
     return f"--token-grid {grid[0]} {grid[1]}" if grid else ""
 
 
-def rollout_readout(wildcards):
-    """The readout a model's rollouts are read with: its own (fit on its rollouts) or the real-token one."""
-    if config["model"]["readout"] == "rollouts":
-        return f"results/model/{wildcards.variant}/seed{wildcards.seed}/readout.npz"
-    return "results/model/readout_ln.npz"
-
-
 def training_histories():
     return expand("results/model/{variant}/seed{seed}/training.json", variant=MODEL_VARIANTS, seed=MODEL_SEEDS)
 
 
-def rollout_features(wildcards):
-    return f"results/features/{ROLLOUT_SPLIT[wildcards.variant]}.npz"
+# the clips keys the suite reads: the objects' draws, the frame times, the camera, the batch
+SUITE_CLIPS_KEYS = [
+    "seed",
+    "masses",
+    "frictions",
+    "size_scale",
+    "train_speed",
+    "n_train_episodes",
+    "n_heldout_calib",
+    "n_heldout_nocalib",
+    "frame_times",
+    "camera",
+    "batch",
+]
 
 
-def rollout_clips(wildcards):
-    return f"results/clips/{ROLLOUT_SPLIT[wildcards.variant]}.csv"
+def suite_clips_json():
+    """Only the clips keys a suite reads."""
+    return as_json({k: config["clips"][k] for k in SUITE_CLIPS_KEYS})
 
 
-def model_rollouts():
-    return expand("results/model/{variant}/seed{seed}/rollouts.csv", variant=MODEL_VARIANTS, seed=MODEL_SEEDS)
+def section5_suite_files(wildcards):
+    """The suite a variant's model is evaluated on."""
+    return [f"{SECTION5_SUITE[wildcards.variant]}/{f}" for f in SUITE_FILES]
 
 
-def rollouts_options(wildcards, input):
-    """`imply section5 --rollouts MODEL:SEED:PATH` for each rollout table (paths from the rule's input)."""
-    return " ".join(
-        f"--rollouts {variant}:{seed}:{path}"
-        for (variant, seed), path in zip(
-            [(v, s) for v in MODEL_VARIANTS for s in MODEL_SEEDS], input.rollouts, strict=True
-        )
+def section5_evaluations():
+    """Each trained model's imply evaluate report (its readings; the folder is the report)."""
+    return expand(
+        "results/section5/evaluate/{variant}_seed{seed}/per_object.csv", variant=MODEL_VARIANTS, seed=MODEL_SEEDS
     )
+
+
+def section5_suites():
+    return {variant: f"{folder}/manifest.json" for variant, folder in SECTION5_SUITE.items()}
+
+
+def evaluation_options(wildcards, input):
+    """`imply section5 --evaluation MODEL:SEED:FOLDER ... --suite MODEL:FOLDER` from the rule's input."""
+    pairs = [(v, s) for v in MODEL_VARIANTS for s in MODEL_SEEDS]
+    evaluations = [
+        f"--evaluation {v}:{s}:{Path(path).parent}" for (v, s), path in zip(pairs, input.evaluations, strict=True)
+    ]
+    suites = [f"--suite {v}:{Path(getattr(input, 'suite_' + v)).parent}" for v in MODEL_VARIANTS]
+    return " ".join(evaluations + suites)
 
 
 # -- the gap benchmark ----------------------------------------------------------------

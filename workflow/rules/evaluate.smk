@@ -2,22 +2,6 @@
 # with their calibration clips and query context frames, real training clips for the readouts,
 # a sealed truth file and a byte copy of the push table, so results/suite/ scores on its own.
 
-# the clips keys the suite reads: the objects' draws, the frame times, the camera, the batch
-SUITE_CLIPS_KEYS = [
-    "seed",
-    "masses",
-    "frictions",
-    "size_scale",
-    "train_speed",
-    "n_train_episodes",
-    "n_heldout_calib",
-    "n_heldout_nocalib",
-    "frame_times",
-    "camera",
-    "batch",
-]
-
-
 rule suite_build:
     conda:
         IMPLY_ENV
@@ -31,7 +15,7 @@ rule suite_build:
         readme="results/suite/README.md",
     params:
         suite=as_json(config["suite"]),
-        clips=as_json({k: config["clips"][k] for k in SUITE_CLIPS_KEYS}),
+        clips=suite_clips_json(),
         scene=as_json(config["scene"]),
         score=score_subset("calibration_speeds", "query_speeds"),
         out=lambda wildcards, output: Path(output.manifest).parent,

@@ -1,6 +1,7 @@
 # Paper Section 5 model: the V-JEPA 2-AC action-conditioned predictor (imply.models) trained
-# on the cached encoder features, per variant (context) and data-order seed, then rolled out
-# on the held-out objects and read out to displacement.
+# on the cached encoder features, per variant (context) and data-order seed, validated after
+# every epoch on the validation split (every Table 3 quantity, read by the real-clip readout).
+# Its held-out rollouts run through `imply evaluate` (section5.smk).
 
 
 wildcard_constraints:
@@ -39,10 +40,11 @@ rule model_train:
         features="results/features/train.npz",
         clips="results/clips/train.csv",
         readout="results/model/readout_ln.npz",
+        validation=["results/features/validation.npz", "results/clips/validation.csv"],
+        table="results/table/table.npz",
     output:
         model="results/model/{variant}/seed{seed}/model.pt",
         history="results/model/{variant}/seed{seed}/training.json",
-        readout="results/model/{variant}/seed{seed}/readout.npz",
     params:
         preset=preset_json,
         token_grid=token_grid_option,
@@ -50,6 +52,8 @@ rule model_train:
         train=as_json(config["model"]["train"]),
         rest_state=config["model"]["rest_state"],
         device=config["model"]["device"],
+        score=score_subset("grid", "readout_floor"),
+        derangement_seed=config["model"]["derangement_seed"],
     threads: config["model"]["resources"]["train_threads"]
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
@@ -60,10 +64,11 @@ rule model_train:
     shell:
         # a killed run leaves checkpoint.pt beside the model; rerunning resumes from it
         "imply model train --features {input.features} --clips {input.clips} --readout {input.readout}"
+        " --validation {input.validation} --table {input.table} --score-json {params.score}"
+        " --derangement-seed {params.derangement_seed}"
         " --preset-json {params.preset} {params.token_grid} --variant-json {params.variant}"
         " --train-json {params.train} --rest-state {params.rest_state} --seed {wildcards.seed}"
-        " --threads {threads} --device {params.device} -o {output.model} --history {output.history}"
-        " --rollout-readout {output.readout} > {log} 2>&1"
+        " --threads {threads} --device {params.device} -o {output.model} --history {output.history} > {log} 2>&1"
 
 
 rule model_training_plot:
@@ -86,30 +91,3 @@ rule model_training_plot:
         "results/logs/model_training_plot.log",
     shell:
         "imply model plot {input} -o {output} > {log} 2>&1"
-
-
-rule model_rollout:
-    conda:
-        IMPLY_ENV
-    input:
-        model="results/model/{variant}/seed{seed}/model.pt",
-        features=rollout_features,
-        clips=rollout_clips,
-        readout=rollout_readout,
-    output:
-        "results/model/{variant}/seed{seed}/rollouts.csv",
-    params:
-        contexts=lambda wildcards: ROLLOUT_CONTEXTS[wildcards.variant],
-        derangement_seed=config["model"]["derangement_seed"],
-        batch=config["model"]["rollout_batch"],
-    threads: config["model"]["resources"]["rollout_threads"]
-    resources:
-        mem_mb=config["model"]["resources"]["rollout_mem_mb"],
-        runtime=config["model"]["resources"]["rollout_runtime"],
-        gpu=config["model"]["resources"]["gpu"],
-    log:
-        "results/logs/model_rollout_{variant}_seed{seed}.log",
-    shell:
-        "imply model rollout --model {input.model} --features {input.features} --clips {input.clips}"
-        " --readout {input.readout} --contexts {params.contexts} --derangement-seed {params.derangement_seed}"
-        " --batch-size {params.batch} --threads {threads} -o {output} > {log} 2>&1"

@@ -1,9 +1,10 @@
 """``imply section5``: scores of the predictor's latent rollouts, the stage's result document and per-object table.
 
-``--rollouts MODEL:SEED:PATH`` (repeatable) names each rollout table: the calibrated
-(``calib``) and context-free (``nocalib``) model of each data-order seed. The first
-seed, in increasing order, gives the paper's Table 3 numbers; the second, its
-replication. Logic: :mod:`imply.study.section5`.
+``--evaluation MODEL:SEED:FOLDER`` (repeatable) names each ``imply evaluate`` report: the
+calibrated (``calib``) and context-free (``nocalib``) model of each data-order seed, its
+rollouts read by the readout fitted on the suite's real clips; ``--suite MODEL:FOLDER``
+the suite each model was scored on. The first seed, in increasing order, gives the
+paper's Table 3 numbers; the second, its replication. Logic: :mod:`imply.study.section5`.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
+from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, user_errors
 from imply.models.config import ModelConfig
 from imply.options import default_of
 
@@ -21,8 +22,10 @@ log = logging.getLogger("imply.section5")
 
 def register(sub: argparse._SubParsersAction) -> None:
     s5 = sub.add_parser("section5", help="Section 5 scores of the predictor's rollouts (a result document)")
-    s5.add_argument("--rollouts", action="append", required=True, metavar="MODEL:SEED:PATH",
-                    help="a rollout table of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
+    s5.add_argument("--evaluation", action="append", required=True, metavar="MODEL:SEED:FOLDER",
+                    help="an imply evaluate report of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
+    s5.add_argument("--suite", action="append", required=True, metavar="MODEL:FOLDER",
+                    help="the suite the model's reports were scored on (calib and nocalib)")  # fmt: skip
     s5.add_argument("--table", type=existing_file, required=True)
     s5.add_argument(
         "--train-clips",
@@ -40,22 +43,29 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_section5(args: argparse.Namespace) -> int:
     import pandas as pd
 
+    from imply.evaluate.suite import SuiteError
     from imply.io import write_csv
     from imply.models.object_blind import typical_slide_of_clips
     from imply.paper.results import write_result
     from imply.score import ScoreConfig
-    from imply.study.section5.rollouts import read_rollout_tables
+    from imply.study.section5.rollouts import read_evaluations
     from imply.study.section5.scoring import section5_results
     from imply.table import PushTable
 
-    with user_errors(ValueError, message="--rollouts: {error}"):
-        tables = read_rollout_tables(args.rollouts)
+    suites = {}
+    for spec in args.suite:
+        model, sep, folder = spec.partition(":")
+        if not sep or model in suites:
+            raise UserError(f"--suite {spec!r}: expected MODEL:FOLDER, once per model")
+        suites[model] = folder
+    with user_errors(ValueError, SuiteError, OSError, KeyError, message="--evaluation: {error}"):
+        tables, readouts = read_evaluations(args.evaluation, suites)
     seeds = sorted({s for _, s in tables})
     scorer = config_from_json(ScoreConfig, args.score_json, "--score-json").scorer(PushTable.load(args.table))
     with user_errors(ValueError, KeyError, message="--train-clips: {error}"):
         typical = typical_slide_of_clips(pd.read_csv(args.train_clips))
     result, per_object = section5_results(
-        tables, scorer, seeds=seeds, selection_seed=args.selection_seed, typical=typical
+        tables, scorer, seeds=seeds, selection_seed=args.selection_seed, typical=typical, readouts=readouts
     )
     write_result(args.metrics, section5_results, result)
     write_csv(args.per_object, per_object)

@@ -257,11 +257,7 @@ class ModelConfig(Config):
     )  # fmt: skip
     rest_state: float = option(1.0, doc="state token of the last frame (box at rest)", required=True)
     train: TrainConfig = option(TrainConfig(), doc="training (imply.models.config.TrainConfig)", required=True)
-    readout: str = option(
-        "rollouts", doc="rollouts read with each model's own readout (rollouts) or the real-token one (real)",
-        required=True, choices=("rollouts", "real"),
-    )  # fmt: skip
-    rollout_batch: int = option(100, doc="held-out objects rolled out per batch", minimum=1, required=True)
+    rollout_batch: int = option(100, doc="objects rolled out per call of imply evaluate", minimum=1, required=True)
     derangement_seed: int = option(
         11, doc="which object's calibration each object gets in the swap condition", minimum=0, required=True
     )

@@ -1,7 +1,10 @@
 """Section 5's rollout tables, read into per-object arrays: one :class:`ContextRollouts` per model and context.
 
 A rollout table (:mod:`imply.models.rollout`) has one row per object, context and push:
-the model's rollouts at the query speeds and the two calibration pushes. Scoring
+the model's rollouts at the query speeds and the two calibration pushes. The study's
+held-out tables come from ``imply evaluate`` reports (:func:`rollout_table_of_evaluation`:
+the slides its readout, fitted on real clips, read off each rollout); validation builds
+them directly (:mod:`~imply.study.section5.validation`). Scoring
 (:mod:`~imply.study.section5.scoring`) and selection (:mod:`~imply.study.section5.selection`)
 both read these arrays, so neither imports the other.
 """
@@ -17,6 +20,8 @@ import pandas as pd
 from imply.models.object_blind import TypicalSlide
 
 MODELS = ("nocalib", "calib")
+# imply evaluate's conditions as Section 5's contexts
+CONTEXT_OF_CONDITION = {"own": "own", "other": "swap", "none": "none"}
 
 
 @dataclass(frozen=True)
@@ -66,22 +71,109 @@ def object_blind_rollouts(rollouts: ContextRollouts, typical: TypicalSlide) -> C
     )
 
 
-def read_rollout_tables(specs: list[str]) -> dict[tuple[str, int], pd.DataFrame]:
-    """Rollout tables named ``MODEL:SEED:PATH``; every seed needs both models' (ValueError otherwise)."""
-    tables = {}
+def rollout_table_of_evaluation(
+    per_object: pd.DataFrame, *, object_ids: np.ndarray, calibration_speeds: np.ndarray,
+    calibration_displacement: np.ndarray, partner: np.ndarray,
+) -> pd.DataFrame:  # fmt: skip
+    """One model's rollout table from its ``imply evaluate`` readings (``per_object.csv``, sample 0).
+
+    ``object_ids`` (N,), ``calibration_speeds`` (2,), ``calibration_displacement`` (N, 2) and
+    ``partner`` (N,) come from the suite the model was evaluated on: the calibration rows
+    carry each object's own observed pushes (anchoring uses them whatever the context).
+    """
+    models = per_object["model"].unique()
+    if len(models) != 1:
+        raise ValueError(f"expected the readings of one model, found {len(models)}")
+    df = per_object[per_object["sample"] == 0]
+    unknown = sorted(set(df["condition"]) - set(CONTEXT_OF_CONDITION))
+    if unknown:
+        raise ValueError(f"unknown condition {unknown[0]!r}")
+    ids = np.asarray(object_ids).astype(str)
+    index = {o: i for i, o in enumerate(ids)}
+    missing = sorted(set(df["object_id"].astype(str)) - set(index))
+    if missing:
+        raise ValueError(f"object {missing[0]} is not in the suite")
+    cal_speed = np.asarray(calibration_speeds, dtype=float)
+    cal_disp = np.asarray(calibration_displacement, dtype=float)
+    speeds = np.sort(df["speed_m_s"].unique())
+    tables = []
+    for condition, rows in df.groupby("condition", sort=False):
+        ctx = CONTEXT_OF_CONDITION[str(condition)]
+        objs = rows["object_id"].astype(str).to_numpy()
+        first = np.array([index[o] for o in pd.unique(objs)])
+        cal = pd.DataFrame(
+            {
+                "object_id": np.repeat(ids[first], 2),
+                "role": "calibration",
+                "speed": np.tile(cal_speed, len(first)),
+                "displacement": cal_disp[first].reshape(-1),
+                "true_displacement": cal_disp[first].reshape(-1),
+                "speed_index": -1,
+            }
+        )
+        roll = pd.DataFrame(
+            {
+                "object_id": objs,
+                "role": "rollout",
+                "speed": rows["speed_m_s"].to_numpy(float),
+                "displacement": rows["read_displacement_m"].to_numpy(float),
+                "true_displacement": rows["true_displacement_m"].to_numpy(float),
+                "speed_index": np.searchsorted(speeds, rows["speed_m_s"].to_numpy(float)),
+            }
+        )
+        both = pd.concat([cal, roll], ignore_index=True)
+        both.insert(1, "context", ctx)
+        shown = {"own": ids, "swap": ids[np.asarray(partner)]}.get(ctx)
+        both.insert(
+            2, "context_object", both["object_id"].map(dict(zip(ids, shown, strict=True))) if shown is not None else ""
+        )
+        tables.append(both.sort_values(["object_id", "role", "speed_index"], kind="stable"))
+    return pd.concat(tables, ignore_index=True)
+
+
+def read_evaluations(
+    specs: list[str], suites: dict[str, str | Path]
+) -> tuple[dict[tuple[str, int], pd.DataFrame], dict[tuple[str, int], dict]]:
+    """Rollout tables of ``imply evaluate`` reports named ``MODEL:SEED:FOLDER``, with their readouts.
+
+    ``suites``: model (calib|nocalib) -> the suite folder its report was scored on. Returns
+    (model, seed) -> rollout table, and (model, seed) -> the report's readout description
+    (name, what it was fitted on, R^2 and mean |log error| on real check clips). Every seed
+    needs both models (ValueError otherwise).
+    """
+    import json
+
+    from imply.evaluate.suite import load_suite
+
+    loaded = {}
+    tables, readouts = {}, {}
     for spec in specs:
         try:
-            model, seed_text, path = spec.split(":", 2)
+            model, seed_text, folder = spec.split(":", 2)
             seed = int(seed_text)
         except ValueError:
-            raise ValueError(f"{spec!r} is not MODEL:SEED:PATH") from None
+            raise ValueError(f"{spec!r} is not MODEL:SEED:FOLDER") from None
         if model not in MODELS:
             raise ValueError(f"model {model!r} must be calib or nocalib")
-        if not Path(path).is_file():
-            raise ValueError(f"{path} does not exist")
-        tables[(model, seed)] = pd.read_csv(path, dtype={"object_id": str, "context": str, "context_object": str})
+        if model not in suites:
+            raise ValueError(f"no suite given for the {model} model")
+        folder = Path(folder)
+        if not (folder / "per_object.csv").is_file() or not (folder / "results.json").is_file():
+            raise ValueError(f"{folder} is not an imply evaluate report (per_object.csv, results.json)")
+        if model not in loaded:
+            loaded[model] = load_suite(suites[model])
+        suite = loaded[model]
+        doc = json.loads((folder / "results.json").read_text())
+        if doc.get("suite") != suite.checksum or len(doc["models"]) != 1:
+            raise ValueError(f"{folder}: not one model scored on the suite {suites[model]}")
+        per_object = pd.read_csv(folder / "per_object.csv", dtype={"object_id": str, "model": str})
+        tables[(model, seed)] = rollout_table_of_evaluation(
+            per_object, object_ids=suite.object_ids, calibration_speeds=suite.calibration_speeds,
+            calibration_displacement=suite.calibration_displacement, partner=suite.partner,
+        )  # fmt: skip
+        readouts[(model, seed)] = doc["models"][0]["readout"]
     for s in sorted({s for _, s in tables}):
         for m in MODELS:
             if (m, s) not in tables:
-                raise ValueError(f"seed {s} lacks the {m} model's rollouts")
-    return tables
+                raise ValueError(f"seed {s} lacks the {m} model's evaluation")
+    return tables, readouts
