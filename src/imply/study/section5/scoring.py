@@ -167,13 +167,14 @@ def own_lt_swap(own: pd.DataFrame, swap: pd.DataFrame) -> OwnLtSwap:
     if not np.array_equal(own["object_id"].to_numpy(), swap["object_id"].to_numpy()):
         raise ValueError("own and swapped rollouts cover different objects")
     n = len(own)
-    self_count = int(np.sum(own["self_disagreement"].to_numpy() < swap["self_disagreement"].to_numpy()))
-    anchored_count = int(np.sum(own["anchored_disagreement"].to_numpy() < swap["anchored_disagreement"].to_numpy()))
+    self_lower = own["self_disagreement"].to_numpy() < swap["self_disagreement"].to_numpy()
+    anchored_lower = own["anchored_disagreement"].to_numpy() < swap["anchored_disagreement"].to_numpy()
+    self_count, anchored_count = int(self_lower.sum()), int(anchored_lower.sum())
     self_test = stats.binomial_share(self_count, n, alternative="two-sided")
     anchored_test = stats.binomial_share(anchored_count, n, alternative="greater")
     return OwnLtSwap(
-        self_disagreement=100.0 * self_count / n,
-        anchored_disagreement=100.0 * anchored_count / n,
+        self_disagreement=100.0 * float(np.mean(self_lower)),
+        anchored_disagreement=100.0 * float(np.mean(anchored_lower)),
         n=n,
         self_count=self_count,
         self_p=self_test.p,
