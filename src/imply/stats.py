@@ -13,11 +13,18 @@ Conventions:
   (1 - SS_res / SS_tot, identity line, not a refitted regression).
 * The miss of a chosen rollout is |chosen displacement - true displacement| at one
   query speed, in mm.
+* A share of successes is tested against one half by the exact binomial test, with the
+  exact (Clopper-Pearson) two-sided interval of the proportion.
+* A difference in means of paired per-object samples gets a percentile interval from a
+  bootstrap that resamples objects (pairs kept together).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.stats import binomtest
 from sklearn.metrics import roc_auc_score
 
 
@@ -73,3 +80,58 @@ def share_within(miss, limit_mm: float) -> float:
     """Share of objects whose miss is at most ``limit_mm``."""
     miss = np.asarray(miss, dtype=float)
     return float(np.mean(miss <= limit_mm))
+
+
+@dataclass(frozen=True)
+class BinomialShare:
+    """``count`` successes of ``n`` tested against a share of one half: ``p``, the exact binomial
+    test's p-value (``alternative`` two-sided, greater or less); ``low`` and ``high``, the exact
+    (Clopper-Pearson) two-sided interval of the share at ``level``, as fractions."""
+
+    count: int
+    n: int
+    alternative: str
+    p: float
+    low: float
+    high: float
+
+
+def binomial_share(count: int, n: int, *, alternative: str = "two-sided", level: float = 0.95) -> BinomialShare:
+    """Exact binomial test of ``count`` of ``n`` against 1/2 and the share's exact interval.
+
+    The interval is the two-sided one whatever the test's alternative, so a one-sided
+    test is reported with the same kind of interval as a two-sided one.
+    """
+    if n < 1 or not 0 <= count <= n:
+        raise ValueError(f"a binomial share needs 0 <= count <= n and n >= 1, got {count} of {n}")
+    p = binomtest(int(count), int(n), 0.5, alternative=alternative).pvalue
+    ci = binomtest(int(count), int(n), 0.5).proportion_ci(confidence_level=level, method="exact")
+    return BinomialShare(int(count), int(n), alternative, float(p), float(ci.low), float(ci.high))
+
+
+@dataclass(frozen=True)
+class PairedDifference:
+    """Mean of a - b over paired samples (``diff``) and its bootstrap percentile interval."""
+
+    diff: float
+    low: float
+    high: float
+
+
+def paired_bootstrap_difference(a, b, *, resamples: int, seed: int, level: float = 0.95) -> PairedDifference:
+    """Mean difference of paired samples ``a`` and ``b`` (N,) with a percentile bootstrap interval.
+
+    Each of ``resamples`` draws picks N pairs with replacement (numpy ``default_rng(seed)``),
+    so the interval is the same for the same inputs and seed. No resamples: NaN interval.
+    """
+    a = np.asarray(a, dtype=float).ravel()
+    b = np.asarray(b, dtype=float).ravel()
+    if a.size != b.size or a.size < 1:
+        raise ValueError("a paired difference needs two equal-length samples of at least 1")
+    d = a - b
+    if resamples < 1:
+        return PairedDifference(float(d.mean()), float("nan"), float("nan"))
+    index = np.random.default_rng(seed).integers(0, d.size, size=(resamples, d.size))
+    tail = 100.0 * (1.0 - level) / 2.0
+    low, high = np.percentile(d[index].mean(axis=1), [tail, 100.0 - tail])
+    return PairedDifference(float(d.mean()), float(low), float(high))

@@ -93,7 +93,10 @@ def test_cli_train_rollout_section5(synth, tmp_path, tiny_table_path):
         "s5-anchored-prefers-own",
         "s5-second-seed",
         "s5-own-beats-blind",
-        "s5-nocalib-as-blind",
+        "s5-nocalib-blind",
+        "s5-self-no-error-track",
+        "s5-targets-seed0",
+        "s5-targets-seed1",
     }
     assert all(isinstance(c["holds"], bool) for c in claims)
     assert main(["paper", "tables", "--part", str(part), "--table3", str(paper / "table3.tex")]) == 0

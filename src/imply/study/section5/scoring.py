@@ -23,8 +23,16 @@ calibration should beat it; a model without calibration can at best match it.
 
 Own against swapped calibration (calibrated model): the percentage of objects whose
 disagreement is lower with their own calibration in context than with another
-object's, for self and for anchored disagreement. Selection among the three candidate
-sets: :mod:`imply.study.section5.selection`.
+object's (a tie counts as not lower), for self and for anchored disagreement, with the
+counts, the exact binomial test against one half (two-sided for self: is its preference
+consistent with chance; one-sided, greater, for anchored: does it prefer own) and each
+share's exact 95% interval in percent (:func:`imply.stats.binomial_share`). Selection
+among the three candidate sets: :mod:`imply.study.section5.selection`.
+
+The model trained without calibration against the object-blind baseline on the same
+objects (``nocalib_vs_blind``): the mean over objects of the model's log error minus
+the baseline's, with the 95% percentile interval of a paired bootstrap over objects
+(:func:`imply.stats.paired_bootstrap_difference`).
 
 The result (:class:`Section5Result`) names every number by model and context: the
 calibrated model's own-calibration tracking r of the first seed is
@@ -66,10 +74,35 @@ class ContextScores:
 
 @dataclass(frozen=True)
 class OwnLtSwap:
-    """Percent of objects whose disagreement is lower with their own calibration than with another's."""
+    """Objects whose disagreement is lower with their own calibration than with another's.
+
+    ``self_disagreement`` and ``anchored_disagreement``: the percent of the ``n`` objects;
+    ``self_count`` and ``anchored_count``: how many; ``self_p``: two-sided exact binomial
+    test of the self share against one half; ``anchored_p``: one-sided (greater); ``*_low``
+    and ``*_high``: each share's exact (Clopper-Pearson) two-sided 95% interval, in percent.
+    """
 
     self_disagreement: float
     anchored_disagreement: float
+    n: int
+    self_count: int
+    self_p: float
+    self_low: float
+    self_high: float
+    anchored_count: int
+    anchored_p: float
+    anchored_low: float
+    anchored_high: float
+
+
+@dataclass(frozen=True)
+class NocalibVsBlind:
+    """The model without calibration against the object-blind baseline on the same objects: ``diff``,
+    mean log error of the model minus the baseline's; ``low``, ``high``: paired bootstrap 95% interval."""
+
+    diff: float
+    low: float
+    high: float
 
 
 @dataclass(frozen=True)
@@ -78,7 +111,8 @@ class SeedScores:
 
     ``calib`` and ``nocalib``: each model's scores by context (``own``, ``swap``,
     ``none``); ``blind``: the object-blind baseline on each model's held-out objects
-    (``calib_objects``, ``nocalib_objects``).
+    (``calib_objects``, ``nocalib_objects``); ``nocalib_vs_blind``: the model without
+    calibration minus the baseline on its objects (:class:`NocalibVsBlind`).
     """
 
     seed: int
@@ -86,6 +120,7 @@ class SeedScores:
     nocalib: dict[str, ContextScores]
     blind: dict[str, ContextScores]
     own_lt_swap: OwnLtSwap
+    nocalib_vs_blind: NocalibVsBlind
     selection: CandidateSelection
 
 
@@ -128,15 +163,36 @@ def context_scores(per_object: pd.DataFrame) -> ContextScores:
 
 
 def own_lt_swap(own: pd.DataFrame, swap: pd.DataFrame) -> OwnLtSwap:
-    """Percent of objects whose disagreement is lower with own than swapped calibration."""
+    """Objects whose disagreement is lower with own than swapped calibration, with their tests."""
     if not np.array_equal(own["object_id"].to_numpy(), swap["object_id"].to_numpy()):
         raise ValueError("own and swapped rollouts cover different objects")
+    n = len(own)
+    self_lower = own["self_disagreement"].to_numpy() < swap["self_disagreement"].to_numpy()
+    anchored_lower = own["anchored_disagreement"].to_numpy() < swap["anchored_disagreement"].to_numpy()
+    self_count, anchored_count = int(self_lower.sum()), int(anchored_lower.sum())
+    self_test = stats.binomial_share(self_count, n, alternative="two-sided")
+    anchored_test = stats.binomial_share(anchored_count, n, alternative="greater")
     return OwnLtSwap(
-        self_disagreement=100.0
-        * float(np.mean(own["self_disagreement"].to_numpy() < swap["self_disagreement"].to_numpy())),
-        anchored_disagreement=100.0
-        * float(np.mean(own["anchored_disagreement"].to_numpy() < swap["anchored_disagreement"].to_numpy())),
+        self_disagreement=100.0 * float(np.mean(self_lower)),
+        anchored_disagreement=100.0 * float(np.mean(anchored_lower)),
+        n=n,
+        self_count=self_count,
+        self_p=self_test.p,
+        self_low=100.0 * self_test.low,
+        self_high=100.0 * self_test.high,
+        anchored_count=anchored_count,
+        anchored_p=anchored_test.p,
+        anchored_low=100.0 * anchored_test.low,
+        anchored_high=100.0 * anchored_test.high,
     )
+
+
+def nocalib_vs_blind(model: pd.DataFrame, blind: pd.DataFrame, *, resamples: int, seed: int) -> NocalibVsBlind:
+    """The per-object log error of ``model`` minus ``blind``'s (same objects, same order), bootstrapped."""
+    if not np.array_equal(model["object_id"].to_numpy(), blind["object_id"].to_numpy()):
+        raise ValueError("the model without calibration and the object-blind baseline cover different objects")
+    d = stats.paired_bootstrap_difference(model["log_error"], blind["log_error"], resamples=resamples, seed=seed)
+    return NocalibVsBlind(diff=d.diff, low=d.low, high=d.high)
 
 
 # the object-blind baseline's two rows: (name in the result, the model whose held-out objects it
@@ -154,8 +210,14 @@ def section5_results(
     seeds: list[int],
     selection_seed: int,
     typical: TypicalSlide,
+    bootstrap: int = 1000,
+    bootstrap_seed: int = 0,
 ) -> tuple[Section5Result, pd.DataFrame]:
     """All Section 5 results. ``tables``: (model, data-order seed) -> rollout table.
+
+    ``bootstrap`` resamples of the objects, drawn from ``bootstrap_seed`` afresh for each
+    data-order seed, give the interval of the no-calibration model's difference from the
+    object-blind baseline.
 
     Returns the result (:class:`Section5Result`) and the per-object scores with seed,
     model and context columns.
@@ -191,6 +253,9 @@ def section5_results(
             nocalib={ctx: context_scores(f) for ctx, f in scored["nocalib"].items()},
             blind={name: context_scores(f) for name, f in blind.items()},
             own_lt_swap=own_lt_swap(scored["calib"]["own"], scored["calib"]["swap"]),
+            nocalib_vs_blind=nocalib_vs_blind(
+                scored["nocalib"]["none"], blind["nocalib_objects"], resamples=bootstrap, seed=bootstrap_seed
+            ),
             selection=select_candidates(
                 rollouts["calib"], {c: scored["calib"][c] for c in CANDIDATES}, floor=scorer.floor, seed=selection_seed
             ),
