@@ -60,7 +60,6 @@ def test_resumed_run_matches_uninterrupted(synth, tmp_path):
             warmup=0.1,
             rollout_steps=2,
             final_weight=1.0,
-            val_objects=0,
         ),
     }
     full = train(seqs, **run, data_seed=7, out=tmp_path / "a.pt", checkpoint=tmp_path / "a.ckpt")

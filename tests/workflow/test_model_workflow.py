@@ -1,4 +1,8 @@
-"""The Section 5 rules end to end on planted synthetic clips and features (no rendering)."""
+"""The Section 5 rules end to end on planted synthetic features, a real (random) encoder and tiny suites.
+
+Training reads synthetic features (no rendering); the held-out rollouts go through
+``imply evaluate`` on suites rendered small, with the encoder the features would come from.
+"""
 
 from __future__ import annotations
 
@@ -11,10 +15,13 @@ import time
 
 import pytest
 
+from suite_helpers import build_eight_frame_suite, write_tiny_encoder
 from synthetic_features import synth_split
 from workflow_helpers import copy_workflow
 
 pytestmark = pytest.mark.slow
+
+SPLITS = (("train", 40, False), ("heldout_calib", 8, True), ("heldout_nocalib", 10, True), ("validation", 8, True))
 
 
 def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
@@ -27,15 +34,20 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
     clips.mkdir()
     feats.mkdir()
     (work / "results/encoder").mkdir()
-    for split, n, held in (("train", 40, False), ("heldout_calib", 8, True), ("heldout_nocalib", 10, True)):
-        npz, csv = synth_split(feats, split, n, held, seed=len(split))
+    for split, n, held in SPLITS:  # the tiny encoder's grid and width
+        npz, csv = synth_split(feats, split, n, held, seed=len(split), grid=(1, 4), dim=24)
         shutil.move(csv, clips / f"{split}.csv")
         (clips / f"{split}.npz").write_bytes(b"planted")
     (clips / "pretrain.npz").write_bytes(b"planted")
     (clips / "pretrain.csv").write_text("planted\n")
-    (work / "results/encoder/encoder.pt").write_bytes(b"planted")
+    write_tiny_encoder(work / "results/encoder/encoder.pt")
+    suites = [
+        build_eight_frame_suite(work / "results/suite", tiny_table_path),
+        build_eight_frame_suite(work / "results/section5/suite_nocalib", tiny_table_path, n_objects=5),
+    ]
     now = time.time()
-    order = [work / "results/table/table.npz", *clips.iterdir(), work / "results/encoder/encoder.pt", *feats.iterdir()]
+    order = [work / "results/table/table.npz", *clips.iterdir(), work / "results/encoder/encoder.pt",
+             *feats.iterdir(), *(f for s in suites for f in sorted(s.iterdir()))]  # fmt: skip
     for i, path in enumerate(order):
         os.utime(path, (now - 1000 + i, now - 1000 + i))
     target = [
@@ -49,14 +61,21 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
            "--rerun-triggers", "mtime", "--", *target]  # fmt: skip
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
-    assert "clips_render" not in run.stderr and "encoder_encode" not in run.stderr
+    for upstream in ("clips_render", "encoder_encode", "suite_build", "section5_suite_nocalib"):
+        assert upstream not in run.stderr
     part = json.loads((work / target[0]).read_text())
-    assert part["numbers"]["vjNTwo"] == 8 and part["numbers"]["vjNOne"] == 10
+    assert part["numbers"]["vjNTwo"] == 6 and part["numbers"]["vjNOne"] == 5  # the suites' objects
     assert "vjCTrack" in part["numbers"] and "vjSOneCTrack" not in part["numbers"]  # one seed configured
     history = json.loads((work / "results/model/calib/seed0/training.json").read_text())["history"]
-    assert [h["epoch"] for h in history] == [1, 2] and {"own_track_r", "swap_track_r"} <= set(history[0])
+    assert [h["epoch"] for h in history] == [1, 2] and {"own_track", "swap_track", "own_lt_swap_self"} <= set(
+        history[0]
+    )
     assert "vjBErr" in part["numbers"] and "vjBQErr" in part["numbers"]
-    for f in ("model/calib/seed0/checkpoint.pt", "model/calib/seed0/readout.npz", "model/training.png",
+    report = json.loads((work / "results/section5/evaluate/calib_seed0/results.json").read_text())
+    assert report["models"][0]["kind"] == "latents" and report["models"][0]["readout"]["name"] == "ridge on encode()"
+    metrics = json.loads((work / "results/section5/metrics.json").read_text())["result"]
+    assert metrics["seeds"][0]["readouts"]["calib"]["fitted_on"].endswith("real training clips")
+    for f in ("model/calib/seed0/checkpoint.pt", "model/training.png", "section5/evaluate/nocalib_seed0/report.md",
               "paper/tables/table3.tex", "paper/figures/figure2.png",
               "logs/model_train_calib_seed0.log", "section5/metrics.json"):  # fmt: skip
         assert (work / "results" / f).exists(), f

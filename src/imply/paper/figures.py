@@ -138,15 +138,15 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
 
 
 def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> None:
-    """Per-epoch validation of every trained predictor: log error and tracking r by context.
+    """Per-epoch validation of every trained predictor on the validation objects (Table 3's quantities).
 
     ``histories``: the ``--history`` documents of ``imply model train`` (keys ``seed``,
-    ``layout`` and ``history``, a list of per-epoch entries). Left: the held-out
-    slice's log error per context, with the object-blind baseline dashed; right: its
-    tracking r. Calibration use shows as the own-calibration curves leaving the swapped
-    ones.
+    ``layout`` and ``history``, a list of per-epoch entries). Left: log error per context,
+    the object-blind baseline dashed; middle: tracking r; right: the share of objects
+    whose disagreement is lower with their own calibration than with another's, self and
+    anchored. Calibration use shows as the own-calibration curves leaving the swapped ones.
     """
-    fig, (ax_err, ax_r) = plt.subplots(1, 2, figsize=(9.5, 3.6))
+    fig, (ax_err, ax_r, ax_share) = plt.subplots(1, 3, figsize=(13.0, 3.6))
     colours = {"own": "C0", "swap": "C3", "none": "C7"}
     styles = ["-", "--", ":", "-."]
     seeds = sorted({int(doc["seed"]) for doc in histories})
@@ -157,21 +157,29 @@ def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> No
         variant = "calib" if doc["layout"].get("calib") else "nocalib"
         ls = styles[seeds.index(int(doc["seed"])) % len(styles)]
         for ctx, colour in colours.items():
-            if f"{ctx}_log_error" not in hist[0]:
+            if f"{ctx}_error" not in hist[0]:
                 continue
             label = f"{variant} seed {doc['seed']}: {ctx}"
-            ax_err.plot(epochs, [h[f"{ctx}_log_error"] for h in hist], ls, color=colour, label=label)
-            ax_r.plot(epochs, [h[f"{ctx}_track_r"] for h in hist], ls, color=colour, label=label)
-        if not blind_drawn and "blind_log_error" in hist[0]:
-            ax_err.axhline(hist[0]["blind_log_error"], color="k", lw=0.8, ls="--", label="object-blind baseline")
+            ax_err.plot(epochs, [h[f"{ctx}_error"] for h in hist], ls, color=colour, label=label)
+            ax_r.plot(epochs, [h[f"{ctx}_track"] for h in hist], ls, color=colour, label=label)
+        for key, colour in (("own_lt_swap_anchored", "C2"), ("own_lt_swap_self", "C1")):
+            if key in hist[0]:
+                name = key.rsplit("_", 1)[1]
+                ax_share.plot(epochs, [h[key] for h in hist], ls, color=colour, label=f"seed {doc['seed']}: {name}")
+        if not blind_drawn and "blind_error" in hist[0]:
+            ax_err.axhline(hist[0]["blind_error"], color="k", lw=0.8, ls="--", label="object-blind baseline")
             blind_drawn = True
-    ax_err.set(xlabel="epoch", ylabel="mean |log error|, real-token readout")
-    ax_r.set(xlabel="epoch", ylabel="tracking r (relative to the typical slide)")
+    ax_err.set(xlabel="epoch", ylabel="log error (real-clip readout)")
+    ax_r.set(xlabel="epoch", ylabel="tracking r")
     ax_r.axhline(0.0, color="k", lw=0.5)
-    ax_err.legend(fontsize=6, ncol=1)
+    ax_share.axhline(50.0, color="k", lw=0.5)
+    ax_share.set(xlabel="epoch", ylabel="own < swapped (% of objects)", ylim=(0, 100))
+    for ax in (ax_err, ax_share):
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6, ncol=1)
     fig.suptitle(
-        "Predictor validation per epoch on held-out training objects: own vs swapped calibration, and none"
-        " (colour: context; line: data-order seed)",
+        "Predictor validation per epoch on the validation objects: own vs swapped calibration, and none"
+        " (colour: context or score; line: data-order seed)",
         fontsize=8,
     )
     fig.tight_layout()

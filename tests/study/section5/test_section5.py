@@ -13,7 +13,7 @@ from imply.paper.parts import stage_numbers
 from imply.paper.registry import load_registry
 from imply.paper.results import producer_name
 from imply.score import ScoreConfig
-from imply.study.section5.rollouts import read_rollout_tables
+from imply.study.section5.rollouts import read_evaluations
 from imply.study.section5.scoring import Section5Result, nocalib_vs_blind, own_lt_swap, section5_results
 
 QUERY = np.array([0.3, 0.5, 0.7, 0.9])
@@ -87,13 +87,13 @@ def test_section5_result_is_typed_and_every_registered_path_names_model_and_cont
     assert len(per_object) == 2 * (3 + 1 + 2) * 30
 
 
-def test_rollout_tables_need_both_models_of_a_seed(tmp_path, tables):
-    path = tmp_path / "calib.csv"
-    tables[("calib", 0)].to_csv(path, index=False)
-    with pytest.raises(ValueError, match="lacks the nocalib model"):
-        read_rollout_tables([f"calib:0:{path}"])
-    with pytest.raises(ValueError, match="MODEL:SEED:PATH"):
-        read_rollout_tables([f"calib:{path}"])
+def test_evaluations_need_a_report_a_suite_and_both_models(tmp_path, tiny_suite):
+    with pytest.raises(ValueError, match="MODEL:SEED:FOLDER"):
+        read_evaluations([f"calib:{tmp_path}"], {"calib": tiny_suite})
+    with pytest.raises(ValueError, match="no suite given"):
+        read_evaluations([f"calib:0:{tmp_path}"], {})
+    with pytest.raises(ValueError, match="not an imply evaluate report"):
+        read_evaluations([f"calib:0:{tmp_path}"], {"calib": tiny_suite})
 
 
 def _per_object(ids, **columns) -> pd.DataFrame:

@@ -122,6 +122,18 @@ class SeedScores:
     own_lt_swap: OwnLtSwap
     nocalib_vs_blind: NocalibVsBlind
     selection: CandidateSelection
+    readouts: dict[str, ReadoutUsed] | None = None
+
+
+@dataclass(frozen=True)
+class ReadoutUsed:
+    """The readout that read a model's rollouts (from its ``imply evaluate`` report): its name,
+    what it was fitted on, and its R^2 and mean |log error| of log slide on real check clips."""
+
+    name: str
+    fitted_on: str
+    r2_check: float
+    error_check: float
 
 
 @dataclass(frozen=True)
@@ -212,12 +224,17 @@ def section5_results(
     typical: TypicalSlide,
     bootstrap: int = 1000,
     bootstrap_seed: int = 0,
+    readouts: dict[tuple[str, int], dict] | None = None,
 ) -> tuple[Section5Result, pd.DataFrame]:
     """All Section 5 results. ``tables``: (model, data-order seed) -> rollout table.
 
     ``bootstrap`` resamples of the objects, drawn from ``bootstrap_seed`` afresh for each
     data-order seed, give the interval of the no-calibration model's difference from the
     object-blind baseline.
+
+    ``readouts``: (model, seed) -> the readout description of its ``imply evaluate`` report
+    (``name``, ``fitted_on``, ``r2_check``, ``error_check``), kept beside the seed's scores
+    so every number says which readout produced it.
 
     Returns the result (:class:`Section5Result`) and the per-object scores with seed,
     model and context columns.
@@ -259,6 +276,14 @@ def section5_results(
             selection=select_candidates(
                 rollouts["calib"], {c: scored["calib"][c] for c in CANDIDATES}, floor=scorer.floor, seed=selection_seed
             ),
+            readouts=None
+            if readouts is None
+            else {
+                model: ReadoutUsed(
+                    **{k: readouts[(model, seed)][k] for k in ("name", "fitted_on", "r2_check", "error_check")}
+                )
+                for model in MODELS
+            },
         )
         per_seed.append(result)
         tracks = {f"{model}.{ctx}": round(s.track, 3) for model in MODELS for ctx, s in getattr(result, model).items()}
