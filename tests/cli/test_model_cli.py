@@ -122,6 +122,15 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
     assert doc["result"]["seeds"][0]["readouts"]["calib"]["name"] == "as given"
     assert main(["paper", "part", "section5", str(metrics), "-o", str(part)]) == 0
     numbers = json.loads(part.read_text())["numbers"]
+    # the report names the instrument behind every number: each model's readout
+    read_by = json.loads(part.read_text())["read_by"]
+    assert read_by.count("as given") == 4 and "nocalib seed 1" in read_by
+    m = tmp_path / "merged"
+    assert main(["paper", "merge", str(part), "--macros", str(m / "macros.tex"), "--numbers", str(m / "n.json"),
+                 "--report-md", str(m / "r.md"), "--report-csv", str(m / "r.csv")]) == 0  # fmt: skip
+    report = (m / "r.md").read_text()
+    assert "[section5] calib seed 0: as given" in report and "| vjCTrack | 5 |" in report
+    assert pd.read_csv(m / "r.csv").set_index("name").loc["vjCTrack", "read_by"] == read_by
     for name in ("vjNOne", "vjNTwo", "vjQTrack", "vjCAnch", "vjSelAnchOwn", "vjSOneSCorrAnch", "vjSelfOwnLtSwap",
                  "vjBErr", "vjBQErr", "vjSOneQErr"):  # fmt: skip
         assert name in numbers

@@ -98,14 +98,25 @@ def stage_claims(stage: str) -> ClaimsFunction:
     raise UserError(f"unknown stage {stage!r} (one of {', '.join(STAGES)})")
 
 
+def stage_read_by(stage: str, results: dict) -> str | None:
+    """What read the rollouts behind a stage's numbers, in one line (None: the stage reads none)."""
+    if stage == "section5":
+        from imply.study.section5.claims import section5_read_by
+
+        return section5_read_by(results)
+    return None
+
+
 def cmd_part(args: argparse.Namespace) -> int:
     from imply.paper.parts import build_part, write_part
     from imply.paper.results import read_results
 
     claims_of_stage = stage_claims(args.stage)
     with user_errors(KeyError, ValueError, TypeError):
-        numbers, claims = build_part(args.stage, read_results(args.results), claims=claims_of_stage)
-    write_part(args.output, stage=args.stage, numbers=numbers, claims=claims)
+        results = read_results(args.results)
+        numbers, claims = build_part(args.stage, results, claims=claims_of_stage)
+        read_by = stage_read_by(args.stage, results)
+    write_part(args.output, stage=args.stage, numbers=numbers, claims=claims, read_by=read_by)
     held = sum(c.holds for c in claims)
     log.info("%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims),
              args.output)  # fmt: skip

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from imply.io import write_json, write_text
@@ -39,6 +39,7 @@ class Merged:
     numbers: dict[str, MergedNumber]
     claims: list[tuple[str, Claim]]  # (stage, claim)
     stages: list[str]
+    read_by: dict[str, str] = field(default_factory=dict)  # stage -> the instrument behind its numbers
 
 
 def merge_parts(paths: Iterable[str | os.PathLike], registry: Registry | None = None) -> Merged:
@@ -48,6 +49,7 @@ def merge_parts(paths: Iterable[str | os.PathLike], registry: Registry | None = 
     numbers: dict[str, MergedNumber] = {}
     claims: list[tuple[str, Claim]] = []
     stages = []
+    read_by: dict[str, str] = {}
     for part in parts:
         stage = part["stage"]
         if stage in stages:
@@ -62,7 +64,9 @@ def merge_parts(paths: Iterable[str | os.PathLike], registry: Registry | None = 
             numbers[name] = MergedNumber(name, float("nan") if value is None else value, entry.format, stage)
         for c in part["claims"]:
             claims.append((stage, Claim(**c)))
-    return Merged(dict(sorted(numbers.items())), claims, stages)
+        if part.get("read_by"):
+            read_by[stage] = str(part["read_by"])
+    return Merged(dict(sorted(numbers.items())), claims, stages, read_by)
 
 
 def macros_tex(merged: Merged) -> str:

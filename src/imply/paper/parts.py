@@ -57,9 +57,13 @@ def build_part(
 
 def write_part(
     path: str | os.PathLike, *, stage: str, numbers: Mapping[str, Any], claims: list[Claim],
-    registry: Registry | None = None,
+    registry: Registry | None = None, read_by: str | None = None,
 ) -> None:  # fmt: skip
-    """Write a stage's part file; every name must be registered to that stage."""
+    """Write a stage's part file; every name must be registered to that stage.
+
+    ``read_by``: which instrument read the rollouts behind the stage's numbers (Section 5:
+    the readout of each ``imply evaluate`` report), shown beside each of them in the report.
+    """
     registry = registry or load_registry()
     for name, value in numbers.items():
         entry = registry[name]
@@ -75,6 +79,8 @@ def write_part(
         "numbers": dict(sorted(numbers.items())),
         "claims": [asdict(c) for c in claims],
     }
+    if read_by:
+        payload["read_by"] = read_by
     write_json(path, payload)
 
 

@@ -2,7 +2,8 @@
 
 ``reproduction.csv`` has one row per number the paper prints (the registry's ``paper``
 column, :mod:`imply.paper.registry`): name, section, paper (as printed), reproduced
-(formatted like the paper), reproduced unrounded, stage, status. ``reproduction.md`` shows the same, then every claim of every
+(formatted like the paper), reproduced unrounded, stage, status, read by (the instrument that read the
+rollouts behind the number, where its stage names one: Section 5's readouts). ``reproduction.md`` shows the same, then every claim of every
 part marked holds / fails, then the reproduced numbers the paper does not print.
 
 Status of a number:
@@ -58,10 +59,12 @@ def reproduction_frame(registry: Registry, merged: Merged) -> pd.DataFrame:
                 "reproduced_unrounded": "" if num is None else repr(num.value),
                 "stage": "" if num is None else num.stage,
                 "status": status,
+                "read_by": "" if num is None else merged.read_by.get(num.stage, ""),
             }
         )
     return pd.DataFrame(
-        rows, columns=["name", "section", "paper", "reproduced", "reproduced_unrounded", "stage", "status"]
+        rows,
+        columns=["name", "section", "paper", "reproduced", "reproduced_unrounded", "stage", "status", "read_by"],
     )
 
 
@@ -108,9 +111,14 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
     for stage, c in merged.claims:
         mark = "holds" if c.holds else "FAILS"
         out.append(f"- **{mark}** [{stage} / {c.id}] {c.statement} ({c.detail})")
-    out += ["", "## Numbers", "", "| name | section | paper | reproduced | status |", "|---|---|---|---|---|"]
+    out += ["", "## Numbers", ""]
+    if merged.read_by:
+        out += ["Read by (the instrument that read the rollouts behind a stage's numbers):", ""]
+        out += [f"- [{stage}] {text}" for stage, text in merged.read_by.items()] + [""]
+    out += ["| name | section | paper | reproduced | status | read by |", "|---|---|---|---|---|---|"]
     for r in frame.itertuples(index=False):
-        out.append(f"| {r.name} | {r.section} | {r.paper} | {r.reproduced} | {r.status} |")
+        read_by = "readout of each model's `imply evaluate` report (above)" if r.read_by else ""
+        out.append(f"| {r.name} | {r.section} | {r.paper} | {r.reproduced} | {r.status} | {read_by} |")
     extra = _unprinted(registry, merged)
     if extra:
         out += [

@@ -257,3 +257,18 @@ def section5_claims(v: Values, results: Mapping[str, Any] | None = None) -> list
         )
         out.append(targets_claim(v, 1))
     return out
+
+
+def section5_read_by(results: Mapping[str, Any]) -> str | None:
+    """One line naming the readout that read each model's rollouts, from the result document's
+    ``readouts`` (None for a result without them)."""
+    doc = next((r for name, r in results.items() if name.endswith("section5_results")), None)
+    if not doc:
+        return None
+    parts = []
+    for seed in doc.get("seeds", []):
+        for model, r in sorted((seed.get("readouts") or {}).items()):
+            r2 = r.get("r2_check")
+            check = f" (R^2 {r2:.3f} on real check clips)" if isinstance(r2, int | float) else ""
+            parts.append(f"{model} seed {seed['seed']}: {r['name']}, fitted on {r['fitted_on']}{check}")
+    return "; ".join(parts) + "; never fitted on rollouts" if parts else None
