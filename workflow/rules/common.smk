@@ -138,8 +138,9 @@ def evaluation_options(wildcards, input):
     evaluations = [
         f"--evaluation {v}:{s}:{Path(path).parent}" for (v, s), path in zip(pairs, input.evaluations, strict=True)
     ]
-    suites = [f"--suite {v}:{Path(getattr(input, 'suite_' + v)).parent}" for v in MODEL_VARIANTS]
-    return " ".join(evaluations + suites)
+    suite_manifests = {"calib": input.suite_calib, "nocalib": input.suite_nocalib}
+    suites = [f"--suite {v}:{Path(suite_manifests[v]).parent}" for v in MODEL_VARIANTS]
+    return " ".join([*evaluations, *suites])
 
 
 # -- the gap benchmark ----------------------------------------------------------------
