@@ -5,7 +5,7 @@ Typical use (what ``workflow/rules/model.smk`` runs)::
     imply model readout --features results/features/train.npz --clips results/clips/train.csv \\
         --token-grid 1 8 -o results/model/readout_ln.npz --report results/model/readout_ln.json
     imply model train --features results/features/train.npz --clips results/clips/train.csv \\
-        --readout results/model/readout_ln.npz --preset-json '{"width": 128, ...}' --token-grid 1 8 \\
+        --readout results/model/readout_ln.npz --preset-json '{"width": 64, ...}' --token-grid 1 8 \\
         --variant-json '{"calib": true, ...}' --train-json '{...}' --rest-state 1.0 --seed 0 \\
         -o results/model/calib/seed0/model.pt --history results/model/calib/seed0/training.json \\
         --rollout-readout results/model/calib/seed0/readout.npz

@@ -223,8 +223,7 @@ class ModelResources(Config):
 
 def _study_presets() -> dict[str, PredictorPreset]:
     return {
-        # width 128 chosen on the validation split (README, The learned model of Section 5)
-        "tiny": PredictorPreset(width=128),
+        "tiny": PredictorPreset(),
         "vitg-300m": PredictorPreset(width=1024, depth=24, heads=16),
     }
 
