@@ -39,11 +39,11 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
     # enough objects that an epoch outlasts the poll and the signal (a tiny model trains fast)
     _, csv = synth_split(feats, "train", 240, False, seed=3)
     shutil.move(csv, clips / "train.csv")
-    # the held-out splits: training reads the latent readout, whose report covers them
-    for split, n in (("heldout_calib", 8), ("heldout_nocalib", 8)):
+    # the held-out splits (the latent readout's report covers them) and the validation split
+    for split, n in (("heldout_calib", 8), ("heldout_nocalib", 8), ("validation", 8)):
         _, csv = synth_split(feats, split, n, True, seed=len(split))
         shutil.move(csv, clips / f"{split}.csv")
-    for name in ("train.npz", "heldout_calib.npz", "heldout_nocalib.npz", "pretrain.npz"):
+    for name in ("train.npz", "heldout_calib.npz", "heldout_nocalib.npz", "validation.npz", "pretrain.npz"):
         (clips / name).write_bytes(b"planted")
     (clips / "pretrain.csv").write_text("planted\n")
     (enc / "encoder.pt").write_bytes(b"planted")

@@ -84,7 +84,7 @@ def test_dag_outputs(dag_dir):
         assert claim["statement"] in report
     assert "not produced" in report  # Section 5 numbers: no part for them in this run
     csv = (dag_dir / "results/paper/reproduction.csv").read_text().splitlines()
-    assert csv[0] == "name,section,paper,reproduced,reproduced_unrounded,stage,status"
+    assert csv[0] == "name,section,paper,reproduced,reproduced_unrounded,stage,status,read_by"
     assert any(line.startswith("vjCTrack,5,0.91,not produced") for line in csv)
     assert (dag_dir / "results/paper/figures/figure1.png").read_bytes()[:4] == b"\x89PNG"
     assert (dag_dir / "results/paper/figures/figure1.pdf").read_bytes()[:4] == b"%PDF"
