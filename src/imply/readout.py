@@ -95,6 +95,22 @@ class RidgeReadout:
             mean, scale, np.asarray(model.coef_, dtype=float), float(model.intercept_), float(model.alpha_), p, k
         )
 
+    @classmethod
+    def fit_centred(cls, tokens: np.ndarray, log_d: np.ndarray, alphas: np.ndarray = ALPHAS) -> RidgeReadout:
+        """Fit on (N, P, D) tokens and log slides with features centred but not scaled.
+
+        For reading *predicted* encodings: a feature that barely varies on real frames (a
+        background patch) would, once divided by that spread, turn a model's small error
+        there into a huge slide.
+        """
+        n, p, k = np.shape(tokens)
+        flat = np.asarray(tokens, dtype=np.float64).reshape(n, p * k)
+        mean = flat.mean(axis=0)
+        fit = RidgeCV(alphas=alphas).fit(flat - mean, np.asarray(log_d, dtype=float))
+        return cls(
+            mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_), p, k
+        )
+
     def _flat(self, tokens: np.ndarray) -> np.ndarray:
         x = np.asarray(tokens, dtype=np.float64)
         if x.ndim == 3:

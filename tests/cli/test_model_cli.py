@@ -72,9 +72,13 @@ def test_cli_train_validates_every_epoch_and_rolls_out(synth, tmp_path, tiny_tab
     assert len(ro[(ro.role == "rollout") & (ro.context == "own")]) == 12 * 5
     sw = ro[ro.context == "swap"]
     assert (sw["context_object"] != sw["object_id"]).all()
-    # validation needs its instruments
-    with pytest.raises(SystemExit):
-        main(["model", "train", "--validation", str(d / "validation.npz")])
+    # validation needs its instruments: refused before any training, nothing written
+    rc = main(["model", "train", "--features", str(d / "train.npz"), "--clips", str(d / "train.csv"),
+               "--preset-json", json.dumps(TINY), "--variant-json", json.dumps(VARIANTS["calib"]),
+               "--train-json", json.dumps(ONE_EPOCH), "--seed", "0", "--token-grid", "1", "2",
+               "--validation", str(d / "validation.npz"), str(d / "validation.csv"),
+               "-o", str(tmp_path / "no_table.pt")])  # fmt: skip
+    assert rc == 2 and not (tmp_path / "no_table.pt").exists()
 
 
 def _evaluation_report(suite_dir, folder, *, model: str, seed: int, conditions: tuple[str, ...]) -> str:

@@ -13,7 +13,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from imply.cli.common import UserError, config_from_json, existing_file, int_range, json_arg, user_errors
+from imply.cli.common import config_from_json, existing_file, int_range, json_arg, user_errors
 from imply.models.config import ModelConfig
 from imply.options import default_of
 
@@ -48,16 +48,12 @@ def cmd_section5(args: argparse.Namespace) -> int:
     from imply.models.object_blind import typical_slide_of_clips
     from imply.paper.results import write_result
     from imply.score import ScoreConfig
-    from imply.study.section5.rollouts import read_evaluations
+    from imply.study.section5.rollouts import read_evaluations, suite_folders
     from imply.study.section5.scoring import section5_results
     from imply.table import PushTable
 
-    suites = {}
-    for spec in args.suite:
-        model, sep, folder = spec.partition(":")
-        if not sep or model in suites:
-            raise UserError(f"--suite {spec!r}: expected MODEL:FOLDER, once per model")
-        suites[model] = folder
+    with user_errors(ValueError, message="--suite {error}"):
+        suites = suite_folders(args.suite)
     with user_errors(ValueError, SuiteError, OSError, KeyError, message="--evaluation: {error}"):
         tables, readouts = read_evaluations(args.evaluation, suites)
     seeds = sorted({s for _, s in tables})

@@ -115,19 +115,12 @@ class LatentReadout(Readout):
     MARGIN = float(np.log(2.0))
 
     def __init__(self, train_tokens: np.ndarray, check_tokens: np.ndarray, suite: Suite, truth: SuiteTruth) -> None:
-        from sklearn.linear_model import RidgeCV
-
         self.token_shape = tuple(train_tokens.shape[1:])
         if tuple(check_tokens.shape[1:]) != self.token_shape:
             raise ValueError(f"encode() gave check tokens {check_tokens.shape[1:]}, training ones {self.token_shape}")
-        flat = np.asarray(train_tokens, dtype=np.float64).reshape(len(train_tokens), -1)
+        flat = np.asarray(train_tokens, dtype=np.float64).reshape(len(train_tokens), 1, -1)
         log_d = np.log(np.asarray(suite.train_displacement, dtype=float))
-        mean = flat.mean(axis=0)
-        fit = RidgeCV(alphas=ReadoutConfig().alphas()).fit(flat - mean, log_d)
-        self._ridge = RidgeReadout(
-            mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_),
-            1, flat.shape[1],
-        )  # fmt: skip
+        self._ridge = RidgeReadout.fit_centred(flat, log_d, alphas=ReadoutConfig().alphas())
         self._log_range = (float(log_d.min() - self.MARGIN), float(log_d.max() + self.MARGIN))
         check = self._predict(np.asarray(check_tokens, dtype=np.float64).reshape(len(check_tokens), -1))
         r2, err = _check_scores(truth.check_displacement, check)

@@ -27,7 +27,7 @@ from imply.models.ac_predictor import ACPredictor, normalise_tokens
 from imply.models.features import FeatureSplit
 from imply.models.rollout import final_tokens
 from imply.models.sequences import Sequences
-from imply.readout import ALPHAS, RidgeReadout, r2_log
+from imply.readout import RidgeReadout, r2_log
 
 log = logging.getLogger("imply.models.latent_readout")
 
@@ -96,15 +96,7 @@ def real_last_tokens(split: FeatureSplit, clips: np.ndarray) -> np.ndarray:
 
 def _ridge_readout(tokens: np.ndarray, log_d: np.ndarray, margin: float) -> LatentReadout:
     """:class:`LatentReadout` of (N, P, D) tokens to log slides (alpha by cross-validation)."""
-    from sklearn.linear_model import RidgeCV
-
-    n, p, k = tokens.shape
-    flat = tokens.reshape(n, p * k).astype(np.float64)
-    mean = flat.mean(axis=0)
-    fit = RidgeCV(alphas=ALPHAS).fit(flat - mean, log_d)
-    ridge = RidgeReadout(
-        mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_), p, k
-    )
+    ridge = RidgeReadout.fit_centred(tokens, log_d)
     return LatentReadout(ridge, float(log_d.min() - margin), float(log_d.max() + margin))
 
 

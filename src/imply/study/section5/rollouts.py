@@ -131,12 +131,24 @@ def rollout_table_of_evaluation(
     return pd.concat(tables, ignore_index=True)
 
 
+def suite_folders(specs: list[str]) -> dict[str, str]:
+    """``MODEL:FOLDER`` specs (one per model) -> model -> the suite folder its reports were scored on."""
+    suites: dict[str, str] = {}
+    for spec in specs:
+        model, sep, folder = spec.partition(":")
+        if not sep or model in suites:
+            raise ValueError(f"{spec!r}: expected MODEL:FOLDER, once per model")
+        suites[model] = folder
+    return suites
+
+
 def read_evaluations(
     specs: list[str], suites: dict[str, str | Path]
 ) -> tuple[dict[tuple[str, int], pd.DataFrame], dict[tuple[str, int], dict]]:
     """Rollout tables of ``imply evaluate`` reports named ``MODEL:SEED:FOLDER``, with their readouts.
 
-    ``suites``: model (calib|nocalib) -> the suite folder its report was scored on. Returns
+    ``suites``: model (calib|nocalib) -> the suite folder its report was scored on
+    (:func:`suite_folders`). Returns
     (model, seed) -> rollout table, and (model, seed) -> the report's readout description
     (name, what it was fitted on, R^2 and mean |log error| on real check clips). Every seed
     needs both models (ValueError otherwise).
