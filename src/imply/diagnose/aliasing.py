@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.candidates import Candidate, Model
+from imply.diagnose.candidates import FRICTION2, Candidate, Model
 from imply.diagnose.fit import ObjectFit, Problem
 from imply.diagnose.records import Record, json_field
 from imply.options import Config
@@ -43,14 +43,31 @@ class CandidateAliasing(Record):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Restriction(Record):
+    """A two-component effect of which these pushes' directions show one combination only."""
+
+    direction: tuple[float, float]  # the identifiable combination of its two components (unit vector)
+    weak_rms_at_bound: float  # what the other combination would change, at the effect's largest magnitude
+    note: str  # what can be said, and what to add to tell the rest
+
+
+@dataclass(frozen=True, kw_only=True)
 class Aliasing(Record):
-    """Every candidate's aliasing, the alias classes and the cosines between projected changes."""
+    """Every candidate's aliasing, the alias classes and the cosines between projected changes.
+
+    ``discrepancy_mimics``: for each library candidate, the largest canonical correlation between its projected
+    change and the discrepancy term's (1: the discrepancy can imitate it exactly on these pushes);
+    ``mimicked``: those at or above ``alias_cos``; ``restricted``: two-component effects of which only one
+    combination is identifiable from these pushes' directions."""
 
     effects: dict[str, CandidateAliasing]
     classes: list[str]
     not_identifiable: list[str]
     aliased_with_fit: list[str]
     projected_cosine: dict[str, float]
+    discrepancy_mimics: dict[str, float] = json_field(default_factory=dict)
+    mimicked: list[str] = json_field(default_factory=list)
+    restricted: dict[str, Restriction] = json_field(default_factory=dict)
 
 
 def _reference(c: Candidate) -> np.ndarray:
@@ -163,7 +180,16 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
                                      k_free=problem.k_free, share=opts.fit_alias_share),
         )  # fmt: skip
         vecs[c.name] = P
-    ident = [c.name for c in candidates if rows[c.name]["identifiable"]]
+    restricted = {c.name: r for c in candidates if (r := _restriction(c, vecs[c.name], problem, opts)) is not None}
+    for name, r in restricted.items():  # the unseen combination is no part of what it can be confused with
+        vecs[name] = vecs[name] @ np.asarray(r.direction)[:, None]
+    # the discrepancy is no mechanism: it joins no alias class; what it can imitate is said apart
+    disc = next((c.name for c in candidates if not c.is_library), None)
+    mimics = {}
+    if disc is not None:
+        mimics = {c.name: _canonical(vecs[disc], vecs[c.name]) for c in candidates
+                  if c.is_library and rows[c.name]["identifiable"]}  # fmt: skip
+    ident = [c.name for c in candidates if rows[c.name]["identifiable"] and c.is_library]
     cos: dict[str, float] = {}
     parent = {n: n for n in ident}
 
@@ -186,6 +212,8 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
     for n in ident:
         classes.setdefault(root(n), []).append(n)
     class_of = {n: "+".join(members) for members in classes.values() for n in members}
+    if disc is not None and rows[disc]["identifiable"]:
+        class_of[disc] = disc
     effects = {n: CandidateAliasing(**row, cls=class_of.get(n, NOT_IDENTIFIABLE)) for n, row in rows.items()}
     return Aliasing(
         effects=effects,
@@ -193,4 +221,35 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
         not_identifiable=[c.name for c in candidates if not effects[c.name].identifiable],
         aliased_with_fit=[c.name for c in candidates if effects[c.name].fit_alias],
         projected_cosine=cos,
+        discrepancy_mimics=mimics,
+        mimicked=[n for n, r in mimics.items() if r >= opts.alias_cos],
+        restricted=restricted,
     )
+
+
+def _restriction(c: Candidate, P: np.ndarray, problem: Problem, opts: Config) -> Restriction | None:
+    """The one combination of a two-component effect these pushes can see, when they cannot see the other
+    (pushes in four directions 90 degrees apart see only the cos 2(theta) part of an anisotropy)."""
+    if c.dim != 2 or not c.is_library:
+        return None
+    sd = np.broadcast_to(problem.sd_d, (problem.y.size,))
+    if problem.use_t:
+        sd = np.concatenate([sd, np.broadcast_to(problem.sd_t, (problem.y.size,))])
+    M = P * sd[: P.shape[0], None]  # back to log units
+    _, sv, vt = np.linalg.svd(M, full_matrices=False)
+    # the RMS change along each right singular vector at the effect's largest magnitude
+    at_bound = sv / np.sqrt(max(M.shape[0], 1)) * float(c.radius)
+    strong, weak = float(at_bound[0]), float(at_bound[-1])
+    if not (strong >= opts.min_visible > weak):
+        return None
+    u = vt[0] / np.linalg.norm(vt[0])
+    if c.kind == FRICTION2:
+        axis = float(np.degrees(np.arctan2(u[1], u[0]) / 2.0)) % 180.0
+        note = (f"these pushes' directions show only how friction along {axis:.0f}/{(axis + 180) % 360:.0f} degrees "
+                f"differs from friction along {(axis + 90) % 180:.0f}/{(axis + 270) % 360:.0f} degrees (a cos 2 theta "
+                "part), not the anisotropy's axis; push along the diagonals between them to find it")  # fmt: skip
+    else:
+        az = float(np.degrees(np.arctan2(u[1], u[0]))) % 360.0
+        note = (f"these pushes' directions show only the slope along {az:.0f} degrees, not across it; push in other "
+                "directions to find its azimuth")  # fmt: skip
+    return Restriction(direction=(float(u[0]), float(u[1])), weak_rms_at_bound=weak, note=note)

@@ -33,8 +33,10 @@ from typing import ClassVar
 import numpy as np
 
 from imply.diagnose.aliasing import Aliasing, aliasing
-from imply.diagnose.candidates import Candidate, Model
+from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate
+from imply.diagnose.discrepancy import DiscrepancyReport, describe
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
+from imply.diagnose.explanations import Explanations, explain
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.localisation import Localisation, localise
 from imply.diagnose.model_error import model_error
@@ -84,6 +86,15 @@ class DiagnosisConfig(Config):
         6.0, doc="replicate disagreement (robust sds) that flags a gross outlier", exclusive_minimum=0
     )
     scan: int = option(7, doc="magnitudes scanned per candidate effect", minimum=2)
+    discrepancy: bool = option(True, doc="fit a smooth model discrepancy beside the library effects")
+    discrepancy_sd: float = option(
+        0.1, doc="prior sd of each discrepancy coefficient (log units, speed/mass/friction scaled to [-1, 1])",
+        exclusive_minimum=0,
+    )  # fmt: skip
+    discrepancy_bound: float = option(1.0, doc="largest |discrepancy coefficient| (log units)", exclusive_minimum=0)
+    alt_margin: float = option(
+        6.0, doc="held-out chi-square within which another explanation fits about as well (named beside)", minimum=0
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -144,12 +155,14 @@ class Summary(Record):
     aliasing: Aliasing
     ranking: list[RankedCandidate]  # every candidate on its own (the first step)
     selection: list[SelectionStep]
-    effects: list[AcceptedEffect]  # the final model's effects: the verdict's, or the best combination tried
+    effects: list[AcceptedEffect]  # the final model's library effects: the verdict's, or the best combination tried
     verdict: Verdict
     shrinkage: Shrinkage
     options: DiagnosisConfig
     model_floor: dict | None  # the effect tables' measured model floor
     seconds: float
+    explanations: Explanations | None = json_field(omit_none=True, default=None)
+    discrepancy: DiscrepancyReport | None = json_field(omit_none=True, default=None)
 
 
 @dataclass(frozen=True)
@@ -233,13 +246,23 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     problem, base = baseline_fit(noise.apply(problem), opts)
     resid_d, resid_t = baseline_residuals(problem, base)
     where = localise(problem, base.objects, resid_d, alpha=opts.alpha)  # 2. where
-    alias = aliasing(problem, candidates, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
-    selection = forward_select(problem, base, candidates, alias=alias, opts=opts)  # 4. which effects
-    final, problem = selection.fit, selection.problem  # fitted under the accepted effects' model error
-    held = heldout(problem, final, opts.folds)  # 5. how far, held out
+    pool = list(candidates)
+    if opts.discrepancy:
+        pool.append(discrepancy_candidate(stop_time=problem.use_t, prior_sd=opts.discrepancy_sd,
+                                          bound=opts.discrepancy_bound))  # fmt: skip
+    alias = aliasing(problem, pool, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
+    # a two-component effect of which these directions show one combination is fitted along it alone
+    pool = [c.restricted(alias.restricted[c.name].direction) if c.name in alias.restricted else c for c in pool]
+    selection = forward_select(problem, base, pool, alias=alias, opts=opts)  # 4. which terms
+    problem = selection.problem  # fitted under the accepted effects' model error
+    # 5. what the verdict may state: effects the discrepancy mimics, alternatives, mechanisms outside the library
+    expl, final = explain(problem, selection, n_folds=opts.folds, alt_margin=opts.alt_margin)
+    held = heldout(problem, final, opts.folds)  # 6. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
     effects = accepted_effects(final.model, final.theta, cov=final.covariance() * shrink.dispersion, alias=alias)
-    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share)  # 6. the verdict, in one sentence
+    disc = describe(problem, final, mimics=alias.mimicked)
+    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share, explanations=expl,
+                    discrepancy=disc)  # 7. the verdict, in one sentence  # fmt: skip
 
     # 7. the report's summary and residuals
     observables, note = _observables(problem)
@@ -259,7 +282,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         selection=_path(selection, alias, problem.n_rows),
         effects=effects, verdict=verdict, shrinkage=shrink, options=opts,
         model_floor=problem.etables.meta.get("model_floor") if problem.etables is not None else None,
-        seconds=round(time.perf_counter() - t0, 3),
+        seconds=round(time.perf_counter() - t0, 3), explanations=expl, discrepancy=disc,
     )  # fmt: skip
     with_effects = bool(final.model.dim)
     residuals = Residuals(

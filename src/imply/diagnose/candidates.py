@@ -22,6 +22,7 @@ either asks for ``tilt``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -30,6 +31,7 @@ import numpy as np
 from imply.sim.effects import EFFECTS, Effect
 
 SPEED_GAIN, SPEED_OFFSET, FRICTION2, TABLE, TILT = "speed_gain", "speed_offset", "friction2", "table", "tilt"
+DISCREPANCY = "discrepancy"  # not a library effect: a smooth, low-dimensional model discrepancy
 
 
 @dataclass(frozen=True)
@@ -55,14 +57,49 @@ class Candidate:
     period: float | None = None  # azimuth period (2 pi for a slope, pi for an axis)
     table_keys: tuple[str, ...] = ()
     levels: tuple[float, ...] = ()
+    # a two-component candidate restricted to the one direction a log's design can identify:
+    # its native components are basis * x (basis a unit 2-vector, x the one component)
+    basis: tuple[float, float] | None = None
+    prior_sd: float | None = None  # a Gaussian prior N(0, prior_sd^2) on every component (the discrepancy's)
 
     @property
     def dim(self) -> int:
         return len(self.components)
 
+    @property
+    def is_library(self) -> bool:
+        """A mechanism of the effect library (the discrepancy is not one)."""
+        return self.kind != DISCREPANCY
+
+    def native(self, theta: np.ndarray) -> np.ndarray:
+        """The native components (tilt_x, tilt_y or the anisotropy's) of a restricted candidate's parameters."""
+        theta = np.asarray(theta, float)
+        if self.basis is None:
+            return theta
+        return theta[..., :1] * np.asarray(self.basis)
+
+    def restricted(self, direction: np.ndarray) -> Candidate:
+        """This two-component candidate along ``direction`` (a 2-vector of its components) only: one signed component."""
+        u = np.asarray(direction, float)
+        u = u / np.linalg.norm(u)
+        r = float(self.radius)
+        return dataclasses.replace(self, components=(f"{self.name}_along",), lo=(-r,), hi=(r,), radius=None,
+                                   basis=(float(u[0]), float(u[1])))  # fmt: skip
+
+    def restricted_axis_deg(self) -> float | None:
+        """A restricted candidate's fixed azimuth (degrees, in [0, period)) for a positive component."""
+        if self.basis is None:
+            return None
+        ang = float(np.arctan2(self.basis[1], self.basis[0]))
+        if self.kind == FRICTION2:
+            ang /= 2.0
+        return float(np.degrees(np.mod(ang, self.period)))
+
     def magnitude(self, theta: np.ndarray) -> float:
         theta = np.asarray(theta, float)
-        return float(np.hypot(*theta)) if self.dim == 2 else float(theta[0])
+        if self.dim == 1:
+            return float(theta[0])
+        return float(np.linalg.norm(theta))
 
     def azimuth(self, theta: np.ndarray) -> float | None:
         """Azimuth in radians in [0, period) (the slope's downhill direction, or the anisotropy's axis)."""
@@ -224,6 +261,65 @@ class Model:
     def scale(self) -> np.ndarray:
         return np.concatenate([c.scale() for c in self.candidates]) if self.candidates else np.zeros(0)
 
+    def prior_precision(self) -> np.ndarray:
+        """Per component, the precision of its Gaussian prior in whitened units (0: none)."""
+        out = [np.full(c.dim, 0.0 if c.prior_sd is None else c.prior_sd**-2.0) for c in self.candidates]
+        return np.concatenate(out) if out else np.zeros(0)
+
+    @property
+    def discrepancy(self) -> tuple[Candidate, slice] | None:
+        """The model's discrepancy term and its slice of theta (None without one)."""
+        for c, sl in zip(self.candidates, self.slices(), strict=True):
+            if c.kind == DISCREPANCY:
+                return c, sl
+        return None
+
+    @property
+    def library(self) -> list[Candidate]:
+        """The model's library effects (the discrepancy left out)."""
+        return [c for c in self.candidates if c.is_library]
+
+    def without(self, name: str) -> Model:
+        return Model(tuple(c for c in self.candidates if c.name != name))
+
+    def theta_without(self, theta: np.ndarray, name: str) -> np.ndarray:
+        """``theta`` less the components of candidate ``name``."""
+        keep = [sl for c, sl in zip(self.candidates, self.slices(), strict=True) if c.name != name]
+        return np.concatenate([np.asarray(theta, float)[sl] for sl in keep]) if keep else np.zeros(0)
+
+
+# -- the model discrepancy ------------------------------------------------------------------
+# A smooth function of the push's speed and the object's mass and friction (each scaled to
+# [-1, 1] over the table's range), added to log d and, where stop times are used, to log T.
+# Terms that depend on the object alone are left out of log d: each object's (mass, friction)
+# fit absorbs them (they are reported as implied masses and frictions instead). Log T keeps
+# a constant, which the per-object fit cannot absorb in both observables at once.
+DISCREPANCY_D = ("d_v", "d_vv", "d_vu", "d_vm")
+DISCREPANCY_T = ("t_1", "t_v", "t_vv", "t_vu", "t_vm")
+
+
+def discrepancy_candidate(*, stop_time: bool, prior_sd: float, bound: float) -> Candidate:
+    """The discrepancy term: coefficients of :func:`discrepancy_basis` on log d (and log T with ``stop_time``),
+    each with a N(0, ``prior_sd``^2) prior and within +-``bound``."""
+    comps = DISCREPANCY_D + (DISCREPANCY_T if stop_time else ())
+    return Candidate(
+        DISCREPANCY, "model discrepancy: a smooth function of speed, mass and friction", "log units",
+        "a smooth discrepancy between the table and these pushes", lambda m, az: "a smooth discrepancy", DISCREPANCY,
+        comps, tuple([-bound] * len(comps)), tuple([bound] * len(comps)), prior_sd=prior_sd,
+    )  # fmt: skip
+
+
+def scaled(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """``x`` mapped from [lo, hi] to [-1, 1] (clipped)."""
+    return np.clip((2.0 * np.asarray(x, float) - (lo + hi)) / (hi - lo), -1.0, 1.0)
+
+
+def discrepancy_basis(sv: np.ndarray, sm: np.ndarray, su: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The discrepancy's basis at scaled speed, log mass and log friction (n,): log d (n, 4) and log T (n, 5)."""
+    bd = np.stack([sv, sv * sv, sv * su, sv * sm], 1)
+    bt = np.concatenate([np.ones((sv.size, 1)), bd], 1)
+    return bd, bt
+
 
 @dataclass
 class Terms:
@@ -243,7 +339,9 @@ def terms(model: Model, theta: np.ndarray, phi: np.ndarray) -> Terms:
     gain, offset, friction = np.zeros(n), np.zeros(n), np.ones(n)
     tables: list[tuple[str, np.ndarray]] = []
     for c, sl in zip(model.candidates, model.slices(), strict=True):
-        x = th[:, sl]
+        if c.kind == DISCREPANCY:  # enters the prediction on its own (Problem.predict)
+            continue
+        x = c.native(th[:, sl])
         if c.kind == SPEED_GAIN:
             gain = gain + x[:, 0]
         elif c.kind == SPEED_OFFSET:

@@ -72,6 +72,15 @@ def estimate_fields(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
         lo, hi = c.lo[0], c.hi[0]
         out.update(magnitude=float(theta[0]), ci95=(float(max(theta[0] - Z95 * sd, lo)), float(min(theta[0] + Z95 * sd, hi))),
                    sd=sd, at_bound=bool(np.isclose(theta[0], lo) or np.isclose(theta[0], hi)))  # fmt: skip
+        if c.basis is not None:  # restricted to one direction: its azimuth is the design's, not fitted
+            out.update(azimuth_deg=c.restricted_axis_deg())
+        return out
+    if c.dim > 2:  # the discrepancy: the size of its coefficient vector (described in full apart)
+        a = float(np.linalg.norm(theta))
+        g = theta / a if a > 0 else np.zeros_like(theta)
+        sd_a = float(np.sqrt(max(g @ cov @ g, 0.0)))
+        out.update(magnitude=a, ci95=(max(a - Z95 * sd_a, 0.0), a + Z95 * sd_a), sd=sd_a,
+                   at_bound=bool(np.any(np.isclose(np.abs(theta), c.hi))))  # fmt: skip
         return out
     a = float(np.hypot(*theta))
     g = theta / a if a > 0 else np.array([1.0, 0.0])
@@ -117,4 +126,5 @@ def accepted_effects(fit_model: Model, theta: np.ndarray, *, cov: np.ndarray, al
             fit_alias=alias.effects[c.name].fit_alias,
         )  # fmt: skip
         for c, sl in zip(fit_model.candidates, fit_model.slices(), strict=True)
+        if c.is_library  # the discrepancy is described apart (imply.diagnose.discrepancy)
     ]

@@ -29,7 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
-from imply.diagnose.candidates import Model, terms
+from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
 from imply.diagnose.effect_tables import EffectTables
 from imply.diagnose.pushlog import PushLog
 from imply.table import PushTable
@@ -59,24 +59,31 @@ class JointFit:
 
     @property
     def sse(self) -> float:
+        """The data's whitened sum of squares (the prior's term is not in it)."""
         return float(self.objects.sse.sum())
 
+    @property
+    def prior(self) -> np.ndarray:
+        """(p,) the prior precision of each component (the discrepancy's; 0 for the effects)."""
+        return self.model.prior_precision()
+
     def covariance(self) -> np.ndarray:
-        """Covariance of theta (whitened residuals: unit noise), from the summed Hessian."""
+        """Covariance of theta (whitened residuals: unit noise), from the summed Hessian and the prior."""
         p = self.theta.size
         if p == 0:
             return np.zeros((0, 0))
-        H = self.S.sum(0)
+        H = self.S.sum(0) + np.diag(self.prior)
         return np.linalg.pinv(H + 1e-12 * np.eye(p))
 
     def leave_out(self, folds: np.ndarray) -> dict[int, np.ndarray]:
         """theta fitted without each fold's objects, by one Newton step from the joint optimum."""
         out = {}
         p = self.theta.size
-        H = self.S.sum(0)
+        P = np.diag(self.prior) if p else np.zeros((0, 0))
+        H = self.S.sum(0) + P
         for f in np.unique(folds):
             keep = folds != f
-            Hk = self.S[keep].sum(0)
+            Hk = self.S[keep].sum(0) + P
             # the fold's own pull, taken away (at a bound the full gradient is held by the bound)
             gf = self.b[~keep].sum(0)
             step = np.linalg.lstsq(Hk + 1e-9 * np.trace(H) / max(p, 1) * np.eye(p), gf, rcond=None)[0]
@@ -308,7 +315,26 @@ class Problem:
                 pd = pd + dd
                 if self.use_t:
                     pt = pt + dt
+        found = model.discrepancy if model.dim else None
+        if found is not None:
+            dd, dt = self.discrepancy_terms(found[0], np.asarray(theta, float)[..., found[1]], idx, lm_c, lu_c)
+            pd = pd + dd
+            if self.use_t:
+                pt = pt + dt
         return Prediction(pd, pt, ext_d, ext_t)
+
+    def discrepancy_terms(self, c, beta: np.ndarray, idx: np.ndarray, lm_c, lu_c) -> tuple[np.ndarray, np.ndarray]:
+        """The discrepancy ``c`` at coefficients ``beta`` ((q,) or per condition (n, q)) at conditions ``idx``:
+        its log d and log T parts (n,), at the logged speed and the objects' (log m, log mu)."""
+        sv = scaled(self.c_v[idx], *self.v_range)
+        sm = scaled(lm_c, *self.lm_range)
+        su = scaled(lu_c, *self.lu_range)
+        bd, bt = discrepancy_basis(sv, np.broadcast_to(sm, sv.shape), np.broadcast_to(su, sv.shape))
+        beta = np.broadcast_to(beta, (sv.size, c.dim))
+        k = bd.shape[1]
+        dd = np.einsum("nk,nk->n", bd, beta[:, :k])
+        dt = np.einsum("nk,nk->n", bt, beta[:, k:]) if c.dim > k else np.zeros(sv.size)
+        return dd, dt
 
     def table_terms(self, model: Model, theta, lm_c, lu_c) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
         """Each tabulated term of the model at every condition: (key, Delta log d, Delta log T)."""
@@ -459,17 +485,19 @@ class Problem:
         lam = 1e-3
         it = 0
         fm, fu = float(self.fixed_lm is None), float(self.fixed_lu is None)
+        prec = model.prior_precision()
         blocks = self._normal(model, theta, objs, hstep)
         for step_no in range(1, iters + 1):
             it = step_no
             if p == 0:
                 break
             A, B, C, g_u, g_t, r0 = blocks
-            sse = float(r0 @ r0)
+            sse = float(r0 @ r0) + float(prec @ theta**2)
             Ad = A + lam * A * np.eye(2)[None]  # damped object blocks
             Ainv = np.linalg.inv(Ad + 1e-12 * np.eye(2))
-            S = (C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)).sum(0)
-            rhs = (g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)).sum(0)
+            # the prior's half Hessian and half gradient join the objects' profiled ones
+            S = (C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)).sum(0) + np.diag(prec)
+            rhs = (g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)).sum(0) + prec * theta
             # bounds: components at a bound whose step would leave the box are held
             free = np.ones(p, bool)
             step = np.zeros(p)
@@ -486,8 +514,9 @@ class Problem:
             lm_new = np.clip(objs.lm + du[:, 0] * fm, *self.lm_range)
             lu_new = np.clip(objs.lu + du[:, 1] * fu, *self.lu_range)
             trial = self.stacked_sse(self.residuals(model, new_theta[None, :], lm_new[None, :], lu_new[None, :]))[0]
-            if trial.sum() < sse:
-                gain = sse - trial.sum()
+            objective = trial.sum() + float(prec @ new_theta**2)
+            if objective < sse:
+                gain = sse - objective
                 theta, objs = new_theta, ObjectFit(lm_new, lu_new, trial)
                 lam = max(lam * 0.2, 1e-9)
                 if gain < tol * (1.0 + sse):

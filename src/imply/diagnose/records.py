@@ -19,12 +19,24 @@ from typing import Any, TypeVar
 R = TypeVar("R", bound="Record")
 
 
-def json_field(*, key: str | None = None, omit_none: bool = False, default: Any = dataclasses.MISSING) -> Any:
-    """A record field written under ``key`` (default: its name), left out when None if ``omit_none``."""
+def json_field(
+    *, key: str | None = None, omit_none: bool = False, default: Any = dataclasses.MISSING,
+    default_factory: Any = dataclasses.MISSING,
+) -> Any:  # fmt: skip
+    """A record field written under ``key`` (default: its name), left out when None if ``omit_none``.
+
+    A field with a default (or ``default_factory``) may be missing from what is read: summaries written before
+    it existed read back with the default."""
     metadata = {"key": key, "omit_none": omit_none}
+    if default_factory is not dataclasses.MISSING:
+        return dataclasses.field(default_factory=default_factory, metadata=metadata)
     if default is dataclasses.MISSING:
         return dataclasses.field(metadata=metadata)
     return dataclasses.field(default=default, metadata=metadata)
+
+
+def _has_default(f: dataclasses.Field) -> bool:
+    return f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
 
 
 def _key(f: dataclasses.Field) -> str:
@@ -79,6 +91,6 @@ class Record:
         for f in dataclasses.fields(cls):  # type: ignore[arg-type]
             if _key(f) in values:
                 kwargs[f.name] = _read(hints[f.name], values[_key(f)])
-            elif not f.metadata.get("omit_none"):
+            elif not f.metadata.get("omit_none") and not _has_default(f):
                 raise KeyError(f"{cls.__name__}: no {_key(f)!r}")
         return cls(**kwargs)

@@ -67,6 +67,8 @@ def folds(n_obj: int, k: int) -> np.ndarray:
 
 def _scan_points(c: Candidate, n: int) -> np.ndarray:
     """Starting values of a candidate's components across its range (the origin excluded)."""
+    if c.prior_sd is not None:  # the discrepancy is linear in its coefficients: start at none
+        return np.zeros((1, c.dim))
     if c.dim == 1:
         lo, hi = c.lo[0], c.hi[0]
         pts = np.linspace(lo, hi, n)
@@ -126,6 +128,33 @@ def _try(problem: Problem, current: JointFit, c: Candidate, *, n_left: int, cv0:
                       reasons)  # fmt: skip
 
 
+def _prefer_mechanism(problem: Problem, ok: list[StepResult], tried: list[StepResult], *, cv0: float,
+                      fold_of: np.ndarray, opts: Config) -> StepResult:  # fmt: skip
+    """The qualifying candidate to accept (``ok`` sorted best first): the best library effect, unless the
+    model discrepancy lowers the held-out sum of squares by more than ``alt_margin`` beyond it and beyond
+    the best pair of library effects (one of the three best qualifying ones, and any other ``tried``). A
+    mechanism is said when one
+    or two of them explain about as well as a generic smooth function; the function when it explains
+    clearly better."""
+    margin = opts.alt_margin
+    library = [r for r in ok if r.candidate.is_library]
+    if not library or ok[0].candidate.is_library:
+        return ok[0]
+    disc = ok[0]
+    if disc.heldout_gain - library[0].heldout_gain <= margin:
+        return library[0]
+    best, best_gain = disc, disc.heldout_gain - margin
+    for first in library[:3]:
+        for second in tried:
+            if second.candidate is first.candidate or not second.candidate.is_library:
+                continue
+            pair = fit_candidate(problem, first.fit, second.candidate, scan=opts.scan)
+            gain = cv0 - pair.heldout_sse_quadratic(fold_of).sum()
+            if gain >= best_gain:
+                best, best_gain = first, gain
+    return best
+
+
 def forward_select(
     problem: Problem, base: JointFit, candidates: list[Candidate], *, alias: Aliasing, opts: Config
 ) -> Selection:
@@ -150,8 +179,9 @@ def forward_select(
         ok = [r for r in results if r.qualifies]
         if not ok:
             break
-        accepted.append(ok[0].candidate)
-        current = ok[0].fit
+        choice = _prefer_mechanism(problem, ok, results, cv0=cv0, fold_of=fold_of, opts=opts)
+        accepted.append(choice.candidate)
+        current = choice.fit
         # the accepted effects' own tables are only so accurate: count it, and refit under it (the
         # objects searched globally again: an accepted effect can move their optimum far)
         problem = model_error(problem, current.model, current.theta, objects=current.objects, opts=opts).apply(problem)

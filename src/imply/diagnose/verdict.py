@@ -16,13 +16,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from imply.diagnose.candidates import CANDIDATES, SPEED_GAIN, SPEED_OFFSET, speed_clause
+from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
+from imply.diagnose.discrepancy import DiscrepancyReport, discrepancy_sentence
 from imply.diagnose.estimates import AcceptedEffect
+from imply.diagnose.explanations import Explanations
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection
 from imply.diagnose.shrinkage import Shrinkage
 
 NONE = "none"
+EFFECTS, ALTERNATIVES, DISCREPANCY_ONLY, OUTSIDE, NOTHING, NOTHING_TO_EXPLAIN = (
+    "effects", "alternatives", "discrepancy", "outside_library", "none", "no_gap",
+)  # fmt: skip
 NO_GAP = "no gap beyond noise"
 NO_CANDIDATE = "no candidate improves the fit beyond noise and the model's own accuracy"
 
@@ -39,9 +44,15 @@ class Verdict(Record):
     partial: str | None  # "none" although effects were accepted: the best combination ("tilt+viscous")
     lr_critical: float | None  # the first step's critical likelihood ratio
     sentence: str
+    # effects: library causes stated; alternatives: causes stated with others that fit as well; discrepancy: a
+    # smooth discrepancy and no library cause; outside_library: the closest combination describes the residual;
+    # none: nothing explains the gap; no_gap: nothing to explain
+    kind: str = json_field(default=EFFECTS)
+    alternatives: list[str] = json_field(default_factory=list)  # library effects named as alternatives
 
     @property
     def is_none(self) -> bool:
+        """No library effect is stated as the cause."""
         return self.verdict == NONE
 
 
@@ -59,10 +70,15 @@ def _clauses(effects: list[AcceptedEffect]) -> list[str]:
     return parts
 
 
-def verdict_sentence(effects: list[AcceptedEffect], share: float | None) -> str:
-    """The verdict of accepted ``effects`` in one sentence, with the ``share`` of the gap they close."""
+def verdict_sentence(
+    effects: list[AcceptedEffect], share: float | None, *, discrepancy_rms: float | None = None
+) -> str:
+    """The verdict of accepted ``effects`` in one sentence, with the ``share`` of the gap they close (with a
+    smooth discrepancy of RMS ``discrepancy_rms`` in log d beside them, where one was fitted)."""
     text = "; ".join(_clauses(effects))
     text = text[0].upper() + text[1:]
+    if discrepancy_rms is not None:
+        text += f", beside a smooth discrepancy between the table and these pushes (RMS {discrepancy_rms:.2g} in log d)"
     if share is not None and share >= 1.0:
         # held out, the residual can land a little below the noise floor: the whole gap is closed
         text += f"; adding {'it' if len(effects) == 1 else 'them'} closes the whole gap, down to the noise."
@@ -88,26 +104,76 @@ def none_sentence(shrink: Shrinkage, *, best: list[str], no_gap: bool) -> str:
             "the noise floor); look for an effect outside the library.")  # fmt: skip
 
 
-def judge(selection: Selection, effects: list[AcceptedEffect], *, shrink: Shrinkage, min_share: float) -> Verdict:
-    """The verdict on the accepted ``effects`` (as reported) given how far they close the gap."""
+def _alternatives_text(expl: Explanations, stated: set[str]) -> tuple[str, list[str]]:
+    """The sentence naming what fits about as well as the stated terms, and the library effects it names."""
+    parts, named, how = [], [], []
+    for a in expl.alternatives:
+        if a.effect not in stated:
+            continue
+        others = [n for n in a.instead if n != a.effect]
+        if not others:
+            continue
+        words = [("a smooth discrepancy" if n == DISCREPANCY else CANDIDATES[n].phrase) for n in others]
+        me = "the discrepancy" if a.effect == DISCREPANCY else CANDIDATES[a.effect].phrase
+        parts.append(f"{me} could as well be {' or '.join(words)}")
+        named += [n for n in others if n != DISCREPANCY]
+        how += [h for h in a.separate_by if h not in how]
+    if not parts:
+        return "", []
+    return f" Other explanations fit about as well: {'; '.join(parts)}; to tell them apart, {'; '.join(how)}.", named
+
+
+def judge(
+    selection: Selection,
+    effects: list[AcceptedEffect],
+    *,
+    shrink: Shrinkage,
+    min_share: float,
+    explanations: Explanations | None = None,
+    discrepancy: DiscrepancyReport | None = None,
+) -> Verdict:
+    """The verdict on the accepted ``effects`` (the final model's library effects, as reported) given how far the
+    final model closes the gap, what else fits as well (``explanations``) and the fitted ``discrepancy``."""
     steps = selection.steps
     critical = steps[0][0].critical if steps and steps[0] else None
     names = selection.fit.model.names
     judged = shrink.judged
+    share = judged if judged is not None else shrink.gap_share_closed
     if not selection.accepted:
         first = steps[0] if steps else []
         no_gap = not any(r.lr > r.critical for r in first)
         return Verdict(verdict=NONE, effects=[], cls=None, effect=None, reason=NO_GAP if no_gap else NO_CANDIDATE,
-                       partial=None, lr_critical=critical, sentence=none_sentence(shrink, best=[], no_gap=no_gap))  # fmt: skip
+                       partial=None, lr_critical=critical, sentence=none_sentence(shrink, best=[], no_gap=no_gap),
+                       kind=NOTHING_TO_EXPLAIN if no_gap else NOTHING)  # fmt: skip
     if judged is not None and judged < min_share:
         return Verdict(
             verdict=NONE, effects=[], cls=None, effect=None, partial="+".join(names), lr_critical=critical,
             reason=f"the best candidates ({' + '.join(names)}) close only {judged:.0%} of the gap above the noise floor",
-            sentence=none_sentence(shrink, best=names, no_gap=False),
+            sentence=none_sentence(shrink, best=names, no_gap=False), kind=NOTHING,
         )  # fmt: skip
+    expl = explanations
+    if expl is not None and expl.outside_library:
+        clauses = "; ".join(_clauses(effects)) if effects else "a smooth discrepancy"
+        final = "+".join([e.effect for e in effects] + ([DISCREPANCY] if expl.discrepancy else []))
+        return Verdict(
+            verdict=NONE, effects=[], cls=None, effect=None, partial=final, lr_critical=critical, reason=expl.reason,
+            sentence=(f"Most likely a mechanism outside the library: {expl.reason.split(': ')[0]}. The closest "
+                      f"combination describes the residual, not its cause: {clauses}; it closes "
+                      f"{max(share or 0.0, 0.0):.0%} of the gap."),
+            kind=OUTSIDE,
+        )  # fmt: skip
+    if not effects and discrepancy is not None:
+        alt, named = _alternatives_text(expl, {DISCREPANCY}) if expl is not None else ("", [])
+        return Verdict(
+            verdict=NONE, effects=[], cls=None, effect=None, partial=None, lr_critical=critical,
+            reason="a smooth discrepancy explains the gap; no library effect is needed beside it",
+            sentence=discrepancy_sentence(discrepancy, share=share) + alt, kind=DISCREPANCY_ONLY, alternatives=named,
+        )  # fmt: skip
+    text = verdict_sentence(effects, share, discrepancy_rms=discrepancy.rms_log_d if discrepancy else None)
+    alt, named = _alternatives_text(expl, {e.effect for e in effects}) if expl is not None else ("", [])
     return Verdict(
         verdict="; ".join(e.cls for e in effects), effects=[e.effect for e in effects], cls=effects[0].cls,
         effect=effects[0].effect, reason="improves beyond noise", partial=None, lr_critical=critical,
         # the share the verdict was judged on (both observables, whitened), as the "none" sentences quote it
-        sentence=verdict_sentence(effects, judged if judged is not None else shrink.gap_share_closed),
+        sentence=text + alt, kind=ALTERNATIVES if named or alt else EFFECTS, alternatives=named,
     )  # fmt: skip

@@ -1,0 +1,114 @@
+"""The model discrepancy, described: how the table's pushes differ from these ones in a way no library effect explains.
+
+The discrepancy term (:func:`imply.diagnose.candidates.discrepancy_candidate`) is a smooth,
+low-dimensional function of speed, mass and friction with a Gaussian prior that keeps it
+small (the model discrepancy of Kennedy and O'Hagan, in its simplest form: a few basis
+functions with a ridge prior, fitted jointly with every object's mass and friction). What
+depends on the object alone is absorbed by the per-object fit; it is reported as implied
+parameters: where the log carries weighed masses, the masses a free fit would give them.
+
+:func:`describe` turns a fitted discrepancy into numbers a lab can act on: how much the
+table's slides change relative to these from the slowest to the fastest push, how that
+differs for rough against smooth and heavy against light objects, the stop times' offset,
+and the implied masses; :func:`discrepancy_sentence` says it in one sentence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from imply.diagnose.candidates import Model, discrepancy_basis
+from imply.diagnose.fit import JointFit, Problem
+from imply.diagnose.records import Record, json_field
+
+
+@dataclass(frozen=True, kw_only=True)
+class DiscrepancyReport(Record):
+    """A fitted discrepancy, in log units: its coefficients and what they mean for these pushes."""
+
+    coefficients: dict[str, float]
+    rms_log_d: float  # RMS of its log d part over the pushes
+    speed_trend: float  # mean change of its log d part from the slowest to the fastest push (these objects)
+    speed_trend_rough_minus_smooth: float  # how that trend differs between the roughest and smoothest table friction
+    speed_trend_heavy_minus_light: float  # between the heaviest and lightest table mass
+    stop_time_offset: float | None = json_field(omit_none=True, default=None)  # mean log T part
+    implied_mass_ratio: float | None = json_field(omit_none=True, default=None)  # median free-fit / weighed mass
+    mimics: list[str] = json_field(default_factory=list)  # library effects it can imitate on this log's design
+
+
+def _part_at(beta: np.ndarray, sv: float, sm: np.ndarray, su: np.ndarray) -> np.ndarray:
+    bd, _ = discrepancy_basis(np.full(sm.size, sv), sm, su)
+    return bd @ beta[: bd.shape[1]]
+
+
+def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> DiscrepancyReport | None:
+    """The discrepancy of ``fit`` described on ``problem``'s pushes (None when the fit has none)."""
+    found = fit.model.discrepancy
+    if found is None:
+        return None
+    c, sl = found
+    beta = fit.theta[sl]
+    lm_c, lu_c = fit.objects.lm[problem.c_obj], fit.objects.lu[problem.c_obj]
+    dd, dt = problem.discrepancy_terms(c, beta, np.arange(problem.n_cond), lm_c, lu_c)
+    keep = problem.w_d > 0
+    rows = dd[problem.cond][keep]
+    from imply.diagnose.candidates import scaled
+
+    sm = scaled(fit.objects.lm, *problem.lm_range)
+    su = scaled(fit.objects.lu, *problem.lu_range)
+    trend = float(np.mean(_part_at(beta, 1.0, sm, su) - _part_at(beta, -1.0, sm, su)))
+    # from su = -1 to +1 (sm = -1 to +1) the trend 2 (d_v + d_vu su + d_vm sm) changes by 4 d_vu (4 d_vm)
+    return DiscrepancyReport(
+        coefficients=dict(zip(c.components, beta.tolist(), strict=True)),
+        rms_log_d=float(np.sqrt(np.mean(rows**2))) if rows.size else 0.0,
+        speed_trend=trend, speed_trend_rough_minus_smooth=float(4.0 * beta[2]),
+        speed_trend_heavy_minus_light=float(4.0 * beta[3]),
+        stop_time_offset=float(np.mean(dt[problem.cond][keep])) if problem.use_t else None,
+        implied_mass_ratio=implied_mass_ratio(problem, fit), mimics=list(mimics),
+    )  # fmt: skip
+
+
+def implied_mass_ratio(problem: Problem, fit: JointFit) -> float | None:
+    """Median ratio of the masses a free fit (table alone) gives the objects to their weighed masses (None: not
+    weighed)."""
+    if problem.fixed_lm is None:
+        return None
+    free = replace(problem, fixed_lm=None)
+    objs = free.initial_fit(Model(), np.zeros(0))
+    return float(np.exp(np.median(objs.lm - problem.fixed_lm)))
+
+
+def _pct(x: float) -> str:
+    return f"{abs(np.expm1(x)):.0%}"
+
+
+def discrepancy_sentence(d: DiscrepancyReport, *, share: float | None) -> str:
+    """The discrepancy in one sentence: how the table's slides differ from these pushes', and what it closes."""
+    t = d.speed_trend
+    if abs(t) >= 0.005:
+        text = (f"these pushes differ from the table by a smooth discrepancy that no library effect explains: "
+                f"relative to the table, their slides grow {_pct(t)} {'more' if t > 0 else 'less'} from the slowest "
+                "push to the fastest")  # fmt: skip
+        details = []
+        for value, hi, lo in ((d.speed_trend_rough_minus_smooth, "rough", "smooth"),
+                              (d.speed_trend_heavy_minus_light, "heavy", "light")):  # fmt: skip
+            if abs(value) >= 0.01:
+                more = (value < 0) == (t < 0)
+                details.append(f"{'more' if more else 'less'} so for {hi} objects than {lo} ones")
+        if details:
+            text += f" ({', '.join(details)})"
+    else:
+        text = ("these pushes differ from the table by a smooth discrepancy that no library effect explains "
+                f"(RMS {d.rms_log_d:.2g} in log d)")  # fmt: skip
+    if d.stop_time_offset is not None and abs(d.stop_time_offset) >= 0.01:
+        text += f"; their stop times are {_pct(d.stop_time_offset)} {'longer' if d.stop_time_offset > 0 else 'shorter'}"
+    if d.implied_mass_ratio is not None and abs(np.log(d.implied_mass_ratio)) >= 0.05:
+        text += f"; fitted freely, the objects' implied masses are {d.implied_mass_ratio:.2g}x the weighed ones"
+    text = text[0].upper() + text[1:]
+    if share is not None:
+        text += (f"; the discrepancy closes {'the whole gap, down to the noise' if share >= 1.0 else f'{max(share, 0):.0%} of the gap'}")  # fmt: skip
+    if d.mimics:
+        text += f". On these pushes it could also imitate {', '.join(d.mimics)}"
+    return text + "."
