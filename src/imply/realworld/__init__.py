@@ -16,6 +16,8 @@ same way would share the diagnostic's numerical mistakes. This package does not 
 - :mod:`~imply.realworld.cases` draws the benchmark's logs (objects, magnitudes,
   azimuths, noise, outliers, what was measured) and writes each log and, apart, its
   sealed label;
+- :mod:`~imply.realworld.bullet` simulates the same pushes in a second physics engine
+  (Bullet), for logs whose contact model is not MuJoCo's;
 - :mod:`~imply.realworld.accuracy` measures the world's own numerical error against a
   much finer run of itself and against :mod:`imply.sim.reference`.
 """
