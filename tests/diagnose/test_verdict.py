@@ -148,3 +148,131 @@ def test_accepted_effects_are_the_verdict_judged_on_both_observables():
     # without stop times to judge on, displacement alone
     v = judge(sel, effects, shrink=_shrinkage(both=None, gap=0.9), min_share=0.8)
     assert v.sentence.endswith("closes 90% of the gap.")
+
+
+# -- the discrepancy, alternatives, mechanisms outside the library, restricted effects ---------------------------
+
+
+def _discrepancy(**kw):
+    from imply.diagnose.discrepancy import DiscrepancyReport
+
+    base = dict(coefficients={}, rms_log_d=0.04, speed_trend=-0.16, speed_trend_rough_minus_smooth=-0.08,
+                speed_trend_heavy_minus_light=0.02, stop_time_offset=None, implied_mass_ratio=0.66, mimics=[])  # fmt: skip
+    return DiscrepancyReport(**{**base, **kw})
+
+
+def _explanations(**kw):
+    from imply.diagnose.explanations import Explanations
+
+    base = dict(causes=[], discrepancy=False, mimicked=[], mimicked_margin={}, alternatives=[], pinned=[],
+                outside_library=False, reason=None, alt_margin=6.0)  # fmt: skip
+    return Explanations(**{**base, **kw})
+
+
+def test_discrepancy_sentence_says_how_the_table_differs():
+    from imply.diagnose.discrepancy import discrepancy_sentence
+
+    text = discrepancy_sentence(_discrepancy(), share=0.97)
+    assert text == (
+        "These pushes differ from the table by a smooth discrepancy that no library effect explains: relative to "
+        "the table, their slides grow 15% less from the slowest push to the fastest (more so for rough objects than "
+        "smooth ones, less so for heavy objects than light ones); fitted freely, the objects' implied masses are "
+        "0.66x the weighed ones; the discrepancy closes 97% of the gap."
+    )
+    flat = discrepancy_sentence(_discrepancy(speed_trend=0.001, implied_mass_ratio=None, stop_time_offset=0.05,
+                                             mimics=["speed_offset"]), share=1.2)  # fmt: skip
+    assert flat == (
+        "These pushes differ from the table by a smooth discrepancy that no library effect explains (RMS 0.04 in log "
+        "d); their stop times are 5% longer; the discrepancy closes the whole gap, down to the noise. On these pushes "
+        "it could also imitate speed_offset."
+    )
+
+
+def test_a_discrepancy_verdict_names_no_library_effect_and_leads_with_the_discrepancy():
+    from imply.diagnose.candidates import discrepancy_candidate
+    from imply.diagnose.explanations import Alternative
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    sel = Selection(_fit([]), [[]], [d], None)
+    alt = Alternative(effect="discrepancy", instead=["speed_offset"], margin=[3.0],
+                      separate_by=["measure the pusher's actual speed"])  # fmt: skip
+    v = judge(sel, [], shrink=_shrinkage(both=0.95), min_share=0.8, explanations=_explanations(
+        discrepancy=True, alternatives=[alt]), discrepancy=_discrepancy())  # fmt: skip
+    assert (v.verdict, v.kind, v.is_none, v.alternatives) == (NONE, "discrepancy", True, ["speed_offset"])
+    assert v.sentence.startswith("These pushes differ from the table by a smooth discrepancy")
+    assert v.sentence.endswith(" Other explanations fit about as well: the discrepancy could as well be a speed "
+                               "offset; to tell them apart, measure the pusher's actual speed.")  # fmt: skip
+
+
+def test_an_effect_pulled_past_its_bound_is_no_confident_verdict():
+    from imply.diagnose.explanations import Pinned
+
+    sel = Selection(_fit(["pusher_softness"]), [[_step("pusher_softness", 80.0)]], [CANDIDATES["pusher_softness"]],
+                    None)  # fmt: skip
+    ex = _explanations(causes=["pusher_softness"], pinned=[Pinned(effect="pusher_softness", drop_beyond_bound=40.0,
+                       critical=3.84)], outside_library=True,
+                       reason="pusher_softness would go past the library's largest magnitude: most likely a "
+                       "mechanism outside the library")  # fmt: skip
+    v = judge(sel, [_effect("pusher_softness", 0.08)], shrink=_shrinkage(both=0.9), min_share=0.8, explanations=ex)
+    assert (v.verdict, v.kind, v.effects, v.partial) == (NONE, "outside_library", [], "pusher_softness")
+    assert v.sentence == (
+        "Most likely a mechanism outside the library: pusher_softness would go past the library's largest magnitude. "
+        "The closest combination describes the residual, not its cause: the pusher's contact is softer (solref time "
+        "constant +0.08 s); it closes 90% of the gap."
+    )
+
+
+def test_three_effects_at_once_describe_the_residual():
+    names = ["viscous", "speed_gain", "speed_offset"]
+    sel = Selection(_fit(names), [[_step(n, 30.0)] for n in names], [CANDIDATES[n] for n in names], None)
+    ex = _explanations(causes=names, outside_library=True,
+                       reason="3 library effects at once: most likely a mechanism outside the library")  # fmt: skip
+    effects = [_effect("viscous", 0.3), _effect("speed_gain", -0.2), _effect("speed_offset", -0.00689)]
+    v = judge(sel, effects, shrink=_shrinkage(both=1.03), min_share=0.8, explanations=ex)
+    assert v.kind == "outside_library" and v.is_none
+    assert v.sentence == (
+        "Most likely a mechanism outside the library: 3 library effects at once. The closest combination describes "
+        "the residual, not its cause: the box feels viscous friction of 0.3 N s/m; the pusher's speed is 20.0% below "
+        "the command, less 6.9 mm/s; it closes the whole gap."
+    )
+
+
+def test_alternatives_are_named_with_what_separates_them():
+    from imply.diagnose.explanations import Alternative
+
+    sel = Selection(_fit(["viscous"]), [[_step("viscous", 30.0)]], [CANDIDATES["viscous"]], None)
+    alt = Alternative(effect="viscous", instead=["air_drag", "discrepancy"], margin=[2.0, 4.0],
+                      separate_by=["add heavy and light objects", "add faster pushes"])  # fmt: skip
+    v = judge(sel, [_effect("viscous", 0.25)], shrink=_shrinkage(both=0.9), min_share=0.8,
+              explanations=_explanations(causes=["viscous"], alternatives=[alt]))  # fmt: skip
+    assert (v.kind, v.effects, v.alternatives) == ("alternatives", ["viscous"], ["air_drag"])
+    assert v.sentence == (
+        "The box feels viscous friction of 0.25 N s/m; adding it closes 90% of the gap. Other explanations fit about "
+        "as well: viscous friction could as well be air drag or a smooth discrepancy; to tell them apart, add heavy "
+        "and light objects; add faster pushes."
+    )
+    # a discrepancy beside a confident effect is said in the same sentence
+    v = judge(sel, [_effect("viscous", 0.25)], shrink=_shrinkage(both=0.9), min_share=0.8,
+              explanations=_explanations(causes=["viscous"], discrepancy=True), discrepancy=_discrepancy())  # fmt: skip
+    assert v.kind == "effects"
+    assert v.sentence == ("The box feels viscous friction of 0.25 N s/m, beside a smooth discrepancy between the table "
+                          "and these pushes (RMS 0.04 in log d); adding it closes 90% of the gap.")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("effect", "magnitude", "axis", "expected"),
+    [
+        ("anisotropic", 0.07, 0.0, "Friction along 0/180 degrees is 7% higher than along 90/270 degrees (these "
+         "directions cannot show the anisotropy's axis)"),
+        ("anisotropic", -0.07, 10.0, "Friction along 100/280 degrees is 7% higher than along 190/10 degrees (these "
+         "directions cannot show the anisotropy's axis)"),
+        ("tilt", -0.012, 30.0, "The table slopes 0.012 rad toward 210 degrees along the pushes' line (the slope "
+         "across it cannot be seen from these directions)"),
+    ],
+)  # fmt: skip
+def test_restricted_effects_say_only_what_the_directions_show(effect, magnitude, axis, expected):
+    c = CANDIDATES[effect].restricted(np.array([1.0, 0.0]))
+    e = AcceptedEffect(effect=effect, title=c.title, unit=c.unit, components={c.components[0]: magnitude},
+                       magnitude=magnitude, ci95=(0.0, 1.0), sd=0.01, at_bound=False, azimuth_deg=axis,
+                       cls=effect, fit_alias="")  # fmt: skip
+    assert verdict_sentence([e], 0.9) == f"{expected}; adding it closes 90% of the gap."

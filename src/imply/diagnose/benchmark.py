@@ -259,3 +259,105 @@ def score_cases(
         "world_error": world_error(accuracy),
         "world_accuracy": accuracy,
     }  # fmt: skip
+
+
+# -- the benchmark of other contact models ----------------------------------------------------------------------
+CONTACT_NULL = ("null_contact", "null_engine")
+CONTACT_SINGLE = ("single_contact", "single_engine")
+CONTACT_OUTSIDE = ("outside_contact", "outside_engine")
+
+
+def effect_size_on_contact(label: dict, name: str) -> float:
+    """RMS log d an effect adds on top of its log's contact model, each object's mean change removed (what no
+    choice of one object's friction absorbs, roughly): the noise-free log with the effect against the same
+    world without it (``noise_free["contact"]``)."""
+    nf = label["noise_free"]
+    base = nf.get("contact")
+    if base is None:
+        return float("nan")
+    obj = np.asarray(label["pushes"]["object"])
+    ok = np.asarray(nf["all"]["ok"], bool) & np.asarray(base["ok"], bool) & np.asarray(label["pushes"]["kept"], bool)
+    diff = np.asarray(nf["all"]["log_d"], float) - np.asarray(base["log_d"], float)
+    out = []
+    for o in np.unique(obj[ok]):
+        sel = ok & (obj == o)
+        out.append(diff[sel] - diff[sel].mean())
+    resid = np.concatenate(out) if out else np.zeros(0)
+    return float(np.sqrt(np.mean(resid**2))) if resid.size else float("nan")
+
+
+def _restricted_truth(e: dict, hit) -> float:
+    """The true magnitude of what a restricted (one-combination) estimate measures: the true effect projected on
+    the direction the design identifies."""
+    az = np.radians(hit.azimuth_deg or 0.0)
+    mult = 2.0 if e["name"] == "anisotropic" else 1.0
+    return float(abs(e["magnitude"]) * np.cos(mult * (e["azimuth"] - az)))
+
+
+def score_contact_cases(
+    labels: dict[str, dict], summaries: dict[str, Summary], *, targets: dict, min_size_sd: float
+) -> dict:
+    """The other-contact benchmark's metrics from sealed labels and diagnose summaries.
+
+    - ``null_no_library``: null logs whose verdict names no library effect, as cause or alternative;
+    - ``null_discrepancy``: null logs whose verdict leads with the discrepancy;
+    - ``named``: one-effect logs (effect at least ``min_size_sd`` noise sds on top of the contact model) whose
+      verdict states the effect (its alias class) as a cause with magnitude within ``targets["magnitude_within"]``;
+      ``named_any``: named at all, as cause or alternative, whatever the magnitude;
+    - ``wrong_mechanism``: logs with an effect outside the library whose verdict states a library effect as a cause
+      (confident or with alternatives).
+    """
+    rows = []
+    within = float(targets.get("magnitude_within", 0.3))
+    for cid in sorted(labels):
+        lab, s = labels[cid], summaries[cid]
+        group = lab["group"]
+        true = [e["name"] for e in lab["effects"]]
+        v = s.verdict
+        causes = [e.effect for e in s.effects] if not v.is_none else []
+        classes = [set(e.cls.split("+")) if e.cls else {e.effect} for e in s.effects] if not v.is_none else []
+        alternatives = list(getattr(v, "alternatives", []) or [])
+        row = {"case": cid, "group": group, "engine": lab.get("engine", "mujoco"), "design": lab.get("design", "random"),
+               "effects": "+".join(true) or "null", "verdict_kind": v.kind, "causes": "+".join(causes) or "none",
+               "alternatives": "+".join(alternatives), "sentence": v.sentence, "seconds": s.seconds,
+               "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"]}  # fmt: skip
+        if group in CONTACT_SINGLE:
+            e = lab["effects"][0]
+            size = effect_size_on_contact(lab, e["name"])
+            hit = next((h for h in s.effects if h.effect == e["name"]), None) if causes else None
+            named_cls = any(e["name"] in c for c in classes)
+            rel = None
+            if hit is not None:
+                restricted = any(k.endswith("_along") for k in hit.components)
+                t = _restricted_truth(e, hit) if restricted else _true_theta(e)["magnitude"]
+                rel = abs(hit.magnitude - t) / abs(t) if t else None
+            row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
+                       relative_error=rel, named=bool(named_cls and rel is not None and rel <= within),
+                       named_any=bool(named_cls or e["name"] in alternatives))  # fmt: skip
+        rows.append(row)
+    frame = pd.DataFrame(rows)
+    g = frame["group"] if len(frame) else pd.Series(dtype=str)
+
+    def share(mask, column) -> tuple[float, int]:
+        sub = frame[mask]
+        return (float(sub[column].astype(float).mean()) if len(sub) else float("nan")), int(len(sub))
+
+    null = g.isin(CONTACT_NULL)
+    frame["no_library"] = (frame["causes"] == "none") & (frame["alternatives"] == "")
+    frame["discrepancy_lead"] = frame["verdict_kind"] == "discrepancy"
+    frame["wrong"] = frame["causes"] != "none"
+    single = g.isin(CONTACT_SINGLE) & frame.get("big", pd.Series(False, index=frame.index)).fillna(False).astype(bool)
+    outside = g.isin(CONTACT_OUTSIDE)
+    out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
+    for key, mask, column in (("null_no_library", null, "no_library"), ("null_discrepancy", null, "discrepancy_lead"),
+                              ("named", single, "named"), ("named_any", single, "named_any"),
+                              ("wrong_mechanism", outside, "wrong")):  # fmt: skip
+        out[key], out[f"n_{key}"] = share(mask, column)
+        for engine in ("mujoco", "bullet"):
+            out[f"{key}_{engine}"], out[f"n_{key}_{engine}"] = share(mask & (frame["engine"] == engine), column)
+    truth = np.where(g.isin(CONTACT_NULL), "null", frame["effects"]) + " (" + frame["engine"] + ")"
+    pred = np.where(frame["causes"] != "none", frame["causes"], frame["verdict_kind"])
+    confusion = pd.crosstab(pd.Series(truth, name="true"), pd.Series(pred, name="verdict")).sort_index()
+    out["confusion"] = {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index}
+    out["seconds_per_log_median"] = float(frame["seconds"].median()) if len(frame) else None
+    return out

@@ -175,12 +175,49 @@ def _floor_parts(parts: dict | None) -> str:
 
 def _effect_line(e: AcceptedEffect) -> str:
     az = ""
-    if e.azimuth_deg is not None:
+    if e.azimuth_deg is not None and e.azimuth_ci95_deg is None:
+        az = f", along {e.azimuth_deg:.0f} deg (fixed by the pushes' directions, table frame)"
+    elif e.azimuth_deg is not None:
         lo, hi = e.azimuth_ci95_deg
         az = f", toward {e.azimuth_deg:.0f} deg (95% CI {lo:.0f} to {hi:.0f} deg, table frame)"
     return (f"- **{e.effect}** ({e.title}): {_fmt(e.magnitude)} {e.unit} (95% CI {_fmt(e.ci95[0])} to "
             f"{_fmt(e.ci95[1])}){az}" + (f"; alias class {e.cls}" if "+" in (e.cls or "") else "")
             + (" (at the edge of the searched range)" if e.at_bound else ""))  # fmt: skip
+
+
+def _discrepancy_lines(s: Summary) -> list[str]:
+    """The discrepancy, what it can imitate on this design, alternatives and what these directions identify."""
+    lines: list[str] = []
+    d, ex, al = s.discrepancy, s.explanations, s.aliasing
+    if d is not None:
+        coef = ", ".join(f"{k} {v:+.3g}" for k, v in d.coefficients.items())
+        lines += ["", f"**Model discrepancy** (a smooth function of speed, mass and friction fitted beside the effects; "
+                  f"log units): RMS {_fmt(d.rms_log_d)} in log d; change from the slowest to the fastest push "
+                  f"{_fmt(d.speed_trend, '+.3f')} (rough minus smooth objects {_fmt(d.speed_trend_rough_minus_smooth, '+.3f')}, "
+                  f"heavy minus light {_fmt(d.speed_trend_heavy_minus_light, '+.3f')})"
+                  + (f"; stop-time offset {_fmt(d.stop_time_offset, '+.3f')}" if d.stop_time_offset is not None else "")
+                  + (f"; implied masses {_fmt(d.implied_mass_ratio, '.2f')}x the weighed ones (median, table alone, "
+                     "masses fitted freely)" if d.implied_mass_ratio is not None else "")
+                  + f". Coefficients: {coef}."]  # fmt: skip
+    if al.discrepancy_mimics:
+        can = [f"{k} ({v:.2f})" for k, v in sorted(al.discrepancy_mimics.items(), key=lambda x: -x[1])]
+        lines += ["", "What the discrepancy could imitate on these pushes (canonical correlation of projected changes; "
+                  f"at least {s.options.alias_cos:g} counts as imitating): " + ", ".join(can) + "."]  # fmt: skip
+    if ex is not None:
+        if ex.mimicked:
+            lines += ["", "Effects dropped because the discrepancy explains the pushes about as well without them "
+                      f"(held-out chi-square cost below {ex.alt_margin:g}): "
+                      + ", ".join(f"{k} ({v:.1f})" for k, v in ex.mimicked_margin.items()) + "."]  # fmt: skip
+        for a in ex.alternatives:
+            lines += ["", f"Alternatives to {a.effect} (held-out chi-square within {ex.alt_margin:g}): "
+                      + ", ".join(f"{n} ({m:+.1f})" for n, m in zip(a.instead, a.margin, strict=True))
+                      + f"; to tell them apart: {'; '.join(a.separate_by)}."]  # fmt: skip
+        for p in ex.pinned:
+            lines += ["", f"{p.effect} is at the library's largest magnitude and the pushes pull it further (the sum "
+                      f"of squares would fall by {p.drop_beyond_bound:.1f} beyond it, critical {p.critical:.2f})."]  # fmt: skip
+    for name, r in al.restricted.items():
+        lines += ["", f"Identifiable from these directions: {name}: {r.note}."]
+    return lines
 
 
 def markdown(s: Summary) -> str:
@@ -211,6 +248,7 @@ def markdown(s: Summary) -> str:
     notes = [e.fit_alias for e in s.effects if e.fit_alias]
     if notes:
         lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
+    lines += _discrepancy_lines(s)
     lines += [
         "",
         f"Held-out RMS gap in log d: {_fmt(sh.before_rms)} with the table alone, {_fmt(sh.after_rms)} with "

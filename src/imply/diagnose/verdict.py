@@ -66,8 +66,24 @@ def _clauses(effects: list[AcceptedEffect]) -> list[str]:
             if e.effect == SPEED_GAIN:  # said once, where the gain stands
                 parts.append(speed_clause(by_name[SPEED_GAIN], by_name[SPEED_OFFSET]))
             continue
+        if f"{e.effect}_along" in e.components:  # restricted to the one combination the directions show
+            parts.append(restricted_clause(e.effect, e.magnitude, e.azimuth_deg or 0.0))
+            continue
         parts.append(CANDIDATES[e.effect].clause(e.magnitude, e.azimuth_deg))
     return parts
+
+
+def restricted_clause(effect: str, magnitude: float, axis_deg: float) -> str:
+    """The verdict's words for a two-component effect of which the pushes' directions show one combination:
+    ``magnitude`` (signed) along ``axis_deg``."""
+    if effect == "anisotropic":
+        a = axis_deg % 180 if magnitude >= 0 else (axis_deg + 90) % 180
+        return (f"friction along {a:.0f}/{a + 180:.0f} degrees is {abs(magnitude):.0%} higher than along "
+                f"{(a + 90) % 360:.0f}/{(a + 270) % 360:.0f} degrees (these directions cannot show the anisotropy's "
+                "axis)")  # fmt: skip
+    toward = axis_deg % 360 if magnitude >= 0 else (axis_deg + 180) % 360
+    return (f"the table slopes {abs(magnitude):.3g} rad toward {toward:.0f} degrees along the pushes' line (the slope "
+            "across it cannot be seen from these directions)")  # fmt: skip
 
 
 def verdict_sentence(
@@ -159,7 +175,7 @@ def judge(
             verdict=NONE, effects=[], cls=None, effect=None, partial=final, lr_critical=critical, reason=expl.reason,
             sentence=(f"Most likely a mechanism outside the library: {expl.reason.split(': ')[0]}. The closest "
                       f"combination describes the residual, not its cause: {clauses}; it closes "
-                      f"{max(share or 0.0, 0.0):.0%} of the gap."),
+                      + ("the whole gap." if (share or 0.0) >= 1.0 else f"{max(share or 0.0, 0.0):.0%} of the gap.")),
             kind=OUTSIDE,
         )  # fmt: skip
     if not effects and discrepancy is not None:
