@@ -8,7 +8,7 @@ from snakemake.utils import min_version
 
 from imply.config_check import validate_workflow_config
 from imply.models.weights import encoder_weight_files
-from imply.realworld.cases import BenchmarkConfig, case_ids
+from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig, case_ids
 
 min_version("8.0")
 
@@ -29,6 +29,7 @@ SECTION5_SUITE = {"calib": "results/suite", "nocalib": "results/section5/suite_n
 EVALUATE_CONDITIONS = {"calib": "own,other,none", "nocalib": "none"}
 SUITE_FILES = ["manifest.json", "suite.npz", "truth.npz", "table.npz", "README.md"]
 GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
+GAP_CONTACT_CASES = case_ids(ContactBenchmarkConfig.from_dict(config["gap"]["contact_benchmark"]))
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
 GAP_SHARDS = list(range(config["threads"]))
 PAPER_STAGES = ["section4", "clips", "section5", "gap", "evaluate"]
@@ -155,6 +156,11 @@ def gap_effects_option():
 def gap_shard_logs(wildcards):
     k = int(wildcards.shard)
     return [f"results/gap/logs/{c}.csv" for i, c in enumerate(GAP_CASES) if i % len(GAP_SHARDS) == k]
+
+
+def gap_contact_shard_logs(wildcards):
+    k = int(wildcards.shard)
+    return [f"results/gap/contact/logs/{c}.csv" for i, c in enumerate(GAP_CONTACT_CASES) if i % len(GAP_SHARDS) == k]
 
 
 def folder_of(files):

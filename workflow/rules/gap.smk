@@ -2,7 +2,9 @@
 # world of imply.realworld (labels sealed in a file the diagnose rules never read; the
 # world's own numerical error measured beside them) -> the diagnosis of every log (`imply
 # gap diagnose-many`, sharded over the threads) -> scoring against the sealed labels (a
-# result document). The stage's part: paper.smk.
+# result document). Beside it, the same diagnosis of logs from worlds with a contact model of their own
+# (imply.realworld.contact, and the Bullet engine of imply.realworld.bullet), scored into the same
+# document. The stage's part: paper.smk.
 
 
 rule gap_tables:
@@ -74,6 +76,53 @@ rule gap_diagnose:
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
 
 
+rule gap_contact_generate:
+    conda:
+        IMPLY_ENV
+    input:
+        table="results/table/table.npz",
+    output:
+        logs=expand("results/gap/contact/logs/{case}.csv", case=GAP_CONTACT_CASES),
+        sealed="results/gap/contact/sealed/labels.json",
+        accuracy="results/gap/contact/world_accuracy.json",
+    params:
+        bench=as_json(config["gap"]["contact_benchmark"]),
+        folder=lambda wildcards, output: folder_of(output.logs),
+    threads: config["threads"]
+    resources:
+        mem_mb=3000,
+        runtime=20,
+    log:
+        "results/logs/gap_contact_generate.log",
+    shell:
+        "imply gap generate --table {input.table} --contact-bench-json {params.bench} --logs {params.folder}"
+        " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
+
+
+rule gap_contact_diagnose:
+    conda:
+        IMPLY_ENV
+    input:
+        logs=gap_contact_shard_logs,
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/contact/reports/shard{shard}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(config["gap"]["diagnose"]),
+        effects=gap_effects_option(),
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=20,
+    log:
+        "results/logs/gap_contact_diagnose_shard{shard}.log",
+    shell:
+        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
+
+
 rule gap_benchmark:
     conda:
         IMPLY_ENV
@@ -82,6 +131,8 @@ rule gap_benchmark:
         sealed="results/gap/sealed/labels.json",
         accuracy="results/gap/world_accuracy.json",
         table="results/table/table.npz",
+        contact_reports=expand("results/gap/contact/reports/shard{shard}", shard=GAP_SHARDS),
+        contact_sealed="results/gap/contact/sealed/labels.json",
     output:
         result=report(
             "results/gap/benchmark.json",
@@ -97,6 +148,7 @@ rule gap_benchmark:
         ),
     params:
         bench=as_json(config["gap"]["benchmark"]),
+        contact=as_json(config["gap"]["contact_benchmark"]),
     resources:
         mem_mb=2000,
         runtime=10,
@@ -105,4 +157,5 @@ rule gap_benchmark:
     shell:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
-        " > {log} 2>&1"
+        " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
+        " --contact-reports {input.contact_reports} > {log} 2>&1"

@@ -73,6 +73,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
     b.add_argument("-o", "--output", required=True, help="the benchmark's result document (JSON)")
     b.add_argument("--markdown", required=True, help="benchmark report (Markdown)")
+    b.add_argument("--contact-bench-json", type=json_arg, help="config gap.contact_benchmark (its targets)")
+    b.add_argument("--contact-sealed", help="the contact benchmark's sealed labels")
+    b.add_argument("--contact-reports", nargs="+", default=[], help="folders of the contact benchmark's reports")
     b.set_defaults(func=cmd_benchmark)
 
 
@@ -141,6 +144,18 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     with user_errors(FileNotFoundError, message="--reports: {error}"):
         summaries = find_summaries(labels, [Path(r) for r in args.reports])
     result = score_cases(labels, summaries, visible_sizes(labels, table), config=config, accuracy=accuracy)
+    if args.contact_sealed:
+        from imply.diagnose.benchmark import score_contact_cases
+
+        if args.contact_bench_json is None or not args.contact_reports:
+            raise UserError("--contact-sealed needs --contact-bench-json and --contact-reports")
+        with open(args.contact_sealed) as fh:
+            contact_labels = json.load(fh)
+        with user_errors(FileNotFoundError, message="--contact-reports: {error}"):
+            contact_summaries = find_summaries(contact_labels, [Path(r) for r in args.contact_reports])
+        design = args.contact_bench_json
+        result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=design["targets"],
+                                                min_size_sd=float(design.get("min_size_sd", 2.0)))  # fmt: skip
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
     log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "

@@ -64,6 +64,32 @@ def claims_of(r: dict) -> list[Claim]:
         Claim("gap-shrink", "gap", f"Median held-out shrinkage >= {targets['shrinkage']:.0%} of the gap above the noise "
               "floor", _holds(r["shrinkage_median"], lambda x: x >= targets["shrinkage"]),
               f"median {_f(r['shrinkage_median'], '.3f')} on {r['n_shrinkage']} logs"),
+    ] + contact_claims(r.get("contact"))  # fmt: skip
+
+
+def contact_claims(c: dict | None) -> list[Claim]:
+    """The other-contact benchmark's targets (config ``gap.contact_benchmark.targets``), fixed before its first run."""
+    if not c:
+        return []
+    t = c["targets"]
+
+    def split(key: str) -> str:
+        return (f"MuJoCo contact models {_f(c[f'{key}_mujoco'], '.2f')} on {c[f'n_{key}_mujoco']}, Bullet "
+                f"{_f(c[f'{key}_bullet'], '.2f')} on {c[f'n_{key}_bullet']}")  # fmt: skip
+
+    return [
+        Claim("gap-contact-null", "gap", f"Null logs of another contact model: no library effect in the verdict in >= "
+              f"{t['null_no_library']:.0%}", _holds(c["null_no_library"], lambda x: x >= t["null_no_library"]),
+              f"{_f(c['null_no_library'])} on {c['n_null_no_library']} logs ({split('null_no_library')}); the verdict "
+              f"leads with the discrepancy in {_f(c['null_discrepancy'], '.2f')}"),
+        Claim("gap-contact-named", "gap", f"In-library effects of at least {c['min_size_sd']:g}x the noise on another "
+              f"contact model: named with magnitude within {t['magnitude_within']:.0%} in >= {t['named']:.0%}",
+              _holds(c["named"], lambda x: x >= t["named"]), f"{_f(c['named'])} on {c['n_named']} logs "
+              f"({split('named')}); named at all, as cause or alternative: {_f(c['named_any'], '.2f')}"),
+        Claim("gap-contact-wrong", "gap", f"Effects outside the library on another contact model: a library mechanism "
+              f"stated as the cause in <= {t['wrong_mechanism']:.0%}", _holds(c["wrong_mechanism"],
+              lambda x: x <= t["wrong_mechanism"]), f"{_f(c['wrong_mechanism'])} on {c['n_wrong_mechanism']} logs "
+              f"({split('wrong_mechanism')})"),
     ]  # fmt: skip
 
 
@@ -143,4 +169,30 @@ def write_benchmark_markdown(result: dict, path: str | os.PathLike) -> None:
         lines.append(f"| {c['case']} | {c['effects']} ({c['group']}) | {c['noise']} | {'y' if c['stop_time'] else ''} | "
                      f"{'y' if c['measured_mass'] else ''} | {c['visible_rms']:.4f} ({c['size_sd']:.1f}) | "
                      f"{c['accepted']} | {'yes' if c['correct'] else 'no'} | {_f(c['gap_share_closed'], '.2f')} |")  # fmt: skip
+    lines += contact_markdown(r.get("contact"))
     write_text(path, "\n".join(lines) + "\n")
+
+
+def contact_markdown(c: dict | None) -> list[str]:
+    """The other-contact benchmark's section of the report: its claims, confusion matrix and every log's verdict."""
+    if not c:
+        return []
+    lines = ["", "# Other contact models", "",
+             f"{c['n_logs']} push logs from worlds whose contact is not the table's (MuJoCo with a contact model of its "
+             "own, and the Bullet engine), with and without effects; labels sealed apart. An effect counts when the "
+             f"RMS log d it adds on top of its log's contact model (each object's mean change removed) is at least "
+             f"{c['min_size_sd']:g}x the noise sd. Median diagnosis time per log "
+             f"{_f(c['seconds_per_log_median'], '.2f')} s.", "", "## Claims", ""]  # fmt: skip
+    for cl in contact_claims(c):
+        lines.append(f"- {'HOLDS' if cl.holds else 'FAILS'}: {cl.statement} ({cl.detail})")
+    cols = sorted({k for row in c["confusion"].values() for k in row})
+    lines += ["", "## Confusion matrix (rows: what the log carries, and its engine; columns: the verdict's causes, or "
+              "its kind)", "", "| true \\ verdict | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]  # fmt: skip
+    for t, row in c["confusion"].items():
+        lines.append(f"| {t} | " + " | ".join(str(row.get(k, 0)) for k in cols) + " |")
+    lines += ["", "## Logs", "", "| log | carries | engine | design | verdict | causes | alternatives |",
+              "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for row in c["cases"]:
+        lines.append(f"| {row['case']} | {row['effects']} ({row['group']}) | {row['engine']} | {row['design']} | "
+                     f"{row['verdict_kind']} | {row['causes']} | {row['alternatives']} |")  # fmt: skip
+    return lines
