@@ -290,10 +290,12 @@ class Model:
 
 # -- the model discrepancy ------------------------------------------------------------------
 # A smooth function of the push's speed and the object's mass and friction (each scaled to
-# [-1, 1] over the table's range), added to log d and, where stop times are used, to log T.
-# Terms that depend on the object alone are left out of log d: each object's (mass, friction)
-# fit absorbs them (they are reported as implied masses and frictions instead). Log T keeps
-# a constant, which the per-object fit cannot absorb in both observables at once.
+# [-1, 1] over the table's range), added to log d and, where stop times are used, to log T:
+# the speed's first three powers, and the first two times mass and times friction. Terms that
+# depend on the object alone are left out of log d: each object's (mass, friction) fit absorbs
+# them (they are reported as implied masses instead), and a term the fit can trade against
+# freely would make the held-out fits unstable. Log T keeps a constant, which the per-object
+# fit cannot absorb in both observables at once.
 DISCREPANCY_D = ("d_v", "d_vv", "d_vu", "d_vm", "d_vvv", "d_vvu", "d_vvm")
 DISCREPANCY_T = ("t_1", "t_v", "t_vv", "t_vu", "t_vm")
 
@@ -315,11 +317,11 @@ def scaled(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def discrepancy_basis(sv: np.ndarray, sm: np.ndarray, su: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The discrepancy's basis at scaled speed, log mass and log friction (n,): log d (n, 7) and log T (n, 5)."""
+    """The discrepancy's basis at scaled speed, log mass and log friction (n,): log d (n, 7) and log T (n, 5),
+    in the order of :data:`DISCREPANCY_D` and :data:`DISCREPANCY_T`."""
     v2 = sv * sv
     bd = np.stack([sv, v2, sv * su, sv * sm, v2 * sv, v2 * su, v2 * sm], 1)
-    bt = np.concatenate([np.ones((sv.size, 1)), bd[:, :4]], 1)
-    return bd, bt
+    return bd, np.concatenate([np.ones((sv.size, 1)), bd[:, :4]], 1)
 
 
 @dataclass

@@ -59,12 +59,13 @@ def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> Discrepan
     sm = scaled(fit.objects.lm, *problem.lm_range)
     su = scaled(fit.objects.lu, *problem.lu_range)
     trend = float(np.mean(_part_at(beta, 1.0, sm, su) - _part_at(beta, -1.0, sm, su)))
-    # from su = -1 to +1 (sm = -1 to +1) the trend 2 (d_v + d_vu su + d_vm sm) changes by 4 d_vu (4 d_vm)
+    # the trend 2 (d_v + d_vu su + d_vm sm + d_vvv) changes by 4 d_vu from su = -1 to +1 (4 d_vm for sm)
+    k = {name: i for i, name in enumerate(c.components)}
     return DiscrepancyReport(
         coefficients=dict(zip(c.components, beta.tolist(), strict=True)),
         rms_log_d=float(np.sqrt(np.mean(rows**2))) if rows.size else 0.0,
-        speed_trend=trend, speed_trend_rough_minus_smooth=float(4.0 * beta[2]),
-        speed_trend_heavy_minus_light=float(4.0 * beta[3]),
+        speed_trend=trend, speed_trend_rough_minus_smooth=float(4.0 * beta[k["d_vu"]]),
+        speed_trend_heavy_minus_light=float(4.0 * beta[k["d_vm"]]),
         stop_time_offset=float(np.mean(dt[problem.cond][keep])) if problem.use_t else None,
         implied_mass_ratio=implied_mass_ratio(problem, fit), mimics=list(mimics),
     )  # fmt: skip

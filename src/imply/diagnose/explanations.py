@@ -13,7 +13,8 @@ This step decides what the verdict can say of them:
   it with the measurement that would tell them apart;
 - **outside the library**: an effect that the data pull past its library bound (the
   profiled sum of squares would fall by more than the 95% chi-square quantile of one
-  degree of freedom beyond it), or three or more library effects at once, are no
+  degree of freedom beyond it), or three or more terms at once (library effects, the
+  discrepancy counted as one), are no
   confident verdict: the combination describes the residual, and the likely cause is a
   mechanism the library does not have.
 
@@ -169,8 +170,10 @@ def explain(
     if pinned:
         reason = (f"{', '.join(p.effect for p in pinned)} would go past the library's largest magnitude: "
                   "most likely a mechanism outside the library")  # fmt: skip
-    elif len(causes) >= 3:
-        reason = f"{len(causes)} library effects at once: most likely a mechanism outside the library"
+    elif len(fit.model.candidates) >= 3:  # the discrepancy counts as one term: it is one more thing to explain
+        reason = (f"{len(causes)} library effects at once"
+                  + (" beside a smooth discrepancy" if fit.model.discrepancy is not None else "")
+                  + ": most likely a mechanism outside the library")  # fmt: skip
     return (
         Explanations(
             causes=causes, discrepancy=fit.model.discrepancy is not None, mimicked=list(dropped),
