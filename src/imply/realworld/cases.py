@@ -20,6 +20,13 @@ the position tells what a log carries. The label of every log (its effects and
 magnitudes, the objects' true masses and frictions, the noise, the outliers, the
 noise-free observables, and for two-effect logs each effect's noise-free observables on
 its own) goes to a sealed file the diagnostic never reads.
+
+The contact benchmark (:class:`ContactBenchmarkConfig`) draws its logs the same way, from
+worlds with a contact model of their own (:mod:`imply.realworld.contact`) or on another
+engine, with no effect, one library effect or one outside it; a share of its logs pushes
+every object in four directions 90 degrees apart at every speed. Its labels also hold the
+log's ``engine``, ``contact`` model and push ``design``, and for an effect log the noise-free
+observables of the world without the effect (``noise_free["contact"]``).
 """
 
 from __future__ import annotations
@@ -184,7 +191,7 @@ class ContactBenchmarkConfig(BenchmarkConfig):
 
     seed: int = option(2424, doc="seed of the logs' draws", required=True)
     logs: dict[str, int] = option(
-        {"null_contact": 20, "single_contact": 24, "outside_contact": 12, "null_engine": 8, "single_engine": 12,
+        {"null_contact": 16, "single_contact": 20, "outside_contact": 10, "null_engine": 8, "single_engine": 12,
          "outside_engine": 6},
         doc="logs per group (*_engine: the bullet world; a group left out has none)", required=True,
         keys=CONTACT_GROUPS, items={"minimum": 0},
@@ -192,7 +199,7 @@ class ContactBenchmarkConfig(BenchmarkConfig):
     heavy_share: float = option(
         0.0, doc="share of effect logs with heavy-tailed noise and gross outliers", minimum=0, maximum=1
     )
-    four_share: float = option(0.25, doc="share of logs with the four-direction design", minimum=0, maximum=1)
+    four_share: float = option(0.2, doc="share of logs with the four-direction design", minimum=0, maximum=1)
     effect_range: tuple[float, float] = option(
         (0.3, 1.0), doc="one-effect logs: share of the effect's largest magnitude",
         items={"exclusive_minimum": 0, "maximum": 1},

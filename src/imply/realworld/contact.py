@@ -11,8 +11,9 @@ world's contact parameters (:data:`imply.realworld.world.PARAMETERS`) by kind:
   each a factor on MuJoCo's (stiffer or softer, more or less damped);
 - ``speed_friction``: velocity-dependent Coulomb friction ``mu (1 + k (|v| - v_ref))``,
   k of either sign, evaluated at every step from the box's sliding speed;
-- ``regularised_friction``: friction ``mu tanh(|v| / v_eps)``, weaker near zero slip as
-  in engines with a stiction tolerance (the box creeps on at the end of a slide);
+- ``regularised_friction``: friction ``mu (r + (1 - r) tanh(|v| / v_eps))``, weaker near
+  zero slip as in engines with a stiction tolerance (the box creeps on at the end of a
+  slide); a share r stays at rest, so that a box on a tilted table still stops;
 - ``pusher_contact``: the pusher-box contact's impedance (solimp dmin and dmax lowered:
   the pusher sinks further into the box) and the friction of the pusher's face.
 
@@ -36,14 +37,16 @@ from imply.sim.scene import SceneConfig
 CONTACT_KINDS: dict[str, tuple[str, ...]] = {
     "table_compliance": ("table_timeconst", "table_dampratio"),
     "speed_friction": ("friction_slope", "friction_slope_speed"),
-    "regularised_friction": ("friction_regularisation",),
+    "regularised_friction": ("friction_regularisation", "friction_rest_share"),
     "pusher_contact": ("pusher_impedance", "pusher_friction"),
 }
 CONTACT_PARAMETERS = tuple(p for kind in CONTACT_KINDS.values() for p in kind)
-# how a parameter's magnitude is drawn in its range: log-uniform, log-uniform of random
-# sign, or uniform (a range that may start at zero)
-_LAW = {"table_timeconst": "log", "table_dampratio": "log", "friction_slope": "signed", "friction_slope_speed": "uniform",
-        "friction_regularisation": "log", "pusher_impedance": "log", "pusher_friction": "log"}  # fmt: skip
+# how a parameter is drawn in its range [lo, hi]: log-uniform; log-uniform of random sign;
+# uniform (a range that may start at zero); a factor log-uniform in [lo, hi] or its
+# reciprocal (lo >= 1: stiffer or softer, never close to MuJoCo's own)
+_LAW = {"table_timeconst": "factor", "table_dampratio": "log", "friction_slope": "signed",
+        "friction_slope_speed": "uniform", "friction_regularisation": "log", "friction_rest_share": "uniform",
+        "pusher_impedance": "log", "pusher_friction": "log"}  # fmt: skip
 
 # the physics engines a benchmark world may run on
 ENGINES = ("mujoco", "bullet")
@@ -65,11 +68,12 @@ class ContactDraw(Config):
     )  # fmt: skip
     per_log: tuple[int, int] = option((1, 3), doc="kinds combined in one log, fewest and most", items={"minimum": 1})
     ranges: dict[str, tuple[float, float]] = option(
-        {"table_timeconst": (0.25, 6.0), "table_dampratio": (0.3, 2.0), "friction_slope": (0.2, 1.0),
-         "friction_slope_speed": (0.0, 0.3), "friction_regularisation": (0.03, 0.2),
-         "pusher_impedance": (0.05, 0.4), "pusher_friction": (0.1, 1.0)},
-        doc="range of each contact parameter (factors for table_*, |k| in s/m for friction_slope, m/s for "
-        "friction_slope_speed and friction_regularisation)",
+        {"table_timeconst": (2.5, 4.5), "table_dampratio": (0.35, 0.7), "friction_slope": (0.5, 1.0),
+         "friction_slope_speed": (0.0, 0.3), "friction_regularisation": (0.1, 0.3), "friction_rest_share": (0.35, 0.6),
+         "pusher_impedance": (0.2, 0.45), "pusher_friction": (0.1, 1.0)},
+        doc="range of each contact parameter: table_timeconst a factor in the range or its reciprocal, "
+        "table_dampratio a factor, friction_slope |k| (s/m, either sign), friction_slope_speed and "
+        "friction_regularisation in m/s, friction_rest_share a share",
         keys=CONTACT_PARAMETERS, items={"minimum": 0},
     )  # fmt: skip
 
@@ -83,6 +87,8 @@ class ContactDraw(Config):
         for name, (a, b) in self.ranges.items():
             if not (np.isfinite(a) and np.isfinite(b) and 0 <= a <= b and (a > 0 or _LAW[name] == "uniform")):
                 raise ValueError(f"ranges.{name} must be [low, high] with 0 < low <= high, not {[a, b]}")
+            if _LAW[name] == "factor" and a < 1:
+                raise ValueError(f"ranges.{name}: a factor either way needs low >= 1, not {a}")
 
 
 def no_contact_model() -> dict:
@@ -104,6 +110,8 @@ def draw_contact(rng: np.random.Generator, draw: ContactDraw) -> dict:
                 x = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
                 if _LAW[name] == "signed" and rng.random() < 0.5:
                     x = -x
+                elif _LAW[name] == "factor" and rng.random() < 0.5:
+                    x = 1.0 / x
             params[name] = x
     return {"kinds": kinds, "parameters": params}
 
