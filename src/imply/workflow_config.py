@@ -29,7 +29,7 @@ from imply.models.config import ModelConfig
 from imply.models.encoder import EncoderConfig
 from imply.options import Config, json_schema, option
 from imply.readout import ReadoutConfig
-from imply.realworld.cases import BenchmarkConfig
+from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig
 from imply.score import ScoreConfig
 from imply.sim.scene import SceneConfig
 from imply.study.section4.config import Section4Config
@@ -53,6 +53,9 @@ class GapConfig(Config):
     effect_grid: CoarseGrid = option(CoarseGrid(), doc="the effect tables' grids", required=True)
     diagnose: DiagnosisConfig = option(DiagnosisConfig(), doc="the diagnostic's settings", required=True)
     benchmark: BenchmarkConfig = option(BenchmarkConfig(), doc="the benchmark's logs and targets", required=True)
+    contact_benchmark: ContactBenchmarkConfig = option(
+        ContactBenchmarkConfig(), doc="the contact benchmark: other contact models and another engine", required=True
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

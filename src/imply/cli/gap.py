@@ -55,10 +55,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.set_defaults(func=cmd_tables)
 
     gen = gsub.add_parser(
-        "generate", help="the benchmark's push logs from the converged world (imply.realworld), labels sealed apart"
+        "generate",
+        help="the benchmark's push logs from the converged world (imply.realworld; --contact-bench-json: with "
+        "contact models of its own and another engine), labels sealed apart",
     )
     gen.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the world's scene (its numbers are not read)")
-    gen.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark")
+    which = gen.add_mutually_exclusive_group(required=True)
+    which.add_argument("--bench-json", type=json_arg, help="config gap.benchmark")
+    which.add_argument(
+        "--contact-bench-json", type=json_arg,
+        help="config gap.contact_benchmark: worlds with a contact model of their own, and another engine's",
+    )  # fmt: skip
     gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
     gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
     gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
@@ -113,11 +120,19 @@ def cmd_tables(args: argparse.Namespace) -> int:
     return 0
 
 
+def _generate_config(args: argparse.Namespace):
+    from imply.realworld.cases import ContactBenchmarkConfig
+
+    if args.contact_bench_json is not None:
+        return config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+    return _benchmark_config(args)
+
+
 def cmd_generate(args: argparse.Namespace) -> int:
     from imply.realworld.cases import write_benchmark_logs
     from imply.sim import SceneConfig
 
-    config = _benchmark_config(args)
+    config = _generate_config(args)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
     error = write_benchmark_logs(

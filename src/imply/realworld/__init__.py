@@ -13,8 +13,12 @@ same way would share the diagnostic's numerical mistakes. This package does not 
   friction are friction laws evaluated at every step;
 - :mod:`~imply.realworld.effects` lists the effects the world can carry, those the
   diagnostic has candidates for and those it has not;
+- :mod:`~imply.realworld.contact` gives the world a contact model of its own (a table
+  contact of another stiffness and damping, speed-dependent or regularised friction, another
+  pusher-box contact) or another physics engine's, for the contact benchmark;
 - :mod:`~imply.realworld.cases` draws the benchmark's logs (objects, magnitudes,
-  azimuths, noise, outliers, what was measured) and writes each log and, apart, its
+  azimuths, noise, outliers, what was measured; in the contact benchmark also the
+  engine, the contact model and the push design) and writes each log and, apart, its
   sealed label;
 - :mod:`~imply.realworld.bullet` simulates the same pushes in a second physics engine
   (Bullet), for logs whose contact model is not MuJoCo's;

@@ -20,6 +20,13 @@ the position tells what a log carries. The label of every log (its effects and
 magnitudes, the objects' true masses and frictions, the noise, the outliers, the
 noise-free observables, and for two-effect logs each effect's noise-free observables on
 its own) goes to a sealed file the diagnostic never reads.
+
+The contact benchmark (:class:`ContactBenchmarkConfig`) draws its logs the same way, from
+worlds with a contact model of their own (:mod:`imply.realworld.contact`) or on another
+engine, with no effect, one library effect or one outside it; a share of its logs pushes
+every object in four directions 90 degrees apart at every speed. Its labels also hold the
+log's ``engine``, ``contact`` model and push ``design``, and for an effect log the noise-free
+observables of the world without the effect (``noise_free["contact"]``).
 """
 
 from __future__ import annotations
@@ -36,8 +43,16 @@ from tqdm.auto import tqdm
 from imply.io import write_csv, write_json
 from imply.options import Config, option
 from imply.realworld.accuracy import measure_error
+from imply.realworld.contact import (
+    BULLET_EFFECTS,
+    ContactDraw,
+    apply_contact,
+    draw_contact,
+    no_contact_model,
+    simulate_engine,
+)
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
-from imply.realworld.world import WorldPushes, WorldStepping, simulate_world
+from imply.realworld.world import WorldPushes, WorldStepping
 from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.realworld")
@@ -45,6 +60,12 @@ log = logging.getLogger("imply.realworld")
 GROUPS = ("null_gaussian", "null_heavy", "single", "single_unidentifiable", "double", "outside")
 # what the benchmark's scoring measures against a target (config gap.benchmark.targets)
 TARGETS = ("false_alarm", "top1", "both_named", "none_outside", "magnitude_error", "shrinkage")
+# the contact benchmark (config gap.contact_benchmark): a contact model of the world's own
+# (MuJoCo), or another engine's world, with no effect, one library effect or one outside it
+CONTACT_GROUPS = ("null_contact", "single_contact", "outside_contact", "null_engine", "single_engine",
+                  "outside_engine")  # fmt: skip
+CONTACT_TARGETS = ("null_no_library", "named", "magnitude_within", "wrong_mechanism")
+DIRECTIONS = 4  # pushes per object and speed in the four-direction design, 90 degrees apart
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -155,6 +176,49 @@ class BenchmarkConfig(Config):
         return int(sum(self.logs.values()))
 
 
+@dataclass(frozen=True, kw_only=True)
+class ContactBenchmarkConfig(BenchmarkConfig):
+    """The contact benchmark (config ``gap.contact_benchmark``): logs from worlds with a contact model of their
+    own (:mod:`imply.realworld.contact`) or from another engine, with no effect, one in the library or one outside.
+
+    A share ``four_share`` of the logs has the four-direction design: every object pushed at
+    every speed in 4 directions 90 degrees apart, at a rotation drawn per log; the others push
+    every object once per speed in a random direction. One-effect logs draw the magnitude in
+    ``effect_range`` times the effect's largest.
+    """
+
+    config_key: ClassVar[str] = "gap.contact_benchmark"
+
+    seed: int = option(2424, doc="seed of the logs' draws", required=True)
+    logs: dict[str, int] = option(
+        {"null_contact": 16, "single_contact": 20, "outside_contact": 10, "null_engine": 8, "single_engine": 12,
+         "outside_engine": 6},
+        doc="logs per group (*_engine: the bullet world; a group left out has none)", required=True,
+        keys=CONTACT_GROUPS, items={"minimum": 0},
+    )  # fmt: skip
+    heavy_share: float = option(
+        0.0, doc="share of effect logs with heavy-tailed noise and gross outliers", minimum=0, maximum=1
+    )
+    four_share: float = option(0.2, doc="share of logs with the four-direction design", minimum=0, maximum=1)
+    effect_range: tuple[float, float] = option(
+        (0.3, 1.0), doc="one-effect logs: share of the effect's largest magnitude",
+        items={"exclusive_minimum": 0, "maximum": 1},
+    )  # fmt: skip
+    contact: ContactDraw = option(ContactDraw(), doc="how each MuJoCo log's contact model is drawn", required=True)
+    targets: dict[str, float] = option(
+        {"null_no_library": 0.9, "named": 0.8, "magnitude_within": 0.3, "wrong_mechanism": 0.1},
+        doc="null logs naming no library effect (share, at least); single-effect logs naming theirs within "
+        "magnitude_within (share, at least); outside logs stating a library mechanism as the cause (share, at most)",
+        keys=CONTACT_TARGETS,
+    )  # fmt: skip
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        lo, hi = self.effect_range
+        if not lo <= hi:
+            raise ValueError(f"effect_range must be [low, high] with low <= high, not {[lo, hi]}")
+
+
 def case_ids(design: BenchmarkConfig) -> list[str]:
     """The logs' names (they say nothing about what a log carries)."""
     width = max(3, len(str(design.n_logs - 1)))
@@ -167,9 +231,21 @@ def _round_robin(names: tuple[str, ...], count: int, rng: np.random.Generator) -
     return [order[k % len(order)] for k in range(count)]
 
 
-def draw_cases(design: BenchmarkConfig) -> list[dict]:
-    """Every log's draw (effects, objects, directions, what was measured, noise), in the logs' order."""
-    rng = np.random.default_rng(design.seed)
+def _plans(design: BenchmarkConfig, rng: np.random.Generator) -> list[tuple[str, list[str]]]:
+    """Every log's group and effects, in the groups' order."""
+    if isinstance(design, ContactBenchmarkConfig):
+        on_bullet = set(BULLET_EFFECTS)
+        pools = {"null_contact": (), "single_contact": IDENTIFIABLE, "outside_contact": OUTSIDE, "null_engine": (),
+                 "single_engine": tuple(n for n in IDENTIFIABLE if n in on_bullet),
+                 "outside_engine": tuple(n for n in OUTSIDE if n in on_bullet)}  # fmt: skip
+        out: list[tuple[str, list[str]]] = []
+        for group, pool in pools.items():
+            count = design.logs.get(group, 0)
+            if pool:
+                out += [(group, [e]) for e in _round_robin(pool, count, rng)]
+            else:
+                out += [(group, [])] * count
+        return out
     plans: list[tuple[str, list[str]]] = []
     plans += [("null_gaussian", [])] * design.logs.get("null_gaussian", 0)
     plans += [("null_heavy", [])] * design.logs.get("null_heavy", 0)
@@ -181,6 +257,23 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
     for _ in range(design.logs.get("double", 0)):
         plans.append(("double", sorted(rng.choice(IDENTIFIABLE, size=2, replace=False).tolist())))
     plans += [("outside", [e]) for e in _round_robin(OUTSIDE, design.logs.get("outside", 0), rng)]
+    return plans
+
+
+def _magnitude_range(design: BenchmarkConfig, group: str, name: str) -> tuple[float, float]:
+    hi = design.range_of(name)[1]
+    if group == "double":
+        return design.double_range[0] * hi, design.double_range[1] * hi
+    if isinstance(design, ContactBenchmarkConfig):
+        return design.effect_range[0] * hi, design.effect_range[1] * hi
+    return design.range_of(name)
+
+
+def draw_cases(design: BenchmarkConfig) -> list[dict]:
+    """Every log's draw (effects, objects, directions, what was measured, noise; in the contact benchmark also
+    its engine, contact model and push design), in the logs' order."""
+    rng = np.random.default_rng(design.seed)
+    plans = _plans(design, rng)
     order = rng.permutation(len(plans))
     ids = case_ids(design)
     cases = []
@@ -190,12 +283,7 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
         crng = np.random.default_rng([design.seed, int(k)])
         effects = []
         for name in names:
-            hi = design.range_of(name)[1]
-            lo, hi = (
-                (design.double_range[0] * hi, design.double_range[1] * hi)
-                if group == "double"
-                else design.range_of(name)
-            )
+            lo, hi = _magnitude_range(design, group, name)
             e = {"name": name, "magnitude": draw_magnitude(crng, name, lo, hi),
                  "azimuth": float(crng.uniform(0, 2 * np.pi)) if EFFECTS[name].directional else None,
                  "in_library": EFFECTS[name].in_library}  # fmt: skip
@@ -213,14 +301,37 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
             "noise": "heavy" if heavy else "gaussian",
             "noise_seed": int(crng.integers(2**31)),
         })  # fmt: skip
+        if isinstance(design, ContactBenchmarkConfig):
+            cases[-1].update(_contact_draw(design, group, crng))
     return cases
 
 
+def _contact_draw(design: ContactBenchmarkConfig, group: str, rng: np.random.Generator) -> dict:
+    """A contact-benchmark log's engine, contact model and push design (four directions: the log's directions)."""
+    engine = "bullet" if group.endswith("_engine") else "mujoco"
+    out = {"engine": engine, "contact": draw_contact(rng, design.contact) if engine == "mujoco" else no_contact_model(),
+           "design": "four" if rng.random() < design.four_share else "random"}  # fmt: skip
+    if out["design"] == "four":
+        rotation = float(rng.uniform(0.0, np.pi / 2))
+        quarter = np.tile(np.arange(DIRECTIONS), design.n_objects * len(design.speeds))
+        out["direction"] = np.mod(rotation + quarter * (np.pi / 2), 2 * np.pi).tolist()
+    return out
+
+
+def push_layout(case: dict, design: BenchmarkConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Object index and commanded speed of every push of ``case``, (n,) each: object by object, speed by speed
+    (and, in the four-direction design, direction by direction)."""
+    per = DIRECTIONS if case.get("design") == "four" else 1
+    sp = np.asarray(design.speeds, float)
+    return np.repeat(np.arange(design.n_objects), sp.size * per), np.tile(np.repeat(sp, per), design.n_objects)
+
+
 def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effects: list[dict]) -> WorldPushes:
-    n_obj, sp = design.n_objects, np.asarray(design.speeds, float)
-    obj = np.repeat(np.arange(n_obj), sp.size)
-    p = WorldPushes.nominal(np.tile(sp, n_obj), np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
+    obj, v = push_layout(case, design)
+    p = WorldPushes.nominal(v, np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
                             np.asarray(case["direction"]), scene)  # fmt: skip
+    if "contact" in case:
+        apply_contact(p, case["contact"])
     for e in effects:
         apply_effect(p, e["name"], e["magnitude"], e["azimuth"] or 0.0, e)
     return p
@@ -241,35 +352,39 @@ def simulate_cases(
     chunk: int = 2400,
     progress: bool = False,
 ) -> dict[str, dict]:
-    """Noise-free observables of every case (and of each effect alone in two-effect cases)."""
-    runs: list[tuple[str, str, WorldPushes]] = []  # (case id, what, pushes)
+    """Noise-free observables of every case (``"all"``), of each effect alone in two-effect cases (by name),
+    and in the contact benchmark's effect cases of the world without the effect (``"contact"``)."""
+    runs: list[tuple[str, str, str, WorldPushes]] = []  # (case id, what, engine, pushes)
     for case in cases:
-        runs.append((case["id"], "all", _world_pushes(case, design, scene, case["effects"])))
+        engine = case.get("engine", "mujoco")
+        runs.append((case["id"], "all", engine, _world_pushes(case, design, scene, case["effects"])))
         if len(case["effects"]) > 1:
             for e in case["effects"]:
-                runs.append((case["id"], e["name"], _world_pushes(case, design, scene, [e])))
-    sizes = [r[2].n for r in runs]
-    allp = WorldPushes.concat([r[2] for r in runs])
-    bounds = np.concatenate([[0], np.cumsum(sizes)])
-    disp, stop, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
-    starts = range(0, allp.n, chunk)
-    for a in tqdm(starts, desc="world pushes", unit="batch", disable=not progress):
-        idx = np.arange(a, min(a + chunk, allp.n))
-        res = simulate_world(allp.subset(idx), scene, design.stepping, nthread=nthread)
-        disp[idx], stop[idx], ok[idx] = res.displacement, res.stop_time, res.ok
+                runs.append((case["id"], e["name"], engine, _world_pushes(case, design, scene, [e])))
+        if case["effects"] and "engine" in case:
+            runs.append((case["id"], "contact", engine, _world_pushes(case, design, scene, [])))
     out: dict[str, dict] = {}
-    for k, (cid, what, _) in enumerate(runs):
-        sl = slice(bounds[k], bounds[k + 1])
-        out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl]}
-    return out
+    for engine in dict.fromkeys(r[2] for r in runs):
+        mine = [r for r in runs if r[2] == engine]
+        allp = WorldPushes.concat([r[3] for r in mine])
+        bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
+        disp, stop, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
+        starts = range(0, allp.n, chunk)
+        for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
+            idx = np.arange(a, min(a + chunk, allp.n))
+            res = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread)
+            disp[idx], stop[idx], ok[idx] = res.displacement, res.stop_time, res.ok
+        for k, (cid, what, _, _) in enumerate(mine):
+            sl = slice(bounds[k], bounds[k + 1])
+            out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl]}
+    return {case["id"]: out[case["id"]] for case in cases}
 
 
 def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig) -> tuple[pd.DataFrame, dict]:
     """The push log a lab would have written for ``case`` (noise added), and its sealed label."""
     rng = np.random.default_rng(case["noise_seed"])
-    n_obj, sp = design.n_objects, np.asarray(design.speeds, float)
-    obj = np.repeat(np.arange(n_obj), sp.size)
-    v = np.tile(sp, n_obj)
+    n_obj = design.n_objects
+    obj, v = push_layout(case, design)
     phi = np.asarray(case["direction"])
     res = sim["all"]
     ok = res["ok"].copy()
@@ -333,6 +448,9 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
         "rows_kept": kept.tolist(),  # [push, replicate] of every row of the log, in its order
         "dropped_pushes": int((~ok).sum()),
     }  # fmt: skip
+    for key in ("engine", "contact", "design"):  # the contact benchmark's
+        if key in case:
+            label[key] = case[key]
     return frame, label
 
 
@@ -360,7 +478,9 @@ def write_benchmark_logs(
         labels[case["id"]] = label
     check = design.accuracy
     log.info("measuring the world's numerical error on %d of its pushes", check.pushes + check.nominal)
-    sample, nominal = accuracy_sample(cases, design, scene, check.pushes, check.nominal)
+    # the MuJoCo world's error (another engine's logs are that engine's; its convergence is its module's)
+    world_cases = [c for c in cases if c.get("engine", "mujoco") == "mujoco"] or cases
+    sample, nominal = accuracy_sample(world_cases, design, scene, check.pushes, check.nominal)
     error = measure_error(sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread,
                           progress=progress)  # fmt: skip
     error["table_numerical_error"] = table_error

@@ -36,6 +36,12 @@ Every deviation from the nominal world is a per-push parameter of :class:`WorldP
   different from the canonical one, which change the model's structure: those pushes
   run in a batch of their own.
 
+and the world's contact model (:mod:`imply.realworld.contact`; nominal: MuJoCo's contact,
+exactly as the table has it): the box-table contact's solref time constant and damping
+ratio, friction laws of the sliding speed (velocity-dependent, ``1 + k (|v| - v_ref)``,
+and regularised, ``r + (1 - r) tanh(|v| / v_eps)``), and the pusher-box contact's
+impedance and friction.
+
 Forces and friction laws are evaluated at the state predicted for the middle of the
 coming step (the last step's acceleration carried half a step on), since MuJoCo holds
 them constant over a step.
@@ -125,6 +131,15 @@ PARAMETERS: dict[str, float | None] = {
     "torsional": 0.0,  # m, torsional friction coefficient (contact dimension 4)
     "rolling": 0.0,  # m, rolling friction coefficient (contact dimension 6)
     "height": 0.0,  # fraction by which the box is taller than the canonical one
+    # the contact model (imply.realworld.contact): ways the world's contact differs from the table's
+    "table_timeconst": 1.0,  # factor on the box-table contact's solref time constant (below 1: stiffer)
+    "table_dampratio": 1.0,  # factor on the box-table contact's damping ratio
+    "friction_slope": 0.0,  # m^-1 s: Coulomb friction mu (1 + k (|v| - v_ref)) for sliding speed |v|
+    "friction_slope_speed": 0.0,  # m/s, v_ref of friction_slope
+    "friction_regularisation": 0.0,  # m/s, v_eps: friction mu (r + (1 - r) tanh(|v| / v_eps)) (zero: plain Coulomb)
+    "friction_rest_share": 0.5,  # r, the share of friction left at zero slip under friction_regularisation
+    "pusher_friction": 0.0,  # friction coefficient of the pusher's face on the box
+    "pusher_impedance": 0.0,  # lowered from the pusher contact's solimp dmin and dmax (0: MuJoCo's 0.9, 0.95)
 }
 
 
@@ -255,6 +270,15 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
     solref = b.expand("geom_solref")
     solref[:, pusher_geom, 0] = model.geom_solref[pusher_geom, 0] + prm["pusher_timeconst"]
     solref[:, pusher_geom, 1] = prm["pusher_dampratio"]
+    # the contact model: the box-table contact takes the box's solref (its priority is the
+    # table's), the pusher-box contact the pusher's friction and solimp (its priority is the box's)
+    solref[:, box_geom, 0] = model.geom_solref[box_geom, 0] * prm["table_timeconst"]
+    solref[:, box_geom, 1] = model.geom_solref[box_geom, 1] * prm["table_dampratio"]
+    friction[:, pusher_geom, 0] = model.geom_friction[pusher_geom, 0] + prm["pusher_friction"]
+    if np.any(prm["pusher_impedance"] != 0):
+        solimp = b.expand("geom_solimp")
+        solimp[:, pusher_geom, 0] = model.geom_solimp[pusher_geom, 0] - prm["pusher_impedance"]
+        solimp[:, pusher_geom, 1] = model.geom_solimp[pusher_geom, 1] - prm["pusher_impedance"]
     gain, bias = b.expand("actuator_gainprm"), b.expand("actuator_biasprm")
     gain[:, servo, 0] = prm["servo_kv"]
     bias[:, servo, 2] = -prm["servo_kv"]
@@ -289,6 +313,7 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
     # which pushes need forces or friction laws at every step
     forced = (prm["viscous"] != 0) | (prm["air_density"] != 0)
     lawful = (prm["aniso"] != 0) | (prm["stribeck"] != 0) | (prm["gradient"] != 0)
+    lawful |= (prm["friction_slope"] != 0) | (prm["friction_regularisation"] != 0)
     hooked = forced | lawful
     # the box's cross-sections per body axis (full side lengths), for air drag
     full = 2.0 * np.asarray(model.geom_size[box_geom], float)
@@ -342,6 +367,11 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
                 rel = prm["gradient_azimuth"][sel] - p.direction[sel]
                 along = xy[:, 0] * np.cos(rel) + xy[:, 1] * np.sin(rel)
                 factor *= np.maximum(1.0 + prm["gradient"][sel] * along, 0.2)
+                # velocity-dependent and regularised Coulomb friction; the regularised law keeps a share
+                # r at rest, so that a box on a tilted table still stops
+                factor *= np.maximum(1.0 + prm["friction_slope"][sel] * (speed - prm["friction_slope_speed"][sel]), 0.2)
+                eps, rest = prm["friction_regularisation"][sel], prm["friction_rest_share"][sel]
+                factor *= np.where(eps > 0, rest + (1.0 - rest) * np.tanh(speed / np.maximum(eps, 1e-12)), 1.0)
                 friction[sel, box_geom, 0] = p.friction[sel] * factor
         sliding = active[phase[active] == 2]
         released = active[phase[active] >= 1]

@@ -1,0 +1,144 @@
+"""Contact models of the benchmark's worlds: how a world's contact differs from the push table's, and which engine.
+
+The push table and the default benchmark world share MuJoCo's contact: the same soft
+box-table contact, plain Coulomb friction, the same pusher. Real contact differs from
+any simulator's in ways no library effect names (the library's pusher softness,
+viscous force, air drag, speed errors, tilt, anisotropic, torsional and rolling
+friction and box height are effects, not contact models). A contact model sets the
+world's contact parameters (:data:`imply.realworld.world.PARAMETERS`) by kind:
+
+- ``table_compliance``: the box-table contact's solref time constant and damping ratio,
+  each a factor on MuJoCo's (stiffer or softer, more or less damped);
+- ``speed_friction``: velocity-dependent Coulomb friction ``mu (1 + k (|v| - v_ref))``,
+  k of either sign, evaluated at every step from the box's sliding speed;
+- ``regularised_friction``: friction ``mu (r + (1 - r) tanh(|v| / v_eps))``, weaker near
+  zero slip as in engines with a stiction tolerance (the box creeps on at the end of a
+  slide); a share r stays at rest, so that a box on a tilted table still stops;
+- ``pusher_contact``: the pusher-box contact's impedance (solimp dmin and dmax lowered:
+  the pusher sinks further into the box) and the friction of the pusher's face.
+
+:func:`draw_contact` draws a random combination of kinds and magnitudes from the ranges of
+a :class:`ContactDraw`. A world can also be another physics engine's
+(:data:`ENGINES`); :func:`simulate_engine` dispatches a batch of pushes to it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from imply.options import Config, option
+from imply.realworld.world import WorldPushes, WorldResult, WorldStepping, simulate_world
+from imply.sim.scene import SceneConfig
+
+# the kinds of contact model and the world parameters each one sets
+CONTACT_KINDS: dict[str, tuple[str, ...]] = {
+    "table_compliance": ("table_timeconst", "table_dampratio"),
+    "speed_friction": ("friction_slope", "friction_slope_speed"),
+    "regularised_friction": ("friction_regularisation", "friction_rest_share"),
+    "pusher_contact": ("pusher_impedance", "pusher_friction"),
+}
+CONTACT_PARAMETERS = tuple(p for kind in CONTACT_KINDS.values() for p in kind)
+# how a parameter is drawn in its range [lo, hi]: log-uniform; log-uniform of random sign;
+# uniform (a range that may start at zero); a factor log-uniform in [lo, hi] or its
+# reciprocal (lo >= 1: stiffer or softer, never close to MuJoCo's own)
+_LAW = {"table_timeconst": "factor", "table_dampratio": "log", "friction_slope": "signed",
+        "friction_slope_speed": "uniform", "friction_regularisation": "log", "friction_rest_share": "uniform",
+        "pusher_impedance": "log", "pusher_friction": "log"}  # fmt: skip
+
+# the physics engines a benchmark world may run on
+ENGINES = ("mujoco", "bullet")
+# the effects the bullet world (imply.realworld.bullet) can carry; change it with that world
+BULLET_EFFECTS = ("tilt", "viscous", "air_drag", "speed_gain", "speed_offset", "anisotropic", "stribeck",
+                  "carriage_mass", "force_limit", "friction_gradient")  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactDraw(Config):
+    """How each log's contact model is drawn (config ``gap.contact_benchmark.contact``): ``per_log`` kinds
+    of :data:`CONTACT_KINDS` at random, each parameter in its range."""
+
+    config_key: ClassVar[str] = "gap.contact_benchmark.contact"
+
+    kinds: tuple[str, ...] = option(
+        tuple(CONTACT_KINDS), doc="kinds of contact model a log may have", min_items=1, unique=True,
+        items={"choices": tuple(CONTACT_KINDS)},
+    )  # fmt: skip
+    per_log: tuple[int, int] = option((1, 3), doc="kinds combined in one log, fewest and most", items={"minimum": 1})
+    ranges: dict[str, tuple[float, float]] = option(
+        {"table_timeconst": (2.5, 4.5), "table_dampratio": (0.35, 0.7), "friction_slope": (0.5, 1.0),
+         "friction_slope_speed": (0.0, 0.3), "friction_regularisation": (0.1, 0.3), "friction_rest_share": (0.35, 0.6),
+         "pusher_impedance": (0.2, 0.45), "pusher_friction": (0.1, 1.0)},
+        doc="range of each contact parameter: table_timeconst a factor in the range or its reciprocal, "
+        "table_dampratio a factor, friction_slope |k| (s/m, either sign), friction_slope_speed and "
+        "friction_regularisation in m/s, friction_rest_share a share",
+        keys=CONTACT_PARAMETERS, items={"minimum": 0},
+    )  # fmt: skip
+
+    def __post_init__(self) -> None:
+        lo, hi = self.per_log
+        if not 1 <= lo <= hi <= len(self.kinds):
+            raise ValueError(f"per_log must be [low, high] with 1 <= low <= high <= {len(self.kinds)} kinds")
+        missing = sorted({p for k in self.kinds for p in CONTACT_KINDS[k]} - set(self.ranges))
+        if missing:
+            raise ValueError(f"ranges: no range for {', '.join(missing)}")
+        for name, (a, b) in self.ranges.items():
+            if not (np.isfinite(a) and np.isfinite(b) and 0 <= a <= b and (a > 0 or _LAW[name] == "uniform")):
+                raise ValueError(f"ranges.{name} must be [low, high] with 0 < low <= high, not {[a, b]}")
+            if _LAW[name] == "factor" and a < 1:
+                raise ValueError(f"ranges.{name}: a factor either way needs low >= 1, not {a}")
+
+
+def no_contact_model() -> dict:
+    """The contact model of a world whose contact is its engine's own (the label's ``contact``)."""
+    return {"kinds": [], "parameters": {}}
+
+
+def draw_contact(rng: np.random.Generator, draw: ContactDraw) -> dict:
+    """A contact model: ``{"kinds": [...], "parameters": {world parameter: value}}``."""
+    count = int(rng.integers(draw.per_log[0], draw.per_log[1] + 1))
+    kinds = sorted(rng.choice(list(draw.kinds), size=count, replace=False).tolist())
+    params: dict[str, float] = {}
+    for kind in kinds:
+        for name in CONTACT_KINDS[kind]:
+            lo, hi = draw.ranges[name]
+            if _LAW[name] == "uniform":
+                x = float(rng.uniform(lo, hi))
+            else:
+                x = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+                if _LAW[name] == "signed" and rng.random() < 0.5:
+                    x = -x
+                elif _LAW[name] == "factor" and rng.random() < 0.5:
+                    x = 1.0 / x
+            params[name] = x
+    return {"kinds": kinds, "parameters": params}
+
+
+def apply_contact(p: WorldPushes, contact: dict) -> None:
+    """Set the world's parameters of pushes ``p`` (in place) for ``contact`` (from :func:`draw_contact`)."""
+    for name, value in contact["parameters"].items():
+        if name not in CONTACT_PARAMETERS:
+            raise KeyError(f"unknown contact parameter {name!r} (known: {', '.join(CONTACT_PARAMETERS)})")
+        p.params[name][:] = value
+
+
+def simulate_engine(
+    pushes: WorldPushes,
+    scene: SceneConfig,
+    stepping: WorldStepping | None = None,
+    *,
+    engine: str = "mujoco",
+    nthread: int = 0,
+    progress: bool = False,
+) -> WorldResult:
+    """Simulate ``pushes`` in the world of ``engine`` (``stepping`` is MuJoCo's; another engine steps its own way)."""
+    if engine == "mujoco":
+        return simulate_world(pushes, scene, stepping, nthread=nthread, progress=progress)
+    if engine == "bullet":
+        # imported here: the bullet world needs pybullet, which only its logs do
+        from imply.realworld.bullet import simulate_bullet
+
+        return simulate_bullet(pushes, scene, progress=progress)
+    raise ValueError(f"unknown engine {engine!r} (known: {', '.join(ENGINES)})")
