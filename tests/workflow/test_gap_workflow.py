@@ -25,7 +25,9 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
             "gapShrinkMedian", "gapWorldErrMax", "gapTableErrMax", "gapLogsN"} <= set(part["numbers"])  # fmt: skip
     assert {c["id"] for c in part["claims"]} == {
         "gap-world", "gap-null", "gap-top1", "gap-both", "gap-outside", "gap-magnitude", "gap-shrink",
+        "gap-contact-null", "gap-contact-named", "gap-contact-wrong",
     }  # fmt: skip
+    assert {"gapContactLogsN", "gapContactNullNoLib", "gapContactNamed", "gapContactWrong"} <= set(part["numbers"])
     bench = json.loads((tmp_path / "results/gap/benchmark.json").read_text())["result"]
     assert bench["n_logs"] == 7 and bench["n_null"] == 3 and bench["n_double"] == 1 and bench["n_outside"] == 1
     # the world measured its own error, and the table's is beside it
@@ -41,5 +43,9 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
                                "size_z", "mass"}  # fmt: skip
     md = (tmp_path / "results/gap/benchmark.md").read_text()
     assert md.startswith("# Gap diagnostic benchmark") and "## Confusion matrix" in md
+    # the other-contact benchmark: MuJoCo contact models and Bullet, scored into the same result
+    contact = bench["contact"]
+    assert contact["n_logs"] == 4 and {row["engine"] for row in contact["cases"]} == {"mujoco", "bullet"}
+    assert "# Other contact models" in md
     report = next((tmp_path / "results/gap/reports").glob("shard*/log-*/report.md")).read_text()
     assert report.startswith("# Sim-to-real gap diagnosis\n\n**")

@@ -168,9 +168,11 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
             contact_labels = json.load(fh)
         with user_errors(FileNotFoundError, message="--contact-reports: {error}"):
             contact_summaries = find_summaries(contact_labels, [Path(r) for r in args.contact_reports])
-        design = args.contact_bench_json
-        result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=design["targets"],
-                                                min_size_sd=float(design.get("min_size_sd", 2.0)))  # fmt: skip
+        from imply.realworld.cases import ContactBenchmarkConfig
+
+        design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+        result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=dict(design.targets),
+                                                min_size_sd=design.min_size_sd)  # fmt: skip
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
     log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "
