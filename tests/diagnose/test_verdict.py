@@ -184,7 +184,7 @@ def test_discrepancy_sentence_says_how_the_table_differs():
     assert flat == (
         "These pushes differ from the table by a smooth discrepancy that no library effect explains (RMS 0.04 in log "
         "d); their stop times are 5% longer; the discrepancy closes the whole gap, down to the noise. On these pushes "
-        "it could also imitate speed_offset."
+        "it could also imitate a speed offset."
     )
 
 
@@ -204,19 +204,19 @@ def test_a_discrepancy_verdict_names_no_library_effect_and_leads_with_the_discre
                                "offset; to tell them apart, measure the pusher's actual speed.")  # fmt: skip
 
 
-def test_an_effect_pulled_past_its_bound_is_no_confident_verdict():
+def test_an_effect_at_its_bound_is_no_confident_verdict():
     from imply.diagnose.explanations import Pinned
 
     sel = Selection(_fit(["pusher_softness"]), [[_step("pusher_softness", 80.0)]], [CANDIDATES["pusher_softness"]],
                     None)  # fmt: skip
     ex = _explanations(causes=["pusher_softness"], pinned=[Pinned(effect="pusher_softness", drop_beyond_bound=40.0,
                        critical=3.84)], outside_library=True,
-                       reason="pusher_softness would go past the library's largest magnitude: most likely a "
-                       "mechanism outside the library")  # fmt: skip
+                       reason="a softer pusher at the library's largest magnitude: most likely a mechanism outside "
+                       "the library")  # fmt: skip
     v = judge(sel, [_effect("pusher_softness", 0.08)], shrink=_shrinkage(both=0.9), min_share=0.8, explanations=ex)
     assert (v.verdict, v.kind, v.effects, v.partial) == (NONE, "outside_library", [], "pusher_softness")
     assert v.sentence == (
-        "Most likely a mechanism outside the library: pusher_softness would go past the library's largest magnitude. "
+        "Most likely a mechanism outside the library: a softer pusher at the library's largest magnitude. "
         "The closest combination describes the residual, not its cause: the pusher's contact is softer (solref time "
         "constant +0.08 s); it closes 90% of the gap."
     )
@@ -276,3 +276,39 @@ def test_restricted_effects_say_only_what_the_directions_show(effect, magnitude,
                        magnitude=magnitude, ci95=(0.0, 1.0), sd=0.01, at_bound=False, azimuth_deg=axis,
                        cls=effect, fit_alias="")  # fmt: skip
     assert verdict_sentence([e], 0.9) == f"{expected}; adding it closes 90% of the gap."
+
+
+def test_an_effect_the_discrepancy_can_imitate_is_named_beside_it_not_stated():
+    from imply.diagnose.candidates import discrepancy_candidate
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    sel = Selection(_fit(["speed_gain"]), [[_step("speed_gain", 80.0)]], [d, CANDIDATES["speed_gain"]], None)
+    ex = _explanations(discrepancy=True, confounded=["speed_gain"])
+    v = judge(sel, [_effect("speed_gain", -0.134)], shrink=_shrinkage(both=0.86), min_share=0.8, explanations=ex,
+              discrepancy=_discrepancy())  # fmt: skip
+    assert (v.verdict, v.kind, v.effects, v.alternatives) == (NONE, "discrepancy", [], ["speed_gain"])
+    assert v.sentence.startswith("These pushes differ from the table by a smooth discrepancy")
+    assert v.sentence.endswith(
+        "the discrepancy closes 86% of the gap. Part of the discrepancy could as well be this: the pusher runs 13.4% "
+        "slower than commanded (on these pushes the discrepancy can imitate it, so it is no stated cause); to tell "
+        "them apart, measure the pusher's actual speed."
+    )
+    # an effect with a fingerprint the discrepancy cannot imitate stays a cause beside it
+    both = judge(sel, [_effect("tilt", 0.02, 90.0), _effect("speed_gain", -0.134)], shrink=_shrinkage(both=0.9),
+                 min_share=0.8, explanations=ex, discrepancy=_discrepancy())  # fmt: skip
+    assert (both.effects, both.kind, both.alternatives) == (["tilt"], "alternatives", ["speed_gain"])
+    assert both.sentence.startswith("The table slopes 0.02 rad toward 90 degrees (table frame), beside a smooth")
+
+
+def test_bound_direction_says_which_library_bound_a_fit_sits_on():
+    from imply.diagnose.candidates import discrepancy_candidate
+
+    gain, tilt = CANDIDATES["speed_gain"], CANDIDATES["tilt"]
+    assert gain.bound_direction(np.array([0.2])).tolist() == [1.0]
+    assert gain.bound_direction(np.array([-0.2])).tolist() == [-1.0]
+    assert gain.bound_direction(np.array([0.19])) is None
+    assert np.allclose(tilt.bound_direction(np.array([0.0, -0.03])), [0.0, -1.0])
+    assert tilt.bound_direction(np.array([0.02, 0.02])) is None
+    # the discrepancy's box only keeps fits finite: it is no library bound
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    assert d.bound_direction(np.ones(d.dim)) is None

@@ -119,6 +119,23 @@ class Candidate:
                 t = t * (self.radius / r)
         return t
 
+    def bound_direction(self, theta: np.ndarray, *, rtol: float = 1e-3) -> np.ndarray | None:
+        """The outward unit direction of the library bound ``theta`` sits on (within ``rtol`` of the range), or
+        None when it is inside. The discrepancy has no bound in this sense (its box only keeps fits finite)."""
+        if not self.is_library:
+            return None
+        th = np.asarray(theta, float)
+        if self.radius is not None:
+            a = float(np.hypot(*th))
+            return th / a if a >= self.radius * (1 - rtol) else None
+        lo, hi = self.lo[0], self.hi[0]
+        tol = rtol * (hi - lo)
+        if th[0] >= hi - tol:
+            return np.array([1.0])
+        if th[0] <= lo + tol:
+            return np.array([-1.0])
+        return None
+
     def scale(self) -> np.ndarray:
         """A typical size of each component (its range), for steps and starts."""
         return np.maximum(np.abs(np.asarray(self.hi)), np.abs(np.asarray(self.lo)))

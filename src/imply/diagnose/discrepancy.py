@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imply.diagnose.candidates import Model, discrepancy_basis
+from imply.diagnose.candidates import CANDIDATES, Model, discrepancy_basis, scaled
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.records import Record, json_field
 
@@ -54,8 +54,6 @@ def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> Discrepan
     dd, dt = problem.discrepancy_terms(c, beta, np.arange(problem.n_cond), lm_c, lu_c)
     keep = problem.w_d > 0
     rows = dd[problem.cond][keep]
-    from imply.diagnose.candidates import scaled
-
     sm = scaled(fit.objects.lm, *problem.lm_range)
     su = scaled(fit.objects.lu, *problem.lu_range)
     trend = float(np.mean(_part_at(beta, 1.0, sm, su) - _part_at(beta, -1.0, sm, su)))
@@ -111,5 +109,5 @@ def discrepancy_sentence(d: DiscrepancyReport, *, share: float | None) -> str:
     if share is not None:
         text += (f"; the discrepancy closes {'the whole gap, down to the noise' if share >= 1.0 else f'{max(share, 0):.0%} of the gap'}")  # fmt: skip
     if d.mimics:
-        text += f". On these pushes it could also imitate {', '.join(d.mimics)}"
+        text += f". On these pushes it could also imitate {' or '.join(CANDIDATES[n].phrase for n in d.mimics)}"
     return text + "."

@@ -8,12 +8,15 @@ This step decides what the verdict can say of them:
   the discrepancy costs less than ``alt_margin`` in held-out chi-square (the discrepancy
   refitted without it explains the pushes about as well) is not a cause; it is named as
   an alternative to the discrepancy;
+- **confounded with the discrepancy**: a library effect kept beside the discrepancy that
+  the discrepancy can imitate on this log's design is named beside it ("part of it could
+  as well be ...") and not stated as a cause;
 - **alternatives**: at the step where an effect was accepted, every other candidate whose
   held-out gain came within ``alt_margin`` of it fits about as well, and is named beside
   it with the measurement that would tell them apart;
-- **outside the library**: an effect that the data pull past its library bound (the
-  profiled sum of squares would fall by more than the 95% chi-square quantile of one
-  degree of freedom beyond it), or three or more terms at once (library effects, the
+- **outside the library**: an effect fitted at its library bound (the largest magnitude the
+  library believes of it; where the pushes pull it further, the profiled drop of the sum
+  of squares beyond the bound is reported), or three or more terms at once (library effects, the
   discrepancy counted as one), are no
   confident verdict: the combination describes the residual, and the likely cause is a
   mechanism the library does not have.
@@ -30,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from imply.diagnose.candidates import DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT, Candidate
+from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT, Candidate
 from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.records import Record
+from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection, folds
 
 # what would tell an effect from another that fits as well (by candidate; "discrepancy" for the model discrepancy)
@@ -74,8 +77,11 @@ class Pinned(Record):
 class Explanations(Record):
     """What the verdict may state: causes, effects the discrepancy mimics, alternatives, the outside-library flag."""
 
-    causes: list[str]  # library effects of the final model
+    causes: list[str]  # library effects of the final model stated as causes
     discrepancy: bool  # the final model holds the discrepancy
+    # library effects kept in the fit beside the discrepancy that it can imitate on this design: part of the
+    # discrepancy could as well be them, so they are named beside it, not stated as causes
+    confounded: list[str] = json_field(default_factory=list)
     mimicked: list[str]  # library effects dropped because the discrepancy explains them as well
     mimicked_margin: dict[str, float]  # the held-out chi-square each one's removal cost
     alternatives: list[Alternative]
@@ -107,39 +113,27 @@ def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin:
 
 
 def _pinned(fit: JointFit, level: float = 0.95) -> list[Pinned]:
-    """Library effects at their bound that the data pull beyond it (one-step profiled drop of the sum of squares)."""
-    out = []
+    """Library effects of the fit at their library bound: no confident verdict rests on one. Each with the one-step
+    profiled drop of the sum of squares beyond the bound where the pushes pull it further (0 where they do not)."""
     crit = float(stats.chi2.ppf(level, 1))
-    b, S = fit.b.sum(0), fit.S.sum(0)
-    for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True):
-        if not c.is_library:
-            continue
-        th = fit.theta[sl]
-        if c.radius is not None:
-            a = float(np.hypot(*th))
-            if a < c.radius * (1 - 1e-6):
-                continue
-            e = th / a
-        else:
-            lo, hi = c.lo[0], c.hi[0]
-            if not (np.isclose(th[0], lo) or np.isclose(th[0], hi)):
-                continue
-            e = np.array([1.0 if np.isclose(th[0], hi) else -1.0])
-        g, h = float(e @ b[sl]), float(e @ S[sl, sl] @ e)
-        # the sum of squares falls along -g: outward when -g points along e
-        if h > 0 and -g > 0:
-            drop = g * g / h
-            if drop > crit:
-                out.append(Pinned(effect=c.name, drop_beyond_bound=drop, critical=crit))
-    return out
+    pulled = fit.pulled_past_bounds(level)
+    return [Pinned(effect=c.name, drop_beyond_bound=pulled.get(c.name, 0.0), critical=crit)
+            for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
+            if c.bound_direction(fit.theta[sl]) is not None]  # fmt: skip
 
 
 def explain(
-    problem: Problem, selection: Selection, *, n_folds: int, alt_margin: float
+    problem: Problem, selection: Selection, *, n_folds: int, alt_margin: float, mimics: list[str] = ()
 ) -> tuple[Explanations, JointFit]:
-    """What the verdict may state of the accepted terms, and the final fit (mimicked effects left out)."""
+    """What the verdict may state of the accepted terms, and the final fit (mimicked effects left out).
+
+    ``mimics``: the library effects the discrepancy can imitate on this log's design
+    (:attr:`imply.diagnose.aliasing.Aliasing.mimicked`). One of them kept beside the discrepancy is
+    confounded with it: how much of the gap goes to either is set by the discrepancy's prior, not by
+    the pushes, so it is named beside the discrepancy and not stated as a cause."""
     fold_of = folds(problem.n_obj, n_folds)
     fit, dropped = _drop_mimicked(problem, selection.fit, fold_of, alt_margin)
+    confounded = [c.name for c in fit.model.library if c.name in mimics] if fit.model.discrepancy is not None else []
     alternatives = []
     # the discrepancy alone, against the whole final model (from the baseline's held-out sum of squares)
     first = selection.steps[0] if selection.steps else []
@@ -165,10 +159,10 @@ def explain(
             alternatives.append(Alternative(effect=acc.name, instead=names, margin=gaps,
                                             separate_by=_separators(acc, names)))  # fmt: skip
     pinned = _pinned(fit)
-    causes = [c.name for c in fit.model.library]
+    causes = [c.name for c in fit.model.library if c.name not in confounded]
     reason = None
     if pinned:
-        reason = (f"{', '.join(p.effect for p in pinned)} would go past the library's largest magnitude: "
+        reason = (f"{' and '.join(CANDIDATES[p.effect].phrase for p in pinned)} at the library's largest magnitude: "
                   "most likely a mechanism outside the library")  # fmt: skip
     elif len(fit.model.candidates) >= 3:  # the discrepancy counts as one term: it is one more thing to explain
         reason = (f"{len(causes)} library effects at once"
@@ -176,7 +170,7 @@ def explain(
                   + ": most likely a mechanism outside the library")  # fmt: skip
     return (
         Explanations(
-            causes=causes, discrepancy=fit.model.discrepancy is not None, mimicked=list(dropped),
+            causes=causes, discrepancy=fit.model.discrepancy is not None, confounded=confounded, mimicked=list(dropped),
             mimicked_margin=dropped, alternatives=alternatives, pinned=pinned, outside_library=reason is not None,
             reason=reason, alt_margin=alt_margin,
         ),

@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
+from scipy import stats
 
 from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
 from imply.diagnose.effect_tables import EffectTables
@@ -66,6 +67,22 @@ class JointFit:
     def prior(self) -> np.ndarray:
         """(p,) the prior precision of each component (the discrepancy's; 0 for the effects)."""
         return self.model.prior_precision()
+
+    def pulled_past_bounds(self, level: float = 0.95) -> dict[str, float]:
+        """Library effects at their bound that the pushes pull beyond it: {name: the one-step profiled drop of the
+        sum of squares beyond the bound}, where that drop is above the chi-square quantile at ``level`` (1 df)."""
+        crit = float(stats.chi2.ppf(level, 1))
+        b, S = self.b.sum(0), self.S.sum(0)
+        out = {}
+        for c, sl in zip(self.model.candidates, self.model.slices(), strict=True):
+            e = c.bound_direction(self.theta[sl])
+            if e is None:
+                continue
+            g, h = float(e @ b[sl]), float(e @ S[sl, sl] @ e)
+            # the sum of squares falls along -g: outward when -g points along e
+            if h > 0 and -g > 0 and g * g / h > crit:
+                out[c.name] = g * g / h
+        return out
 
     def covariance(self) -> np.ndarray:
         """Covariance of theta (whitened residuals: unit noise), from the summed Hessian and the prior."""

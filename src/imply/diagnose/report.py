@@ -208,13 +208,21 @@ def _discrepancy_lines(s: Summary) -> list[str]:
             lines += ["", "Effects dropped because the discrepancy explains the pushes about as well without them "
                       f"(held-out chi-square cost below {ex.alt_margin:g}): "
                       + ", ".join(f"{k} ({v:.1f})" for k, v in ex.mimicked_margin.items()) + "."]  # fmt: skip
+        if ex.confounded:
+            lines += ["", "Fitted beside the discrepancy but not stated as causes, since on these pushes the discrepancy "
+                      f"can imitate them: {', '.join(ex.confounded)}."]  # fmt: skip
         for a in ex.alternatives:
             lines += ["", f"Alternatives to {a.effect} (held-out chi-square within {ex.alt_margin:g}): "
                       + ", ".join(f"{n} ({m:+.1f})" for n, m in zip(a.instead, a.margin, strict=True))
                       + f"; to tell them apart: {'; '.join(a.separate_by)}."]  # fmt: skip
         for p in ex.pinned:
-            lines += ["", f"{p.effect} is at the library's largest magnitude and the pushes pull it further (the sum "
-                      f"of squares would fall by {p.drop_beyond_bound:.1f} beyond it, critical {p.critical:.2f})."]  # fmt: skip
+            pull = (
+                f" and the pushes pull it further (the sum of squares would fall by {p.drop_beyond_bound:.1f} beyond "
+                f"it, critical {p.critical:.2f})"
+                if p.drop_beyond_bound > p.critical
+                else ""
+            )
+            lines += ["", f"{p.effect} is at the library's largest magnitude{pull}: no confident verdict rests on it."]
     for name, r in al.restricted.items():
         lines += ["", f"Identifiable from these directions: {name}: {r.note}."]
     return lines

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
 from imply.diagnose.discrepancy import DiscrepancyReport, discrepancy_sentence
 from imply.diagnose.estimates import AcceptedEffect
-from imply.diagnose.explanations import Explanations
+from imply.diagnose.explanations import SEPARATE_BY, Explanations
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection
 from imply.diagnose.shrinkage import Shrinkage
@@ -120,6 +120,22 @@ def none_sentence(shrink: Shrinkage, *, best: list[str], no_gap: bool) -> str:
             "the noise floor); look for an effect outside the library.")  # fmt: skip
 
 
+def confounded_text(confounded: list[AcceptedEffect]) -> str:
+    """The sentence naming library effects fitted beside the discrepancy that it can imitate on these pushes
+    (empty without any): part of the discrepancy could as well be them."""
+    if not confounded:
+        return ""
+    clauses = "; or ".join(_clauses(confounded))
+    how = []
+    for e in confounded:
+        h = SEPARATE_BY.get(e.effect)
+        if h and h not in how:
+            how.append(h)
+    return (f" Part of the discrepancy could as well be this: {clauses} (on these pushes the discrepancy can imitate "
+            f"{'it' if len(confounded) == 1 else 'them'}, so it is no stated cause)"
+            + (f"; to tell them apart, {'; '.join(how)}." if how else "."))  # fmt: skip
+
+
 def _alternatives_text(expl: Explanations, stated: set[str]) -> tuple[str, list[str]]:
     """The sentence naming what fits about as well as the stated terms, and the library effects it names."""
     parts, named, how = [], [], []
@@ -178,15 +194,20 @@ def judge(
                       + ("the whole gap." if (share or 0.0) >= 1.0 else f"{max(share or 0.0, 0.0):.0%} of the gap.")),
             kind=OUTSIDE,
         )  # fmt: skip
+    confounded = [e for e in effects if expl is not None and e.effect in expl.confounded]
+    effects = [e for e in effects if e not in confounded]
+    part = confounded_text(confounded)
     if not effects and discrepancy is not None:
         alt, named = _alternatives_text(expl, {DISCREPANCY}) if expl is not None else ("", [])
         return Verdict(
             verdict=NONE, effects=[], cls=None, effect=None, partial=None, lr_critical=critical,
-            reason="a smooth discrepancy explains the gap; no library effect is needed beside it",
-            sentence=discrepancy_sentence(discrepancy, share=share) + alt, kind=DISCREPANCY_ONLY, alternatives=named,
+            reason="a smooth discrepancy explains the gap; no library effect can be told from it",
+            sentence=discrepancy_sentence(discrepancy, share=share) + part + alt, kind=DISCREPANCY_ONLY,
+            alternatives=named + [e.effect for e in confounded],
         )  # fmt: skip
-    text = verdict_sentence(effects, share, discrepancy_rms=discrepancy.rms_log_d if discrepancy else None)
+    text = verdict_sentence(effects, share, discrepancy_rms=discrepancy.rms_log_d if discrepancy else None) + part
     alt, named = _alternatives_text(expl, {e.effect for e in effects}) if expl is not None else ("", [])
+    named = named + [e.effect for e in confounded]
     return Verdict(
         verdict="; ".join(e.cls for e in effects), effects=[e.effect for e in effects], cls=effects[0].cls,
         effect=effects[0].effect, reason="improves beyond noise", partial=None, lr_critical=critical,
