@@ -225,13 +225,3 @@ def test_pipeline_names_anisotropy_and_its_summary_reads_back(analytic_table, tm
     back = Summary.from_dict(written)
     assert back.to_dict() == written
     assert (back.verdict, back.effects, back.shrinkage, back.options) == (s.verdict, s.effects, s.shrinkage, s.options)
-
-
-def test_forward_selection_refuses_an_effect_the_pushes_pull_past_its_bound(analytic_table):
-    """A speed offset of 0.2 m/s, far beyond the library's 0.08: the offset candidate is fitted at its bound and
-    does not qualify, whatever else explains the pushes."""
-    _, _, sel = _selected(make_log(seed=7, offset=0.2), analytic_table)
-    offset = next(r for r in sel.steps[0] if r.candidate.name == "speed_offset")
-    assert offset.candidate.bound_direction(offset.fit.theta[-1:]) is not None
-    assert "the pushes pull it past the library's largest magnitude" in offset.reasons and not offset.qualifies
-    assert "speed_offset" not in [c.name for c in sel.accepted[:1]]

@@ -204,19 +204,19 @@ def test_a_discrepancy_verdict_names_no_library_effect_and_leads_with_the_discre
                                "offset; to tell them apart, measure the pusher's actual speed.")  # fmt: skip
 
 
-def test_an_effect_at_its_bound_is_no_confident_verdict():
+def test_an_effect_pulled_past_its_bound_is_no_confident_verdict():
     from imply.diagnose.explanations import Pinned
 
     sel = Selection(_fit(["pusher_softness"]), [[_step("pusher_softness", 80.0)]], [CANDIDATES["pusher_softness"]],
                     None)  # fmt: skip
     ex = _explanations(causes=["pusher_softness"], pinned=[Pinned(effect="pusher_softness", drop_beyond_bound=40.0,
                        critical=3.84)], outside_library=True,
-                       reason="a softer pusher at the library's largest magnitude: most likely a mechanism outside "
-                       "the library")  # fmt: skip
+                       reason="a softer pusher would go past the library's largest magnitude: most likely a "
+                       "mechanism outside the library")  # fmt: skip
     v = judge(sel, [_effect("pusher_softness", 0.08)], shrink=_shrinkage(both=0.9), min_share=0.8, explanations=ex)
     assert (v.verdict, v.kind, v.effects, v.partial) == (NONE, "outside_library", [], "pusher_softness")
     assert v.sentence == (
-        "Most likely a mechanism outside the library: a softer pusher at the library's largest magnitude. "
+        "Most likely a mechanism outside the library: a softer pusher would go past the library's largest magnitude. "
         "The closest combination describes the residual, not its cause: the pusher's contact is softer (solref time "
         "constant +0.08 s); it closes 90% of the gap."
     )

@@ -14,9 +14,9 @@ This step decides what the verdict can say of them:
 - **alternatives**: at the step where an effect was accepted, every other candidate whose
   held-out gain came within ``alt_margin`` of it fits about as well, and is named beside
   it with the measurement that would tell them apart;
-- **outside the library**: an effect fitted at its library bound (the largest magnitude the
-  library believes of it; where the pushes pull it further, the profiled drop of the sum
-  of squares beyond the bound is reported), or three or more terms at once (library effects, the
+- **outside the library**: an effect that the data pull past its library bound (the
+  profiled sum of squares would fall by more than the 95% chi-square quantile of one
+  degree of freedom beyond it), or three or more terms at once (library effects, the
   discrepancy counted as one), are no
   confident verdict: the combination describes the residual, and the likely cause is a
   mechanism the library does not have.
@@ -113,13 +113,9 @@ def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin:
 
 
 def _pinned(fit: JointFit, level: float = 0.95) -> list[Pinned]:
-    """Library effects of the fit at their library bound: no confident verdict rests on one. Each with the one-step
-    profiled drop of the sum of squares beyond the bound where the pushes pull it further (0 where they do not)."""
+    """Library effects at their bound that the data pull beyond it (one-step profiled drop of the sum of squares)."""
     crit = float(stats.chi2.ppf(level, 1))
-    pulled = fit.pulled_past_bounds(level)
-    return [Pinned(effect=c.name, drop_beyond_bound=pulled.get(c.name, 0.0), critical=crit)
-            for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
-            if c.bound_direction(fit.theta[sl]) is not None]  # fmt: skip
+    return [Pinned(effect=k, drop_beyond_bound=v, critical=crit) for k, v in fit.pulled_past_bounds(level).items()]
 
 
 def explain(
@@ -162,7 +158,8 @@ def explain(
     causes = [c.name for c in fit.model.library if c.name not in confounded]
     reason = None
     if pinned:
-        reason = (f"{' and '.join(CANDIDATES[p.effect].phrase for p in pinned)} at the library's largest magnitude: "
+        reason = (f"{' and '.join(CANDIDATES[p.effect].phrase for p in pinned)} would go past the library's largest "
+                  "magnitude: "
                   "most likely a mechanism outside the library")  # fmt: skip
     elif len(fit.model.candidates) >= 3:  # the discrepancy counts as one term: it is one more thing to explain
         reason = (f"{len(causes)} library effects at once"

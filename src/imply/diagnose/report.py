@@ -216,13 +216,9 @@ def _discrepancy_lines(s: Summary) -> list[str]:
                       + ", ".join(f"{n} ({m:+.1f})" for n, m in zip(a.instead, a.margin, strict=True))
                       + f"; to tell them apart: {'; '.join(a.separate_by)}."]  # fmt: skip
         for p in ex.pinned:
-            pull = (
-                f" and the pushes pull it further (the sum of squares would fall by {p.drop_beyond_bound:.1f} beyond "
-                f"it, critical {p.critical:.2f})"
-                if p.drop_beyond_bound > p.critical
-                else ""
-            )
-            lines += ["", f"{p.effect} is at the library's largest magnitude{pull}: no confident verdict rests on it."]
+            lines += ["", f"{p.effect} is at the library's largest magnitude and the pushes pull it further (the sum "
+                      f"of squares would fall by {p.drop_beyond_bound:.1f} beyond it, critical {p.critical:.2f}): no "
+                      "confident verdict rests on it."]  # fmt: skip
     for name, r in al.restricted.items():
         lines += ["", f"Identifiable from these directions: {name}: {r.note}."]
     return lines

@@ -8,10 +8,7 @@ candidate's range). A candidate qualifies when (a) its likelihood-ratio statisti
 the chi-square quantile at ``alpha`` / (candidates left) for its number of components,
 (b) it lowers the leave-one-object-out (``folds``) held-out sum of squares, and (c) it
 explains more than the model's own accuracy (its explained mean square per push is above
-the model's own error's, :mod:`imply.diagnose.model_error`), and (d) the pushes do not pull
-it past its library bound (at the bound, the profiled sum of squares would fall beyond it
-by more than the 95% chi-square quantile: they ask for more than the library believes of
-the mechanism, and it is left to the other terms). The qualifying candidate
+the model's own error's, :mod:`imply.diagnose.model_error`). The qualifying candidate
 that lowers the held-out sum of squares most is accepted, the model's own error is
 counted anew with it, and the search goes on (at most ``max_effects``).
 """
@@ -125,9 +122,6 @@ def _try(problem: Problem, current: JointFit, c: Candidate, *, n_left: int, cv0:
         reasons.append("does not lower the held-out sum of squares")
     if explained <= floor_ms:
         reasons.append("explains less than the model's own accuracy")
-    if c.name in jf.pulled_past_bounds():
-        # the library's range is what it believes of the mechanism: pushes that ask for more are not this effect
-        reasons.append("the pushes pull it past the library's largest magnitude")
     log.debug("%-16s LR %.1f (crit %.1f) held-out -%.1f explained %.3g (floor %.3g)", c.name, lr, crit, gain,
               explained, floor_ms)  # fmt: skip
     return StepResult(c, jf, lr, c.dim, crit, gain, gain / cv0 if cv0 > 0 else 0.0, explained, floor_ms, not reasons,
