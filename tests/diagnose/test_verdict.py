@@ -290,8 +290,8 @@ def test_an_effect_the_discrepancy_can_imitate_is_named_beside_it_not_stated():
     assert v.sentence.startswith("These pushes differ from the table by a smooth discrepancy")
     assert v.sentence.endswith(
         "the discrepancy closes 86% of the gap. Part of the discrepancy could as well be this: the pusher runs 13.4% "
-        "slower than commanded (on these pushes the discrepancy can imitate it, so it is no stated cause); to tell "
-        "them apart, measure the pusher's actual speed."
+        "slower than commanded (the discrepancy can imitate it on these pushes, so it is not stated as a cause); to "
+        "tell them apart, measure the pusher's actual speed."
     )
     # an effect with a fingerprint the discrepancy cannot imitate stays a cause beside it
     both = judge(sel, [_effect("tilt", 0.02, 90.0), _effect("speed_gain", -0.134)], shrink=_shrinkage(both=0.9),

@@ -131,8 +131,8 @@ def confounded_text(confounded: list[AcceptedEffect]) -> str:
         h = SEPARATE_BY.get(e.effect)
         if h and h not in how:
             how.append(h)
-    return (f" Part of the discrepancy could as well be this: {clauses} (on these pushes the discrepancy can imitate "
-            f"{'it' if len(confounded) == 1 else 'them'}, so it is no stated cause)"
+    return (f" Part of the discrepancy could as well be this: {clauses} (the discrepancy can imitate "
+            f"{'it' if len(confounded) == 1 else 'them'} on these pushes, so it is not stated as a cause)"
             + (f"; to tell them apart, {'; '.join(how)}." if how else "."))  # fmt: skip
 
 
