@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -57,7 +58,6 @@ class PixelVideoConfig:
     lr: float = 2e-3
     seed: int = 0
     threads: int = 2
-    extra: dict = field(default_factory=dict)
 
 
 def to_float(frames: np.ndarray | torch.Tensor) -> torch.Tensor:
@@ -271,7 +271,9 @@ def empty_table(frames: np.ndarray, *, red: int = 30) -> np.ndarray:
     f = frames.astype(np.float32)
     covered = (f[..., 0] - f[..., 1]) >= red
     free = np.where(covered[..., None], np.nan, f)
-    out = np.nanmedian(free, axis=0)
+    with warnings.catch_warnings():  # a pixel always covered is all NaN: it takes the overall median below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        out = np.nanmedian(free, axis=0)
     return np.where(np.isnan(out), np.median(f, axis=0), out).round().astype(np.uint8)
 
 
