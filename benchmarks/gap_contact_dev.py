@@ -34,11 +34,6 @@ ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("null_no_library", "null_discrepancy", "named", "named_any", "wrong_mechanism")
 
 
-def _value(text: str):
-    """A --set value as YAML reads it (numbers, booleans, null, lists)."""
-    return yaml.safe_load(text)
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True, help="folder for the development logs and their diagnoses")
@@ -60,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         key, eq, text = item.partition("=")
         if not eq or key not in options:
             ap.error(f"--set {item!r}: expected KEY=VALUE with KEY one of {', '.join(sorted(options))}")
-        options[key] = _value(text)
+        options[key] = yaml.safe_load(text)  # numbers, booleans, null, lists
     grid = json.dumps(config["gap"]["effect_grid"])
 
     logs, labels = args.out / "logs", args.out / "labels.json"

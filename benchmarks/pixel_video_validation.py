@@ -31,8 +31,6 @@ from imply.readout import FrameDiffReadout, saliency
 from imply.score import score_sets
 from imply.table import PushTable
 
-CAL_SPEEDS = np.array([0.3, 0.8])
-
 
 def _corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.corrcoef(a, b)[0, 1])
@@ -44,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--epochs", type=int, default=25)
     ap.add_argument("--sets", type=int, default=16, help="sample sets per object")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--save", default=None, help="save the trained weights here (and load them if present)")
+    ap.add_argument("--save", default=None, help="save the trained weights here")
     ap.add_argument("--clips", default="results/clips")
     ap.add_argument("--table", default="results/table/table.npz")
     args = ap.parse_args(argv)
@@ -69,11 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     cal = np.stack([vm.index[vm["role"] == f"calibration_{j}"].to_numpy() for j in (0, 1)], 1)
     true = vm["displacement"].to_numpy()[qi]
     cal_d = vm["displacement"].to_numpy()[cal]
+    cal_speeds = vm["speed"].to_numpy()[cal[0]]  # the split's calibration speeds (config score.calibration_speeds)
     other = np.roll(np.arange(n), 1)  # another object's calibration
 
     def rollout(sample: int, calib_of: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         g = generate(model, context=vf[qi, 0], speeds=speeds, sample=sample, calib_first=vf[cal[calib_of], 0],
-                     calib_rest=vf[cal[calib_of], -1], calib_speed=CAL_SPEEDS, seed=args.seed)  # fmt: skip
+                     calib_rest=vf[cal[calib_of], -1], calib_speed=cal_speeds, seed=args.seed)  # fmt: skip
         rest = g[:, :, -1]
         clips = np.stack([vf[qi, 0], rest], 2).reshape(-1, 2, *rest.shape[2:])
         return readout.predict(clips).reshape(n, -1), rest
@@ -96,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     if cfg.calibrated:
         oth, _ = rollout(0, other)
         lo = np.log(oth)
-        s_own = score_sets(table, speeds, own, CAL_SPEEDS, cal_d)
-        s_oth = score_sets(table, speeds, oth, CAL_SPEEDS, cal_d)
+        s_own = score_sets(table, speeds, own, cal_speeds, cal_d)
+        s_oth = score_sets(table, speeds, oth, cal_speeds, cal_d)
         print(f"  another object's calibration: tracking r {_corr(lo.mean(1), lt.mean(1)):.3f}, mean |log error| "
               f"{np.abs(lo - lt).mean():.3f}; anchored prefers own on "
               f"{np.mean(s_own.anchored_disagreement < s_oth.anchored_disagreement):.1%} of {n} objects, self on "
@@ -106,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         sets = np.stack([rollout(s, np.arange(n))[0] for s in range(1, args.sets + 1)])  # (S, n, K)
         spread = np.log(sets).mean(2).std(0)
         print(f"  spread of the per-object mean log slide across {args.sets} sample sets: mean {spread.mean():.3f}")
-        scores = [score_sets(table, speeds, sets[s], CAL_SPEEDS, cal_d) for s in range(args.sets)]
+        scores = [score_sets(table, speeds, sets[s], cal_speeds, cal_d) for s in range(args.sets)]
         anch = np.stack([sc.anchored_disagreement for sc in scores])
         selfd = np.stack([sc.self_disagreement for sc in scores])
         err = np.abs(np.log(sets) - lt[None]).mean(2)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT, Candidate
+from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection, folds
@@ -153,7 +153,7 @@ def explain(
             names, gaps = [DISCREPANCY, *names], [float(final_gain - disc_alone.heldout_gain), *gaps]
         if names:
             alternatives.append(Alternative(effect=acc.name, instead=names, margin=gaps,
-                                            separate_by=_separators(acc, names)))  # fmt: skip
+                                            separate_by=separators([acc.name, *names])))  # fmt: skip
     pinned = _pinned(fit)
     causes = [c.name for c in fit.model.library if c.name not in confounded]
     reason = None
@@ -175,9 +175,10 @@ def explain(
     )  # fmt: skip
 
 
-def _separators(c: Candidate, names: list[str]) -> list[str]:
+def separators(names: list[str]) -> list[str]:
+    """The measurements that would tell the named terms apart (each said once, in the order of ``names``)."""
     out = []
-    for n in [c.name, *names]:
+    for n in names:
         how = SEPARATE_BY.get(n)
         if how and how not in out:
             out.append(how)

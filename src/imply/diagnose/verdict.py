@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
 from imply.diagnose.discrepancy import DiscrepancyReport, discrepancy_sentence
 from imply.diagnose.estimates import AcceptedEffect
-from imply.diagnose.explanations import SEPARATE_BY, Explanations
+from imply.diagnose.explanations import Explanations, separators
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection
 from imply.diagnose.shrinkage import Shrinkage
@@ -126,11 +126,7 @@ def confounded_text(confounded: list[AcceptedEffect]) -> str:
     if not confounded:
         return ""
     clauses = "; or ".join(_clauses(confounded))
-    how = []
-    for e in confounded:
-        h = SEPARATE_BY.get(e.effect)
-        if h and h not in how:
-            how.append(h)
+    how = separators([e.effect for e in confounded])
     return (f" Part of the discrepancy could as well be this: {clauses} (the discrepancy can imitate "
             f"{'it' if len(confounded) == 1 else 'them'} on these pushes, so it is not stated as a cause)"
             + (f"; to tell them apart, {'; '.join(how)}." if how else "."))  # fmt: skip

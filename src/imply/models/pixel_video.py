@@ -173,10 +173,12 @@ class PixelVideoModel(nn.Module):
         mu, logvar = self.posterior(pooled).chunk(2, -1)
         return mu, logvar.clamp(-8, 4)
 
-    def render(self, context: torch.Tensor, log_speed: torch.Tensor, z: torch.Tensor, cal: torch.Tensor | None):
+    def render(self, context: torch.Tensor, log_speed: torch.Tensor, z: torch.Tensor, cal: torch.Tensor | None,
+               *, features: torch.Tensor | None = None):  # fmt: skip
         """Frames (N, F, 3, H, W) generated from context frames (N, 3, H, W), log speeds (N,), latents (N, latent)
-        and calibration summaries (N, width) or None; and the shift kernels (N, F, S)."""
-        feat = self.features(context)
+        and calibration summaries (N, width) or None; and the shift kernels (N, F, S). ``features``: the context
+        frames' features where the caller has them already."""
+        feat = self.features(context) if features is None else features
         parts = [feat, log_speed.unsqueeze(-1), z] + ([cal] if cal is not None else [])
         logits = self.dynamics(torch.cat(parts, -1)).view(len(context), len(self.cfg.frames), self.cfg.max_shift)
         kernel = logits.softmax(-1)
@@ -259,7 +261,7 @@ def elbo_loss(model: PixelVideoModel, p: Pushes, sets: torch.Tensor) -> tuple[to
     mu_q, lv_q = model.posterior_of(ctx_f, rest_f, ls, cal, idx, len(sets))
     mu_p, lv_p = model.prior_of(cal, len(sets))
     z = mu_q + torch.randn_like(mu_q) * (0.5 * lv_q).exp()
-    gen, _ = model.render(ctx, ls, z[idx], cal[idx] if cal is not None else None)
+    gen, _ = model.render(ctx, ls, z[idx], cal[idx] if cal is not None else None, features=ctx_f)
     mse = frame_loss(gen, tgt, profile_weight=model.cfg.profile_weight)
     kl = 0.5 * (lv_p - lv_q + ((lv_q.exp() + (mu_q - mu_p) ** 2) / lv_p.exp()) - 1).sum(-1).mean()
     return mse + model.cfg.beta * kl, {"mse": float(mse.detach()), "kl": float(kl.detach())}
