@@ -42,6 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--epochs", type=int, default=25)
     ap.add_argument("--sets", type=int, default=16, help="sample sets per object")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a PixelVideoConfig field (repeatable), e.g. --set keypoint_sd=0.2")  # fmt: skip
     ap.add_argument("--save", default=None, help="save the trained weights here")
     ap.add_argument("--clips", default="results/clips")
     ap.add_argument("--table", default="results/table/table.npz")
@@ -49,10 +51,15 @@ def main(argv: list[str] | None = None) -> int:
 
     frames, meta = load_clips(f"{args.clips}/train.npz")
     vf, vm = load_clips(f"{args.clips}/validation.npz")
-    cfg = PixelVideoConfig(calibrated=args.variant == "calib", epochs=args.epochs, seed=args.seed)
+    overrides = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        kind = type(getattr(PixelVideoConfig(), key))
+        overrides[key] = value.lower() in ("1", "true", "yes") if kind is bool else kind(value)
+    cfg = PixelVideoConfig(calibrated=args.variant == "calib", epochs=args.epochs, seed=args.seed, **overrides)
     t0 = time.perf_counter()
     model, _ = train_pixel_video(frames, meta, cfg)
-    print(f"{args.variant}: trained {args.epochs} epochs on {len(frames)} training clips in "
+    print(f"{args.variant} {' '.join(args.set)}: trained {args.epochs} epochs on {len(frames)} training clips in "
           f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
     if args.save:
         torch.save({"config": cfg, "state": model.state_dict()}, args.save)
