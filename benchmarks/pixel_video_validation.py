@@ -4,8 +4,8 @@ its frames, does it track the object from calibration, and can the anchored scor
 
 Run (after ``snakemake --cores 2 results/clips/train.npz results/clips/validation.npz results/table/table.npz``):
 
-    python benchmarks/pixel_video_validation.py --variant calib --epochs 25 [--save /tmp/pv_calib.pt]
-    python benchmarks/pixel_video_validation.py --variant nocalib --epochs 25 --sets 16
+    python benchmarks/pixel_video_validation.py --variant calib [--epochs 20] [--set keypoint_sd=0.2] [--save /tmp/pv_calib.pt]
+    python benchmarks/pixel_video_validation.py --variant nocalib --sets 16
 
 The frame-difference readout is fitted on the real training clips (first and rest frames), never on generated
 ones. Prints, for sample 0 (the prior's mean) and for ``--sets`` sample sets: the mean per-object slope of
@@ -23,10 +23,10 @@ import argparse
 import time
 
 import numpy as np
-import torch
 
 from imply.data.clips import load_clips
-from imply.models.pixel_video import PixelVideoConfig, generate, train_pixel_video
+from imply.models.pixel_video import PixelVideoConfig, generate, save_pixel_video, train_pixel_video
+from imply.options import default_of
 from imply.readout import FrameDiffReadout, saliency
 from imply.score import score_sets
 from imply.table import PushTable
@@ -39,9 +39,10 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--variant", choices=("calib", "nocalib"), default="calib")
-    ap.add_argument("--epochs", type=int, default=25)
+    ap.add_argument("--epochs", type=int, default=default_of(PixelVideoConfig, "epochs"))
     ap.add_argument("--sets", type=int, default=16, help="sample sets per object")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a PixelVideoConfig field (repeatable), e.g. --set keypoint_sd=0.2")  # fmt: skip
     ap.add_argument("--save", default=None, help="save the trained weights here")
@@ -56,13 +57,14 @@ def main(argv: list[str] | None = None) -> int:
         key, _, value = item.partition("=")
         kind = type(getattr(PixelVideoConfig(), key))
         overrides[key] = value.lower() in ("1", "true", "yes") if kind is bool else kind(value)
-    cfg = PixelVideoConfig(calibrated=args.variant == "calib", epochs=args.epochs, seed=args.seed, **overrides)
+    cfg = PixelVideoConfig(epochs=args.epochs, seed=args.seed, **overrides)
+    calibrated = args.variant == "calib"
     t0 = time.perf_counter()
-    model, _ = train_pixel_video(frames, meta, cfg)
+    model, _ = train_pixel_video(frames, meta, cfg, calibrated=calibrated, threads=args.threads)
     print(f"{args.variant} {' '.join(args.set)}: trained {args.epochs} epochs on {len(frames)} training clips in "
           f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
     if args.save:
-        torch.save({"config": cfg, "state": model.state_dict()}, args.save)
+        save_pixel_video(args.save, model, [])
     readout = FrameDiffReadout.fit(frames, meta["displacement"].to_numpy())
     table = PushTable.load(args.table)
 
@@ -99,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{np.median(mass_ratio):.3f} (IQR {np.percentile(mass_ratio, 25):.3f}-{np.percentile(mass_ratio, 75):.3f}); "
           f"PSNR of rest frames median {np.median(psnr):.1f} dB")  # fmt: skip
     print(f"  sample 0: tracking r {_corr(lp.mean(1), lt.mean(1)):.3f}, mean |log error| {np.abs(lp - lt).mean():.3f}")
-    if cfg.calibrated:
+    if calibrated:
         oth, _ = rollout(0, other)
         lo = np.log(oth)
         s_own = score_sets(table, speeds, own, cal_speeds, cal_d)

@@ -32,6 +32,7 @@ from imply.readout import ReadoutConfig
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig
 from imply.score import ScoreConfig
 from imply.sim.scene import SceneConfig
+from imply.study.pixel_model import PixelConfig
 from imply.study.section4.config import Section4Config
 from imply.table import TableCheckConfig, TableConfig
 
@@ -89,6 +90,7 @@ class StudyConfig(Config):
     model: ModelConfig = option(ModelConfig(), doc="the predictor and Section 5 scoring", required=True)
     suite: SuiteConfig = option(SuiteConfig(), doc="the frozen evaluation suite of imply evaluate", required=True)
     evaluate: EvaluateConfig = option(EvaluateConfig(), doc="how imply evaluate asks and scores", required=True)
+    pixel: PixelConfig = option(PixelConfig(), doc="the pixel-space world model beyond the paper", required=True)
     paper: PaperConfig = option(PaperConfig(), doc="the paper merge")
 
 

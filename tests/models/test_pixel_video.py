@@ -68,9 +68,8 @@ def test_advection_is_an_exact_shift_and_keeps_the_centroid_between_pixels():
 @pytest.fixture(scope="module")
 def trained():
     frames, meta = _split(48)
-    cfg = PixelVideoConfig(calibrated=False, width=8, latent=2, frames=(7,), epochs=25, batch_size=8, lr=1e-2,
-                           threads=1)  # fmt: skip
-    return train_pixel_video(frames, meta, cfg, progress=False)
+    cfg = PixelVideoConfig(width=8, latent=2, frames=(7,), epochs=25, batch_size=8, lr=1e-2)
+    return train_pixel_video(frames, meta, cfg, calibrated=False, threads=1, progress=False)
 
 
 def test_training_moves_the_box_further_at_higher_speed_and_sets_differ(trained):
@@ -94,8 +93,8 @@ def test_training_moves_the_box_further_at_higher_speed_and_sets_differ(trained)
 
 def test_the_calibrated_variant_needs_the_calibration_pushes():
     frames, meta = _split(8)
-    cfg = PixelVideoConfig(calibrated=True, width=8, latent=2, frames=(7,), epochs=1, threads=1)
-    model, _ = train_pixel_video(frames, meta, cfg, progress=False)
+    cfg = PixelVideoConfig(width=8, latent=2, frames=(7,), epochs=1)
+    model, _ = train_pixel_video(frames, meta, cfg, calibrated=True, threads=1, progress=False)
     context = frames[meta.index[meta.role == "query"]][:, None, 0]
     with pytest.raises(ValueError, match="calibration"):
         generate(model, context=context, speeds=np.array([0.5]), sample=0)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from snakemake.utils import min_version
 
-from imply.config_check import validate_workflow_config
+from imply.config_check import PAPER_STAGES, validate_workflow_config
 from imply.models.weights import encoder_weight_files
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig, case_ids
 
@@ -27,12 +27,14 @@ MODEL_SEEDS = [int(s) for s in config["model"]["seeds"]]
 # conditions it is asked (a model trained without calibration is asked with none only)
 SECTION5_SUITE = {"calib": "results/suite", "nocalib": "results/section5/suite_nocalib"}
 EVALUATE_CONDITIONS = {"calib": "own,other,none", "nocalib": "none"}
+# the pixel-space world model's variants and the conditions each is asked (beyond the paper)
+PIXEL_VARIANTS = ["calib", "nocalib"]
+PIXEL_CONDITIONS = {"calib": "own,other", "nocalib": "none"}
 SUITE_FILES = ["manifest.json", "suite.npz", "truth.npz", "table.npz", "README.md"]
 GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
 GAP_CONTACT_CASES = case_ids(ContactBenchmarkConfig.from_dict(config["gap"]["contact_benchmark"]))
 # the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
 GAP_SHARDS = list(range(config["threads"]))
-PAPER_STAGES = ["section4", "clips", "section5", "gap", "evaluate"]
 # each stage's result documents, from which its part reads the registered numbers
 STAGE_RESULTS = {
     "section4": ["results/section4/metrics.json", "results/section4/noise.json", "results/section4/selection.json"],
@@ -40,6 +42,7 @@ STAGE_RESULTS = {
     "section5": ["results/section5/metrics.json"],
     "gap": ["results/gap/benchmark.json"],
     "evaluate": ["results/evaluate/standins.json"],
+    "pixel": ["results/pixel/metrics.json"],
 }
 
 
@@ -197,6 +200,9 @@ def final_outputs():
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
     if "evaluate" in stages:
         out += [f"results/evaluate/standins/{name}" for name in EVALUATE_REPORT_FILES]
+    if "pixel" in stages:
+        out += expand("results/paper/figures/figure3.{ext}", ext=["pdf", "png"])
+        out += [f"results/pixel/evaluate/{v}/{name}" for v in PIXEL_VARIANTS for name in EVALUATE_REPORT_FILES]
     out += paper_parts()
     out += [f"results/paper/{name}" for name in ("macros.tex", "numbers.json", "reproduction.md", "reproduction.csv", "reproduction.html")]
     return out

@@ -3,7 +3,8 @@
 Groups (modules of this package, each with ``register(subparsers)``): ``score``,
 ``table``, ``sim``, ``diagnose`` (what a user runs), and the study's steps, one group
 per stage of the workflow: ``section4``, ``clips``, ``encoder``, ``readout``,
-``model``, ``section5``, ``gap``, ``paper``, ``suite`` (the evaluation suite). A
+``model``, ``section5``, ``gap``, ``pixel`` (the pixel-space model beyond the paper), ``paper``,
+``suite`` (the evaluation suite). A
 handler parses its options, calls one library function and writes its outputs; the
 logic lives in the library.
 
@@ -29,7 +30,7 @@ from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserErro
 
 GROUPS: list[str] = [
     "score", "table", "sim", "diagnose", "suite", "evaluate", "section4", "clips", "encoder", "readout", "model",
-    "section5", "gap", "paper",
+    "section5", "gap", "pixel", "paper",
 ]  # fmt: skip
 
 

@@ -93,6 +93,10 @@ def stage_claims(stage: str) -> ClaimsFunction:
         from imply.study.section4.through_evaluate import known_answer_claims
 
         return known_answer_claims
+    if stage == "pixel":
+        from imply.study.pixel_model import pixel_claims
+
+        return pixel_claims
     from imply.paper.registry import STAGES
 
     raise UserError(f"unknown stage {stage!r} (one of {', '.join(STAGES)})")

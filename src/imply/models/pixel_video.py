@@ -38,9 +38,11 @@ import logging
 import math
 import os
 import pickle
+import time
 import warnings
 import zlib
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -49,6 +51,8 @@ import torch.nn.functional as F
 from torch import nn
 from tqdm.auto import tqdm
 
+from imply.options import Config, option
+
 log = logging.getLogger("imply.models.pixel_video")
 
 KEYPOINT_OFFSET = 0.5  # px: log(slide + this), so a box that hardly moves has a finite log slide
@@ -56,22 +60,25 @@ REFERENCE_SPEED = 0.5  # m/s: the log speed polynomial is centred here
 
 
 @dataclass(frozen=True, kw_only=True)
-class PixelVideoConfig:
-    """The network's size and the training recipe."""
+class PixelVideoConfig(Config):
+    """Config section ``pixel.recipe``: the network's size and its training recipe (both variants)."""
 
-    calibrated: bool = True  # condition on the object's two calibration pushes
-    width: int = 32  # conv channels and MLP width
-    latent: int = 4  # z per sample set
-    frames: tuple[int, ...] = (1, 4, 7)  # future frame indices generated (7: at rest)
-    keypoint_sd: float = 0.1  # sd of the keypoints' log slide in the likelihood
-    pixel_weight: float = 100.0  # weight of the pixel error (frame_loss) beside the ELBO's nats per push
-    pixels_move_box: bool = True  # False: the pixel error fits the mask and table only, not the slides
-    profile_weight: float = 30.0  # weight of the column-profile error beside the pixel error (frame_loss)
-    epochs: int = 30
-    batch_size: int = 32
-    lr: float = 2e-3
-    seed: int = 0
-    threads: int = 2
+    config_key: ClassVar[str] = "pixel.recipe"
+
+    width: int = option(32, doc="conv channels and MLP width", minimum=1)
+    latent: int = option(4, doc="size of the latent z drawn once per sample set", minimum=1)
+    frames: tuple[int, ...] = option(
+        (1, 4, 7), doc="clip frame indices generated after the first (the last: at rest)", min_items=1,
+        items={"minimum": 1},
+    )  # fmt: skip
+    keypoint_sd: float = option(0.1, doc="sd of the keypoints' log slide in the ELBO's likelihood", exclusive_minimum=0)
+    pixel_weight: float = option(100.0, doc="weight of the pixel error beside the ELBO's nats per push", minimum=0)
+    pixels_move_box: bool = option(True, doc="false: the pixel error fits the mask and table only, not the slides")
+    profile_weight: float = option(30.0, doc="weight of the column-profile error within the pixel error", minimum=0)
+    epochs: int = option(20, doc="passes over the training objects", minimum=1)
+    batch_size: int = option(32, doc="objects per step", minimum=1)
+    lr: float = option(2e-3, doc="peak learning rate (one-cycle)", exclusive_minimum=0)
+    seed: int = option(0, doc="initialisation and data order", minimum=0)
 
 
 def to_float(frames: np.ndarray | torch.Tensor) -> torch.Tensor:
@@ -135,10 +142,11 @@ def mlp(n_in: int, width: int, n_out: int) -> nn.Sequential:
 class PixelVideoModel(nn.Module):
     """The network: features, mask, the table per frame index, the latent's prior and posterior, the dynamics."""
 
-    def __init__(self, cfg: PixelVideoConfig, *, frame_shape: tuple[int, int], background: np.ndarray | None = None,
-                 mean_log_slide: np.ndarray | None = None):  # fmt: skip
+    def __init__(self, cfg: PixelVideoConfig, *, calibrated: bool, frame_shape: tuple[int, int],
+                 background: np.ndarray | None = None, mean_log_slide: np.ndarray | None = None):  # fmt: skip
         super().__init__()
         self.cfg = cfg
+        self.calibrated = bool(calibrated)
         h, w = frame_shape
         n_f = len(cfg.frames)
         self.features = FrameFeatures(cfg.width)
@@ -151,7 +159,7 @@ class PixelVideoModel(nn.Module):
         self.mask_bias = nn.Parameter(torch.tensor(-4.0))
         bg = torch.full((n_f, 3, h, w), 0.33) if background is None else to_float(background)
         self.background = nn.Parameter(bg.clone())
-        c = cfg.width if cfg.calibrated else 0
+        c = cfg.width if calibrated else 0
         # per calibration push: its first frame's features, its log speed and its log keypoint slide
         self.calibration = nn.Sequential(nn.Linear(2 * (cfg.width + 2), cfg.width), nn.GELU()) if c else None
         self.prior = nn.Linear(c, 2 * cfg.latent) if c else None
@@ -256,7 +264,7 @@ class Pushes:
         return int(self.calib_speed.shape[0])
 
 
-def training_pushes(frames: np.ndarray, meta: pd.DataFrame, cfg: PixelVideoConfig) -> Pushes:
+def training_pushes(frames: np.ndarray, meta: pd.DataFrame, cfg: PixelVideoConfig, *, calibrated: bool) -> Pushes:
     """The pushes a variant trains on, from a clip split laid out like ``train`` (2 calibration + query clips
     per object). Calibrated: the query clips, conditioned on their object's calibration clips. Without
     calibration: every clip, one set per object (its latent is the object)."""
@@ -267,7 +275,7 @@ def training_pushes(frames: np.ndarray, meta: pd.DataFrame, cfg: PixelVideoConfi
     if not (len(cal0) == len(cal1) == len(order)):
         raise ValueError("every object needs its two calibration clips (roles calibration_0 and calibration_1)")
     cal = np.stack([cal0, cal1], 1)
-    rows = meta.index[meta["role"] == "query"].to_numpy() if cfg.calibrated else meta.index.to_numpy()
+    rows = meta.index[meta["role"] == "query"].to_numpy() if calibrated else meta.index.to_numpy()
     fr = list(cfg.frames)
     context, target = to_float(frames[rows, 0]), to_float(frames[rows][:, fr])
     slide = torch.stack([log_slide(context, target[:, i]) for i in range(len(fr))], 1)
@@ -328,15 +336,22 @@ def empty_table(frames: np.ndarray, *, red: int = 30) -> np.ndarray:
 
 
 def train_pixel_video(
-    frames: np.ndarray, meta: pd.DataFrame, cfg: PixelVideoConfig, *, progress: bool = True
+    frames: np.ndarray,
+    meta: pd.DataFrame,
+    cfg: PixelVideoConfig,
+    *,
+    calibrated: bool,
+    threads: int = 2,
+    progress: bool = True,
 ) -> tuple[PixelVideoModel, list[dict]]:
-    """Fit the model on a clip split (uint8 frames (N, T, H, W, 3) and its metadata); returns it and the
-    history (one dict per epoch: the ELBO's nll and kl, the pixel error)."""
+    """Fit the calibrated variant or the one without calibration on a clip split (uint8 frames
+    (N, T, H, W, 3) and its metadata); returns it and the history (one dict per epoch: the ELBO's nll
+    and kl, the pixel error, the seconds it took)."""
     torch.manual_seed(cfg.seed)
-    torch.set_num_threads(cfg.threads)
-    p = training_pushes(frames, meta, cfg)
+    torch.set_num_threads(threads)
+    p = training_pushes(frames, meta, cfg, calibrated=calibrated)
     bg = empty_table(frames[:: max(1, len(frames) // 400)][:, list(cfg.frames)])
-    model = PixelVideoModel(cfg, frame_shape=frames.shape[2:4], background=bg,
+    model = PixelVideoModel(cfg, calibrated=calibrated, frame_shape=frames.shape[2:4], background=bg,
                             mean_log_slide=p.slide.mean(0).numpy())  # fmt: skip
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     steps = cfg.epochs * math.ceil(p.n_sets / cfg.batch_size)
@@ -344,6 +359,7 @@ def train_pixel_video(
     gen = torch.Generator().manual_seed(cfg.seed)
     history = []
     for epoch in tqdm(range(cfg.epochs), desc="pixel video model", unit="epoch", disable=not progress):
+        start = time.perf_counter()
         perm = torch.randperm(p.n_sets, generator=gen)
         totals = {"nll": 0.0, "kl": 0.0, "pixels": 0.0}
         for i in range(0, p.n_sets, cfg.batch_size):
@@ -355,7 +371,7 @@ def train_pixel_video(
             sched.step()
             for k in totals:
                 totals[k] += parts[k] * min(cfg.batch_size, p.n_sets - i) / p.n_sets
-        history.append({"epoch": epoch + 1, **totals})
+        history.append({"epoch": epoch + 1, **totals, "seconds": time.perf_counter() - start})
         log.info("epoch %d: nll %.3f kl %.3f pixels %.5f", epoch + 1, totals["nll"], totals["kl"], totals["pixels"])
     return model.eval(), history
 
@@ -382,7 +398,7 @@ def generate(
     """
     b, k = context.shape[:2]
     cal = None
-    if model.cfg.calibrated:
+    if model.calibrated:
         if calib_first is None or calib_rest is None or calib_speed is None:
             raise ValueError("the calibrated pixel model needs the calibration pushes' frames and speeds")
         cs = torch.as_tensor(np.broadcast_to(calib_speed, (b, 2)).copy(), dtype=torch.float32)
@@ -411,7 +427,8 @@ def save_pixel_video(path: str | os.PathLike, model: PixelVideoModel, history: l
     from imply.io import atomic_path
 
     payload = {
-        "config": asdict(model.cfg),
+        "config": model.cfg.to_dict(),
+        "calibrated": model.calibrated,
         "frame_shape": tuple(model.background.shape[-2:]),
         "state": model.state_dict(),
         "history": history,
@@ -426,11 +443,10 @@ def load_pixel_video(path: str | os.PathLike) -> tuple[PixelVideoModel, list[dic
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except (OSError, RuntimeError, pickle.UnpicklingError) as exc:
         raise ValueError(f"{path}: not a pixel video checkpoint ({exc})") from exc
-    if not isinstance(payload, dict) or not {"config", "frame_shape", "state"} <= set(payload):
-        raise ValueError(f"{path}: not a pixel video checkpoint (needs config, frame_shape and state)")
-    cfg = dict(payload["config"])
-    cfg["frames"] = tuple(cfg["frames"])
-    model = PixelVideoModel(PixelVideoConfig(**cfg), frame_shape=tuple(payload["frame_shape"]))
+    if not isinstance(payload, dict) or not {"config", "calibrated", "frame_shape", "state"} <= set(payload):
+        raise ValueError(f"{path}: not a pixel video checkpoint (needs config, calibrated, frame_shape and state)")
+    cfg = PixelVideoConfig.from_dict(payload["config"], f"{path}: config")
+    model = PixelVideoModel(cfg, calibrated=payload["calibrated"], frame_shape=tuple(payload["frame_shape"]))
     model.load_state_dict(payload["state"])
     return model.eval(), list(payload.get("history", []))
 
@@ -454,7 +470,7 @@ class PixelVideoWorldModel:
         self.seed = int(seed)
 
     def rollout(self, request) -> np.ndarray:
-        calibrated = self.model.cfg.calibrated
+        calibrated = self.model.calibrated
         if calibrated and request.calibration_frames is None:
             raise ValueError(
                 f"{self.name} was trained with calibration pushes in context; condition {request.condition!r} "
@@ -479,5 +495,5 @@ def trained_pixel_video(
     """
     model, _ = load_pixel_video(checkpoint)
     if name is None:
-        name = "pixel_" + ("calib" if model.cfg.calibrated else "nocalib")
+        name = "pixel_" + ("calib" if model.calibrated else "nocalib")
     return PixelVideoWorldModel(model, name=name, batch_size=int(batch_size), seed=int(seed))

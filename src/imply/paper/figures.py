@@ -186,3 +186,64 @@ def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> No
     with atomic_path(png_path) as tmp:
         fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
     plt.close(fig)
+
+
+def figure3(
+    *,
+    true_rest: np.ndarray,
+    generated_rest: np.ndarray,
+    panel_labels: Sequence[str],
+    slides: dict[str, pd.DataFrame],
+    selection: dict[str, dict[str, float]],
+    pdf_path: str | os.PathLike,
+    png_path: str | os.PathLike,
+) -> None:
+    """Figure 3 (beyond the paper), the pixel-space world model.
+
+    true_rest, generated_rest: uint8 (P, H, W, 3) rest frames of P pushes, labelled by
+    ``panel_labels``; slides: per variant label, rows with ``true_displacement_m`` and
+    ``read_displacement_m``; selection: rule -> {"track", "error"} among the sample sets.
+    """
+    plt.rcParams.update({"svg.hashsalt": "imply", "pdf.compression": 6})
+    p = len(true_rest)
+    fig = plt.figure(figsize=(15, 0.85 * p + 1.0))
+    grid = fig.add_gridspec(p, 4, width_ratios=[2.2, 2.2, 1.1, 1.1])
+    for i in range(p):
+        for j, (frames, title) in enumerate(((true_rest, "true rest frame"), (generated_rest, "generated (sample 0)"))):
+            ax = fig.add_subplot(grid[i, j])
+            ax.imshow(frames[i], interpolation="nearest")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if j == 0:
+                ax.set_ylabel(panel_labels[i], rotation=0, ha="right", va="center", fontsize=7)
+            if i == 0:
+                ax.set_title(f"(a) {title}", fontsize=9)
+    ax = fig.add_subplot(grid[:, 2])
+    colours = ("tab:blue", "tab:grey", "tab:green")
+    for (label, d), colour in zip(slides.items(), colours, strict=False):
+        ax.scatter(d["true_displacement_m"] * 100, d["read_displacement_m"] * 100, s=4, alpha=0.4, color=colour,
+                   label=label)  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    lim = ax.get_xlim()
+    ax.plot(lim, lim, "k--", lw=0.8)
+    ax.set_xlabel("true slide (cm)")
+    ax.set_ylabel("slide read off generated frames (cm)")
+    ax.set_title("(b) read against true", fontsize=9)
+    ax.legend(fontsize=7, markerscale=3)
+    ax = fig.add_subplot(grid[:, 3])
+    rules = list(selection)
+    y = np.arange(len(rules))
+    ax.barh(y - 0.2, [selection[r]["track"] for r in rules], height=0.4, color="tab:purple", label="tracking r")
+    ax.barh(y + 0.2, [selection[r]["error"] for r in rules], height=0.4, color="tab:orange", label="mean log error")
+    ax.set_yticks(y, [f"lowest {r}" if r in ("anchored", "self") else r for r in rules], fontsize=8)
+    ax.axvline(0, color="k", lw=0.6)
+    ax.invert_yaxis()
+    ax.set_title("(c) choosing among sample sets", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    with atomic_path(pdf_path) as tmp:
+        fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "ModDate": None})
+    with atomic_path(png_path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
+    plt.close(fig)

@@ -9,11 +9,12 @@ does not produce. Columns:
     ``macros.tex`` and the row of the reproduction report, so grepping it leads here.
 ``section``
     The paper section that reports it (``3``, ``4``, ``5``), or ``gap`` for the
-    diagnostic's benchmark and ``evaluate`` for the stand-ins measured through
-    ``imply evaluate``, which the paper does not have.
+    diagnostic's benchmark, ``evaluate`` for the stand-ins measured through
+    ``imply evaluate`` and ``beyond`` for the pixel-space world model, which the paper
+    does not have (the reproduction report gives ``beyond`` a section of its own).
 ``stage``
     The workflow stage whose result part reports it (``section4``, ``clips``,
-    ``section5``, ``gap``, ``evaluate``); empty for a paper number the study does not produce.
+    ``section5``, ``gap``, ``evaluate``, ``pixel``); empty for a paper number the study does not produce.
 ``source``
     The dotted name of the function that computes it: the value is read from that
     function's result document (written with :func:`imply.paper.results.write_result`).
@@ -44,10 +45,11 @@ import re
 from importlib import resources
 from pathlib import Path
 
+from imply.config_check import PAPER_STAGES
 from imply.results import Entry, Registry
 
 COLUMNS = ["name", "section", "stage", "source", "path", "format", "paper", "label"]
-STAGES = ("section4", "clips", "section5", "gap", "evaluate")
+STAGES = PAPER_STAGES
 _NAME = re.compile(r"^[A-Za-z]+$")
 
 
