@@ -9,6 +9,7 @@ rule pixel_train:
         IMPLY_ENV
     input:
         clips="results/clips/train.npz",
+        meta="results/clips/train.csv",
     output:
         model="results/pixel/{variant}/model.pt",
         history="results/pixel/{variant}/training.json",
