@@ -34,3 +34,8 @@ def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.Compl
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc
+
+
+def planned(proc: subprocess.CompletedProcess) -> set[str]:
+    """The rules a dry run (``-n``) plans, from its "rule NAME:" lines."""
+    return {line.split()[1].rstrip(":") for line in proc.stdout.splitlines() if line.startswith("rule ")}

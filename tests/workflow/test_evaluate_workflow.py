@@ -6,14 +6,10 @@ import json
 
 import yaml
 
-from workflow_helpers import ROOT, copy_workflow, snakemake
+from workflow_helpers import ROOT, copy_workflow, planned, snakemake
 
 TINY = ROOT / "tests" / "config" / "evaluate_tiny.yaml"
 TARGET = "results/paper/parts/evaluate.json"
-
-
-def planned(proc) -> set[str]:
-    return {line.split()[1].rstrip(":") for line in proc.stdout.splitlines() if line.startswith("rule ")}
 
 
 def test_the_evaluate_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):

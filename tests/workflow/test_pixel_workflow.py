@@ -9,14 +9,10 @@ import json
 import yaml
 
 from imply.paper.registry import load_registry
-from workflow_helpers import ROOT, copy_workflow, snakemake
+from workflow_helpers import ROOT, copy_workflow, planned, snakemake
 
 TINY = ROOT / "tests" / "config" / "pixel_tiny.yaml"
 TARGETS = ["results/paper/reproduction.md", "results/paper/figures/figure3.png"]
-
-
-def planned(proc) -> set[str]:
-    return {line.split()[1].rstrip(":") for line in proc.stdout.splitlines() if line.startswith("rule ")}
 
 
 def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):

@@ -76,6 +76,19 @@ def write_report(
     return write_folder(out_dir, lambda tmp: _write_all(evaluations, tmp), force=force)
 
 
+def read_report(folder: str | os.PathLike) -> tuple[dict[str, Any], Any]:
+    """(``results.json``'s document, ``per_object.csv`` as a DataFrame) of a folder :func:`write_report` wrote."""
+    import json
+
+    import pandas as pd
+
+    folder = Path(folder)
+    if not (folder / "results.json").is_file() or not (folder / "per_object.csv").is_file():
+        raise ValueError(f"{folder} is not an imply evaluate report (results.json, per_object.csv)")
+    doc = json.loads((folder / "results.json").read_text())
+    return doc, pd.read_csv(folder / "per_object.csv", dtype={"object_id": str, "model": str})
+
+
 def check_evaluations(evaluations: Sequence[Evaluation]) -> None:
     """ValueError unless there is at least one evaluation, all of one suite, with distinct model names."""
     if not evaluations:

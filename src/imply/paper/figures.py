@@ -87,6 +87,15 @@ def figure1(
     plt.close(fig)
 
 
+def _save_pdf_png(fig, pdf_path: str | os.PathLike, png_path: str | os.PathLike) -> None:
+    """Write ``fig`` as PDF and PNG (150 dpi), each atomically and without a timestamp, and close it."""
+    with atomic_path(pdf_path) as tmp:
+        fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "ModDate": None})
+    with atomic_path(png_path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
+    plt.close(fig)
+
+
 def _f(x: float, spec: str = ".2f") -> str:
     return format(x, spec) if np.isfinite(x) else "nan"
 
@@ -130,11 +139,7 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
         ax[i].set_ylabel("true log error")
         ax[i].set_title(f"({'cd'[i - 2]}) {name} vs error, r = {_f(r)}")
     fig.tight_layout()
-    with atomic_path(pdf_path) as tmp:
-        fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "ModDate": None})
-    with atomic_path(png_path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
-    plt.close(fig)
+    _save_pdf_png(fig, pdf_path, png_path)
 
 
 def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> None:
@@ -242,8 +247,4 @@ def figure3(
     ax.set_title("(c) choosing among sample sets", fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    with atomic_path(pdf_path) as tmp:
-        fig.savefig(tmp, format="pdf", metadata={"CreationDate": None, "ModDate": None})
-    with atomic_path(png_path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150, metadata={"Software": None})
-    plt.close(fig)
+    _save_pdf_png(fig, pdf_path, png_path)

@@ -13,7 +13,6 @@ workflow on held-out objects (issue 23); the recipe was chosen on the validation
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
+from imply.evaluate.report import read_report
 from imply.models.pixel_video import PixelVideoConfig
 from imply.options import Config, option
 from imply.results import Claim, Values
@@ -46,13 +46,10 @@ class PixelConfig(Config):
 
 
 def _report(folder: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
-    folder = Path(folder)
-    if not (folder / "results.json").is_file() or not (folder / "per_object.csv").is_file():
-        raise ValueError(f"{folder} is not an imply evaluate report (results.json, per_object.csv)")
-    doc = json.loads((folder / "results.json").read_text())
+    """The one model's dict of a report folder and its per-object readings."""
+    doc, per_object = read_report(folder)
     if len(doc["models"]) != 1:
         raise ValueError(f"{folder}: expected one model's report, found {len(doc['models'])}")
-    per_object = pd.read_csv(folder / "per_object.csv", dtype={"object_id": str, "model": str})
     return doc["models"][0], per_object
 
 
@@ -96,6 +93,7 @@ def _selection(model: Mapping[str, Any], condition: str) -> dict[str, dict[str, 
 def _variant(model: Mapping[str, Any], per_object: pd.DataFrame, condition: str, history: list[dict]) -> dict:
     read, true = per_object_slopes(per_object, condition=condition)
     quality = model.get("frame_quality") or {}
+    scores = _condition(model, condition)
     return {
         "model": model["model"],
         "condition": condition,
@@ -106,8 +104,8 @@ def _variant(model: Mapping[str, Any], per_object: pd.DataFrame, condition: str,
         "slope_ratio": float(read.mean() / true.mean()),
         "saliency_ratio": _value(quality.get("saliency_ratio")),
         "psnr": _value(quality.get("psnr")),
-        "track": _value(_condition(model, condition)["track"]),
-        "error": _value(_condition(model, condition)["error"]),
+        "track": _value(scores["track"]),
+        "error": _value(scores["error"]),
         "spread": _value(model["spread"].get(condition)),
         "no_box_rollouts": int(sum(d["no_box"] for d in model["degenerate"])),
         "rollouts": int(sum(d["n_rollouts"] for d in model["degenerate"])),

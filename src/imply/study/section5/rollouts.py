@@ -153,8 +153,7 @@ def read_evaluations(
     (name, what it was fitted on, R^2 and mean |log error| on real check clips). Every seed
     needs both models (ValueError otherwise).
     """
-    import json
-
+    from imply.evaluate.report import read_report
     from imply.evaluate.suite import load_suite
 
     loaded = {}
@@ -169,16 +168,12 @@ def read_evaluations(
             raise ValueError(f"model {model!r} must be calib or nocalib")
         if model not in suites:
             raise ValueError(f"no suite given for the {model} model")
-        folder = Path(folder)
-        if not (folder / "per_object.csv").is_file() or not (folder / "results.json").is_file():
-            raise ValueError(f"{folder} is not an imply evaluate report (per_object.csv, results.json)")
+        doc, per_object = read_report(folder)
         if model not in loaded:
             loaded[model] = load_suite(suites[model])
         suite = loaded[model]
-        doc = json.loads((folder / "results.json").read_text())
         if doc.get("suite") != suite.checksum or len(doc["models"]) != 1:
             raise ValueError(f"{folder}: not one model scored on the suite {suites[model]}")
-        per_object = pd.read_csv(folder / "per_object.csv", dtype={"object_id": str, "model": str})
         tables[(model, seed)] = rollout_table_of_evaluation(
             per_object, object_ids=suite.object_ids, calibration_speeds=suite.calibration_speeds,
             calibration_displacement=suite.calibration_displacement, partner=suite.partner,
