@@ -1,16 +1,19 @@
-"""The other-contact benchmark on a development set: where the diagnostic's settings are chosen, never on the
-workflow's evaluation set.
+"""The gap benchmarks on development sets: where the diagnostic's settings are chosen, never on the workflow's
+evaluation sets.
 
 The development set has the design of config ``gap.contact_benchmark`` with another seed
 (default 7117; the evaluation set is the config's 2424): ``imply gap generate`` writes it,
 ``imply gap diagnose-many`` diagnoses it in two shards (one process per core), and
 :func:`imply.diagnose.benchmark.score_contact_cases` scores it exactly as the workflow scores
-the evaluation set. ``--set KEY=VALUE`` changes one diagnostic option (config ``gap.diagnose``);
+the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
+development seed 1001; the evaluation set is the config's 4242), scored by
+:func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic option (config ``gap.diagnose``);
 ``--ignore-measured`` leaves the logs' weighed masses out. The logs are generated once per
 folder and reused.
 
 Run: python benchmarks/gap_contact_dev.py --out /tmp/contact-dev [--seed 7117] [--set discrepancy_sd=0.3]
      [--name LABEL] [--cases]
+     python benchmarks/gap_contact_dev.py --main --out /tmp/main-dev [--name LABEL]
 
 Needs results/table/table.npz and results/gap/effect_tables (``snakemake --cores 2
 results/gap/effect_tables``). Prints the four target metrics with their counts, per engine.
@@ -28,16 +31,25 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from imply.diagnose.benchmark import find_summaries, score_contact_cases
+from imply.diagnose.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("null_no_library", "null_discrepancy", "named", "named_any", "wrong_mechanism")
+MAIN_METRICS = {
+    "false_alarm": "n_null",
+    "top1_big": "n_big",
+    "both_named_big": "n_double_big",
+    "none_recall_outside": "n_outside",
+    "magnitude_rel_error_median": "n_magnitudes",
+    "shrinkage_median": "n_shrinkage",
+}  # metric: its count
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True, help="folder for the development logs and their diagnoses")
-    ap.add_argument("--seed", type=int, default=7117, help="the development set's seed (not the config's 2424)")
+    ap.add_argument("--main", action="store_true", help="the main benchmark (gap.benchmark) instead")
+    ap.add_argument("--seed", type=int, default=None, help="the development set's seed (default 7117; --main 1001)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a gap.diagnose option")
     ap.add_argument("--ignore-measured", action="store_true", help="leave the logs' weighed masses out")
     ap.add_argument("--name", default="config", help="label of this run (its diagnoses' folder)")
@@ -47,8 +59,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
-    design = dict(config["gap"]["contact_benchmark"], seed=args.seed)
-    if args.seed == config["gap"]["contact_benchmark"]["seed"]:
+    section = "benchmark" if args.main else "contact_benchmark"
+    if args.seed is None:
+        args.seed = 1001 if args.main else 7117
+    design = dict(config["gap"][section], seed=args.seed)
+    if args.seed == config["gap"][section]["seed"]:
         ap.error(f"--seed {args.seed} is the evaluation set's seed; choose settings on another")
     options = dict(config["gap"]["diagnose"])
     for item in args.set:
@@ -60,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
 
     logs, labels = args.out / "logs", args.out / "labels.json"
     if not labels.exists():
-        subprocess.run(["imply", "gap", "generate", "--table", str(args.table), "--contact-bench-json",
+        subprocess.run(["imply", "gap", "generate", "--table", str(args.table),
+                        "--bench-json" if args.main else "--contact-bench-json",
                         json.dumps(design), "--logs", str(logs), "--sealed", str(labels), "--accuracy",
                         str(args.out / "accuracy.json"), "--threads", "2"], check=True)  # fmt: skip
     files = sorted(str(p) for p in logs.glob("*.csv"))
@@ -80,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     seconds = time.perf_counter() - t0
     sealed = json.loads(labels.read_text())
     summaries = find_summaries(sealed, [run / "shard0", run / "shard1"])
+    if args.main:
+        return _print_main(args, sealed, summaries, seconds, len(files))
     result = score_contact_cases(sealed, summaries, targets=design["targets"], min_size_sd=design["min_size_sd"])
     print(f"{args.name}: {len(files)} development logs (seed {args.seed}), diagnosed in {seconds:.0f} s")
     for key in METRICS:
@@ -89,6 +107,23 @@ def main(argv: list[str] | None = None) -> int:
         frame = pd.DataFrame(result["cases"])
         cols = ["case", "group", "engine", "effects", "verdict_kind", "causes", "alternatives"]
         print(frame[cols].to_string(index=False))
+    return 0
+
+
+def _print_main(args: argparse.Namespace, sealed: dict, summaries: dict, seconds: float, n_files: int) -> int:
+    from imply.cli.common import load_table
+    from imply.realworld.cases import BenchmarkConfig
+
+    config = BenchmarkConfig.from_dict(yaml.safe_load((ROOT / "config.yaml").read_text())["gap"]["benchmark"])
+    accuracy = json.loads((args.out / "accuracy.json").read_text())
+    sizes = visible_sizes(sealed, load_table(args.table), progress=False)
+    result = score_cases(sealed, summaries, sizes, config=config, accuracy=accuracy)
+    print(f"{args.name}: {n_files} development logs (seed {args.seed}), diagnosed in {seconds:.0f} s")
+    for key, n in MAIN_METRICS.items():
+        print(f"  {key:28s} {result[key]:.3f} (n {result[n]})")
+    if args.cases:
+        frame = pd.DataFrame(result["cases"])
+        print(frame[["case", "group", "effects", "accepted", "correct"]].to_string(index=False))
     return 0
 
 

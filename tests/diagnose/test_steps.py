@@ -225,3 +225,18 @@ def test_pipeline_names_anisotropy_and_its_summary_reads_back(analytic_table, tm
     back = Summary.from_dict(written)
     assert back.to_dict() == written
     assert (back.verdict, back.effects, back.shrinkage, back.options) == (s.verdict, s.effects, s.shrinkage, s.options)
+
+
+def test_direction_dependence_left_in_the_residuals(analytic_table):
+    from imply.diagnose.candidates import CANDIDATES
+    from imply.diagnose.explanations import direction_left
+
+    # 10 objects x 4 speeds: 40 pushes against 10 object means and 16 directional terms
+    aniso = problem_of(make_log(aniso=(0.08, 0.05), seed=3, n_objects=10), analytic_table)
+    base = aniso.fit(Model(), np.zeros(0), aniso.initial_fit())
+    assert direction_left(aniso, base) < 1e-4  # unmodelled, the anisotropy shows
+    model = Model((CANDIDATES["anisotropic"],))
+    with_it = aniso.fit(model, np.array([0.08, 0.05]), aniso.initial_fit(model, np.array([0.08, 0.05])))
+    assert direction_left(aniso, with_it) > 0.01  # modelled, nothing is left
+    null = problem_of(make_log(seed=4, n_objects=10), analytic_table)
+    assert direction_left(null, null.fit(Model(), np.zeros(0), null.initial_fit())) > 0.01

@@ -312,3 +312,103 @@ def test_bound_direction_says_which_library_bound_a_fit_sits_on():
     # the discrepancy's box only keeps fits finite: it is no library bound
     d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
     assert d.bound_direction(np.ones(d.dim)) is None
+
+
+# -- effects with a fingerprint the discrepancy cannot make -------------------------------------------------------
+
+
+def test_a_fingerprinted_effect_is_stated_beside_a_discrepancy_when_the_rest_of_the_gap_stays_open():
+    from imply.diagnose.candidates import discrepancy_candidate
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    names = ["tilt", "speed_gain"]
+    sel = Selection(_fit(names), [[_step(n, 30.0)] for n in names], [CANDIDATES[n] for n in names] + [d], None)
+    effects = [_effect("tilt", 0.015, 24.0), _effect("speed_gain", -0.05)]
+    ex = _explanations(causes=names, discrepancy=True, fingerprinted=["tilt"], removal_cost={"tilt": 40.0})
+    v = judge(sel, effects, shrink=_shrinkage(both=0.55), min_share=0.8, explanations=ex, discrepancy=_discrepancy())
+    assert (v.verdict, v.kind, v.effects, v.effect, v.partial, v.is_none) == (
+        "tilt", "fingerprinted", ["tilt"], "tilt", "tilt+speed_gain", False)  # fmt: skip
+    assert v.sentence == (
+        "The table slopes 0.015 rad toward 24 degrees (table frame). It leaves a mark on these pushes that no smooth "
+        "discrepancy can make (such as a dependence on the push direction), so it is stated as a cause. Friction that "
+        "varies along the table toward the same azimuth would leave much the same mark; to tell them apart, push one "
+        "object from several start positions. The rest of the gap is not explained: all terms together (tilt + speed_gain) close only 55% of the gap, and 0.0198 RMS "
+        "log d remains above the noise floor; look for an effect outside the library, or a contact that differs from "
+        "the table's."
+    )
+    # without a discrepancy in the final model the rest may be a directional mechanism outside the library: the
+    # same fit is a partial "none", as it is without the fingerprint
+    for without in (_explanations(causes=names, fingerprinted=["tilt"]), _explanations(causes=names, discrepancy=True)):
+        plain = judge(sel, effects, shrink=_shrinkage(both=0.55), min_share=0.8, explanations=without)
+        assert (plain.verdict, plain.kind, plain.partial) == (NONE, "none", "tilt+speed_gain")
+
+
+def test_a_fingerprinted_effect_stays_a_cause_beside_a_rest_outside_the_library():
+    from imply.diagnose.candidates import discrepancy_candidate
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    names = ["anisotropic", "speed_gain", "viscous"]
+    sel = Selection(_fit(names), [[_step(n, 30.0)] for n in names], [*(CANDIDATES[n] for n in names), d], None)
+    effects = [_effect("anisotropic", 0.2, 30.0), _effect("speed_gain", -0.1), _effect("viscous", 0.4)]
+    ex = _explanations(causes=names, discrepancy=True, fingerprinted=["anisotropic"], outside_library=True,
+                       reason="3 library effects at once beside a smooth discrepancy: most likely a mechanism "
+                       "outside the library")  # fmt: skip
+    v = judge(sel, effects, shrink=_shrinkage(both=0.97), min_share=0.8, explanations=ex, discrepancy=_discrepancy())
+    assert (v.verdict, v.kind, v.effects) == ("anisotropic", "fingerprinted", ["anisotropic"])
+    assert v.sentence.endswith(
+        "The rest of the gap is most likely a mechanism outside the library (the final model: 3 library effects at "
+        "once beside a smooth discrepancy). The closest combination describes that rest, not its cause: "
+        "the pusher runs 10.0% slower than commanded; the box feels viscous friction of 0.4 N s/m; a smooth "
+        "discrepancy; all together close 97% of the gap."
+    )
+
+
+def test_only_a_significant_directional_effect_the_discrepancy_cannot_imitate_is_fingerprinted(monkeypatch):
+    from imply.diagnose import explanations
+
+    costs = {"tilt": 40.0, "anisotropic": 3.0, "speed_gain": 50.0, "viscous": 60.0}
+    monkeypatch.setattr(explanations, "_removal_cost", lambda problem, fit, name, fold_of: costs[name])
+    dispersion = {"value": 0.5 * 100}  # held-out chi-square of the final fit, over 100 rows
+    monkeypatch.setattr(explanations, "_cv", lambda problem, fit, fold_of: dispersion["value"])
+    problem = type("P", (), {"n_rows": 100})()
+    r = {"tilt": 0.7, "anisotropic": 0.3, "speed_gain": 0.2, "viscous": 0.1}
+    causes = [CANDIDATES[n] for n in costs]
+
+    def marked(**kw):
+        return explanations.fingerprinted(problem, None, kw.pop("causes", causes), **{
+            "mimic_r": r, "pinned": set(), "fold_of": None, "margin": 6.0, "n_tried": 10, **kw})  # fmt: skip
+
+    # speed_gain and viscous: no dependence on direction, however little the discrepancy imitates them;
+    # anisotropic: its removal costs too little; tilt: 49% of its change is within the discrepancy's reach
+    assert marked() == {"tilt": 40.0}
+    assert marked(mimic_r={**r, "tilt": 0.71}) == {}  # 50.4%: more within its reach than beyond
+    assert marked(pinned={"tilt"}) == {}
+    assert marked(mimic_r={}) == {}
+    dispersion["value"] = 3.0 * 100  # a gap left open: every chi-square difference counts 3 times less
+    assert marked() == {"tilt": 40.0 / 3}
+    dispersion["value"] = 5.0 * 100
+    # 8 is past the margin (6) but not the selection's critical value, chi2(1 - 0.05 / 10, 2 dof) = 10.6
+    assert marked() == {}
+    assert marked(n_tried=1) == {"tilt": 8.0}  # chi2(0.95, 2 dof) = 5.99: the margin governs
+    dispersion["value"] = 8.0 * 100
+    assert marked(n_tried=1) == {}
+
+
+def test_why_a_final_model_is_no_confident_verdict():
+    from imply.diagnose.candidates import discrepancy_candidate
+    from imply.diagnose.explanations import Pinned, outside_reason
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+    two = Model((CANDIDATES["speed_offset"], CANDIDATES["viscous"]))
+    assert outside_reason([], two) is None
+    # effects the discrepancy can imitate are counted too: the sentence never says "0 library effects"
+    assert outside_reason([], Model((*two.candidates, d))) == (
+        "2 library effects at once beside a smooth discrepancy: most likely a mechanism outside the library"
+    )
+    assert outside_reason([], Model((*two.candidates, CANDIDATES["tilt"]))) == (
+        "3 library effects at once: most likely a mechanism outside the library"
+    )
+    pin = [Pinned(effect="viscous", drop_beyond_bound=20.0, critical=3.84)]
+    assert outside_reason(pin, two) == (
+        "viscous friction would go past the library's largest magnitude: most likely a mechanism outside the library"
+    )

@@ -256,7 +256,8 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     selection = forward_select(problem, base, pool, alias=alias, opts=opts)  # 4. which terms
     problem = selection.problem  # fitted under the accepted effects' model error
     # 5. what the verdict may state: effects the discrepancy mimics, alternatives, mechanisms outside the library
-    expl, final = explain(problem, selection, n_folds=opts.folds, alt_margin=opts.alt_margin, mimics=alias.mimicked)
+    expl, final = explain(problem, selection, n_folds=opts.folds, alt_margin=opts.alt_margin, mimics=alias.mimicked,
+                          mimic_r=alias.discrepancy_mimics, alpha=opts.alpha)  # fmt: skip
     held = heldout(problem, final, opts.folds)  # 6. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
     effects = accepted_effects(final.model, final.theta, cov=final.covariance() * shrink.dispersion, alias=alias)

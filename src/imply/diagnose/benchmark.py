@@ -10,7 +10,10 @@ mass and friction absorbs, and so what the diagnostic can possibly see. An effec
 two-effect log each effect's size is that of the same log with the effect alone.
 
 Scores (library effects are named by their alias class: an effect the diagnostic
-reports as aliased with the one named counts as named):
+reports as aliased with the one named counts as named; an effect counts as accepted or
+named only where the verdict states it as a cause, :func:`stated`, not where the final
+model holds it to describe a rest the verdict leaves open or names it beside the
+discrepancy):
 
 - false alarms: null logs (Gaussian and heavy-tailed) with any effect accepted;
 - top-1: one-effect logs with a big identifiable effect whose first accepted effect is it;
@@ -62,11 +65,17 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
     return float(np.sqrt(fit.sse.sum() / v.size))
 
 
-def _classes(summary: Summary) -> list[set[str]]:
-    """Each accepted effect's alias class (as a set of candidate names)."""
+def stated(summary: Summary) -> list:
+    """The effects the verdict states as causes (of the final model's: not those it names only beside the
+    discrepancy, or uses only to describe a rest it leaves open)."""
     if summary.verdict.is_none:
         return []
-    return [set(e.cls.split("+")) if e.cls else {e.effect} for e in summary.effects]
+    return [e for e in summary.effects if e.effect in summary.verdict.effects]
+
+
+def _classes(summary: Summary) -> list[set[str]]:
+    """Each stated effect's alias class (as a set of candidate names)."""
+    return [set(e.cls.split("+")) if e.cls else {e.effect} for e in stated(summary)]
 
 
 def _named(true: str, summary: Summary) -> bool:
@@ -144,7 +153,7 @@ def score_cases(
         sd = lab["noise"]["sd"]
         size = sizes[cid]["all"]
         eff_sizes = {n: sizes[cid].get(n, size) for n in true}
-        accepted = [e.effect for e in s.effects] if not s.verdict.is_none else []
+        accepted = [e.effect for e in stated(s)]
         predicted = accepted[0] if accepted else "none"
         big_each = {n: bool(eff_sizes[n] >= min_size_sd * sd) for n in true}
         if group in ("null_gaussian", "null_heavy"):
@@ -163,7 +172,7 @@ def score_cases(
         for e in lab["effects"]:
             if group not in ("single", "double") or not big_each[e["name"]]:
                 continue
-            hit = next((r for r in s.effects if r.effect == e["name"]), None) if accepted else None
+            hit = next((r for r in stated(s) if r.effect == e["name"]), None)
             if hit is None:
                 continue
             t = _true_theta(e)
@@ -314,8 +323,8 @@ def score_contact_cases(
         group = lab["group"]
         true = [e["name"] for e in lab["effects"]]
         v = s.verdict
-        causes = [e.effect for e in s.effects] if not v.is_none else []
-        classes = [set(e.cls.split("+")) if e.cls else {e.effect} for e in s.effects] if not v.is_none else []
+        causes = [e.effect for e in stated(s)]
+        classes = _classes(s)
         alternatives = list(getattr(v, "alternatives", []) or [])
         row = {"case": cid, "group": group, "engine": lab.get("engine", "mujoco"), "design": lab.get("design", "random"),
                "effects": "+".join(true) or "null", "verdict_kind": v.kind, "causes": "+".join(causes) or "none",
@@ -324,7 +333,7 @@ def score_contact_cases(
         if group in CONTACT_SINGLE:
             e = lab["effects"][0]
             size = effect_size_on_contact(lab, e["name"])
-            hit = next((h for h in s.effects if h.effect == e["name"]), None) if causes else None
+            hit = next((h for h in stated(s) if h.effect == e["name"]), None)
             named_cls = any(e["name"] in c for c in classes)
             rel = None
             if hit is not None:

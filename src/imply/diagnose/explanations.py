@@ -14,16 +14,35 @@ This step decides what the verdict can say of them:
 - **alternatives**: at the step where an effect was accepted, every other candidate whose
   held-out gain came within ``alt_margin`` of it fits about as well, and is named beside
   it with the measurement that would tell them apart;
+- **fingerprinted**: a library effect of the final model whose change depends on the push
+  direction (a tilt, an anisotropy), which no smooth discrepancy in speed, mass and
+  friction can make, is stated as a cause whatever the rest of the gap does (even when
+  the other terms are flagged as outside the library, or together close too little:
+  :func:`imply.diagnose.verdict.judge`) if on this log's design at least half of its
+  projected change, in sum of squares, lies outside the discrepancy's reach (a squared
+  canonical correlation ``FINGERPRINT_R2`` or less), it is not at its bound, its removal
+  from the final model costs, held out, at least ``alt_margin`` and the selection's own
+  critical value (the chi-square quantile at ``alpha`` over the candidates tried), in
+  units of the final model's held-out chi-square per row where that is above 1 (a gap
+  left open inflates every difference of chi-squares), and it leaves no direction
+  dependence behind: the final model's residuals, averaged over replicates, show none
+  (an F test at ``alpha`` of cos/sin of the direction and twice it, each times 1, speed,
+  mass and friction, beside one mean per object; on log d and on log stop time where the
+  log has stop times, Bonferroni). Direction dependence left over means
+  that something else shaped by direction is at work (friction that varies along the
+  table looks like a tilt, but not quite), so nothing is stated on the strength of it;
 - **outside the library**: an effect that the data pull past its library bound (the
   profiled sum of squares would fall by more than the 95% chi-square quantile of one
   degree of freedom beyond it), or three or more terms at once (library effects, the
-  discrepancy counted as one), are no
-  confident verdict: the combination describes the residual, and the likely cause is a
-  mechanism the library does not have.
+  discrepancy counted as one), are no confident verdict: the combination describes the
+  residual, and the likely cause is a mechanism the library does not have. Fingerprinted
+  effects stay causes beside it.
 
 ``alt_margin`` is a difference of held-out chi-squares (twice a log likelihood ratio);
 its default 6 is the customary threshold of "strong" evidence, fixed before the
-benchmark was run, not tuned on it.
+benchmark was run, not tuned on it. ``FINGERPRINT_R2`` (one half: more of the effect's
+signal is beyond the discrepancy's reach than within it) was fixed before any benchmark
+run too.
 """
 
 from __future__ import annotations
@@ -33,10 +52,25 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT
+from imply.diagnose.candidates import (
+    CANDIDATES,
+    DISCREPANCY,
+    FRICTION2,
+    SPEED_GAIN,
+    SPEED_OFFSET,
+    TILT,
+    Candidate,
+    Model,
+    scaled,
+)
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.selection import Selection, folds
+
+# a library effect is fingerprinted when at most this share of its projected change (squared canonical
+# correlation) is something the discrepancy can imitate on the log's design
+FINGERPRINT_R2 = 0.5
+DIRECTIONAL = (TILT, FRICTION2)  # candidate kinds whose change depends on the push direction
 
 # what would tell an effect from another that fits as well (by candidate; "discrepancy" for the model discrepancy)
 SEPARATE_BY = {
@@ -89,6 +123,14 @@ class Explanations(Record):
     outside_library: bool
     reason: str | None  # why the verdict is not confident (None: it is)
     alt_margin: float
+    # causes with a fingerprint no smooth discrepancy can make on this design, each significant in the final
+    # model on its own: stated even where the rest of the gap is flagged or stays open
+    fingerprinted: list[str] = json_field(default_factory=list)
+    removal_cost: dict[str, float] = json_field(
+        default_factory=dict
+    )  # what each one's removal costs (dispersion units)
+    # p-value of the direction dependence the final model leaves in the residuals (None: not tested)
+    direction_left_p: float | None = json_field(omit_none=True, default=None)
 
 
 def _cv(problem: Problem, jf: JointFit, fold_of: np.ndarray) -> float:
@@ -112,6 +154,74 @@ def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin:
     return fit, dropped
 
 
+def _removal_cost(problem: Problem, fit: JointFit, name: str, fold_of: np.ndarray) -> float:
+    """The held-out chi-square that leaving library effect ``name`` out of ``fit`` (the rest refitted) costs."""
+    jf = problem.fit(fit.model.without(name), fit.model.theta_without(fit.theta, name), fit.objects)
+    return _cv(problem, jf, fold_of) - _cv(problem, fit, fold_of)
+
+
+def _direction_p(r: np.ndarray, phi: np.ndarray, obj: np.ndarray, n_obj: int, covariates: list[np.ndarray]) -> float:
+    """p-value of an F test of cos/sin of ``phi`` and of twice it, each times 1 and each covariate, on ``r``
+    beside one mean per object (1.0 where the directions cannot show any)."""
+    objects = (obj[:, None] == np.arange(n_obj)[None, :]).astype(float)
+    ways = np.stack([np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    directional = np.concatenate([ways * x[:, None] for x in (np.ones_like(phi), *covariates)], 1)
+
+    def rss_rank(x: np.ndarray) -> tuple[float, int]:
+        coef, _, rank, _ = np.linalg.lstsq(x, r, rcond=1e-9)
+        return float(np.sum((r - x @ coef) ** 2)), int(rank)
+
+    rss0, p0 = rss_rank(objects)
+    rss1, p1 = rss_rank(np.concatenate([objects, directional], 1))
+    k, dof = p1 - p0, r.size - p1
+    if k <= 0 or dof <= 0 or rss1 <= 0:
+        return 1.0
+    return float(stats.f.sf((rss0 - rss1) / k / (rss1 / dof), k, dof))
+
+
+def direction_left(problem: Problem, fit: JointFit) -> float:
+    """p-value of the direction dependence left in ``fit``'s residuals, replicates averaged: the smaller of the
+    log d and log stop time tests (where stop times are used) times the number of tests, each an F test of cos/sin
+    of the direction and of twice it, each times 1, speed, mass and friction (scaled), beside one mean per object."""
+    lm_c, lu_c = fit.objects.lm[problem.c_obj], fit.objects.lu[problem.c_obj]
+    observed = problem.row_residuals(problem.predict(fit.model, fit.theta, lm_c, lu_c))
+    weights = (problem.w_d, problem.w_t)
+    ps = []
+    for resid, w in zip(observed, weights, strict=True):
+        if resid is None:
+            continue
+        keep = w > 0
+        n_c = np.bincount(problem.cond[keep], minlength=problem.n_cond)
+        seen = n_c > 0
+        r = np.bincount(problem.cond[keep], resid[keep], minlength=problem.n_cond)[seen] / n_c[seen]
+        covariates = [scaled(problem.c_v[seen], *problem.v_range), scaled(lm_c[seen], *problem.lm_range),
+                      scaled(lu_c[seen], *problem.lu_range)]  # fmt: skip
+        ps.append(_direction_p(r, problem.c_phi[seen], problem.c_obj[seen], problem.n_obj, covariates))
+    return min(1.0, min(ps) * len(ps))
+
+
+def fingerprinted(
+    problem: Problem, fit: JointFit, causes: list[Candidate], *, mimic_r: dict[str, float], pinned: set[str],
+    fold_of: np.ndarray, margin: float, alpha: float = 0.05, n_tried: int = 1,
+) -> dict[str, float]:  # fmt: skip
+    """The ``causes`` whose change depends on the push direction, at most ``FINGERPRINT_R2`` of it (squared
+    canonical correlation) within the discrepancy's reach on this design, not ``pinned`` at their bound, whose
+    removal from ``fit`` costs, held out and in units of ``fit``'s own dispersion (its held-out chi-square per row,
+    at least 1), at least ``margin`` and the selection's own critical value (the chi-square quantile at ``alpha`` /
+    ``n_tried`` for the effect's components): {name: that scaled cost}."""
+    out = {}
+    dispersion = None
+    for c in causes:
+        if c.kind not in DIRECTIONAL or c.name in pinned or mimic_r.get(c.name, 1.0) ** 2 > FINGERPRINT_R2:
+            continue
+        if dispersion is None:  # the rest of the gap left open inflates every chi-square difference by this much
+            dispersion = max(1.0, _cv(problem, fit, fold_of) / max(problem.n_rows, 1))
+        cost = _removal_cost(problem, fit, c.name, fold_of) / dispersion
+        if cost >= max(margin, float(stats.chi2.ppf(1 - alpha / max(n_tried, 1), c.dim))):
+            out[c.name] = float(cost)
+    return out
+
+
 def _pinned(fit: JointFit, level: float = 0.95) -> list[Pinned]:
     """Library effects at their bound that the data pull beyond it (one-step profiled drop of the sum of squares)."""
     crit = float(stats.chi2.ppf(level, 1))
@@ -119,14 +229,18 @@ def _pinned(fit: JointFit, level: float = 0.95) -> list[Pinned]:
 
 
 def explain(
-    problem: Problem, selection: Selection, *, n_folds: int, alt_margin: float, mimics: list[str] = ()
-) -> tuple[Explanations, JointFit]:
+    problem: Problem, selection: Selection, *, n_folds: int, alt_margin: float, mimics: list[str] = (),
+    mimic_r: dict[str, float] | None = None, alpha: float = 0.05,
+) -> tuple[Explanations, JointFit]:  # fmt: skip
     """What the verdict may state of the accepted terms, and the final fit (mimicked effects left out).
 
     ``mimics``: the library effects the discrepancy can imitate on this log's design
     (:attr:`imply.diagnose.aliasing.Aliasing.mimicked`). One of them kept beside the discrepancy is
     confounded with it: how much of the gap goes to either is set by the discrepancy's prior, not by
-    the pushes, so it is named beside the discrepancy and not stated as a cause."""
+    the pushes, so it is named beside the discrepancy and not stated as a cause. ``mimic_r``: each
+    library effect's largest canonical correlation with the discrepancy on this design
+    (:attr:`imply.diagnose.aliasing.Aliasing.discrepancy_mimics`; without it no effect is fingerprinted);
+    ``alpha``: the level of the test for direction dependence left over."""
     fold_of = folds(problem.n_obj, n_folds)
     fit, dropped = _drop_mimicked(problem, selection.fit, fold_of, alt_margin)
     confounded = [c.name for c in fit.model.library if c.name in mimics] if fit.model.discrepancy is not None else []
@@ -156,23 +270,36 @@ def explain(
                                             separate_by=separators([acc.name, *names])))  # fmt: skip
     pinned = _pinned(fit)
     causes = [c.name for c in fit.model.library if c.name not in confounded]
-    reason = None
-    if pinned:
-        reason = (f"{' and '.join(CANDIDATES[p.effect].phrase for p in pinned)} would go past the library's largest "
-                  "magnitude: "
-                  "most likely a mechanism outside the library")  # fmt: skip
-    elif len(fit.model.candidates) >= 3:  # the discrepancy counts as one term: it is one more thing to explain
-        reason = (f"{len(causes)} library effects at once"
-                  + (" beside a smooth discrepancy" if fit.model.discrepancy is not None else "")
-                  + ": most likely a mechanism outside the library")  # fmt: skip
+    marked = fingerprinted(problem, fit, [c for c in fit.model.library if c.name in causes], mimic_r=mimic_r or {},
+                           pinned={p.effect for p in pinned}, fold_of=fold_of, margin=alt_margin, alpha=alpha,
+                           n_tried=len(first))  # fmt: skip
+    left = direction_left(problem, fit) if marked else None
+    if left is not None and left < alpha:  # direction dependence left over: not this effect's fingerprint alone
+        marked = {}
+    reason = outside_reason(pinned, fit.model)
     return (
         Explanations(
             causes=causes, discrepancy=fit.model.discrepancy is not None, confounded=confounded, mimicked=list(dropped),
             mimicked_margin=dropped, alternatives=alternatives, pinned=pinned, outside_library=reason is not None,
-            reason=reason, alt_margin=alt_margin,
+            reason=reason, alt_margin=alt_margin, fingerprinted=list(marked), removal_cost=marked,
+            direction_left_p=left,
         ),
         fit,
     )  # fmt: skip
+
+
+def outside_reason(pinned: list[Pinned], model: Model) -> str | None:
+    """Why the final ``model`` is no confident verdict (None: it is one): effects the data pull past their bound
+    (``pinned``), or three or more terms at once (every library effect, confounded ones too, and the discrepancy
+    as one)."""
+    if pinned:
+        return (f"{' and '.join(CANDIDATES[p.effect].phrase for p in pinned)} would go past the library's largest "
+                "magnitude: most likely a mechanism outside the library")  # fmt: skip
+    if len(model.candidates) >= 3:
+        return (f"{len(model.library)} library effects at once"
+                + (" beside a smooth discrepancy" if model.discrepancy is not None else "")
+                + ": most likely a mechanism outside the library")  # fmt: skip
+    return None
 
 
 def separators(names: list[str]) -> list[str]:

@@ -4,7 +4,14 @@ The effects that forward selection accepted are the verdict if together they clo
 least ``min_share`` of the held-out gap above the noise floor (both observables,
 whitened: :attr:`imply.diagnose.shrinkage.Shrinkage.judged`); otherwise the verdict is
 "none of the candidates" (a partial one, naming the best combination, where effects were
-accepted but closed too little), with the unexplained residual. With nothing accepted,
+accepted but closed too little), with the unexplained residual. Where the final model
+holds the discrepancy (the contact differs from the table's), effects with a fingerprint
+no smooth discrepancy can make on the log's design
+(:attr:`imply.diagnose.explanations.Explanations.fingerprinted`) are stated even then, and
+beside a rest flagged as outside the library: the sentence says which part of the gap
+they explain and what stays open. Without the discrepancy a rest left open may itself be
+a directional mechanism outside the library (friction that varies along the table looks
+like a tilt), and the fingerprint alone is not enough. With nothing accepted,
 the sentence tells "no gap beyond noise" from a gap that no candidate explains.
 
 Each effect says itself in the sentence through its candidate's ``clause``
@@ -16,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
+from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, TILT, speed_clause
 from imply.diagnose.discrepancy import DiscrepancyReport, discrepancy_sentence
 from imply.diagnose.estimates import AcceptedEffect
 from imply.diagnose.explanations import Explanations, separators
@@ -25,8 +32,8 @@ from imply.diagnose.selection import Selection
 from imply.diagnose.shrinkage import Shrinkage
 
 NONE = "none"
-EFFECTS, ALTERNATIVES, DISCREPANCY_ONLY, OUTSIDE, NOTHING, NOTHING_TO_EXPLAIN = (
-    "effects", "alternatives", "discrepancy", "outside_library", "none", "no_gap",
+EFFECTS, ALTERNATIVES, DISCREPANCY_ONLY, OUTSIDE, NOTHING, NOTHING_TO_EXPLAIN, FINGERPRINTED_ONLY = (
+    "effects", "alternatives", "discrepancy", "outside_library", "none", "no_gap", "fingerprinted",
 )  # fmt: skip
 NO_GAP = "no gap beyond noise"
 NO_CANDIDATE = "no candidate improves the fit beyond noise and the model's own accuracy"
@@ -46,7 +53,8 @@ class Verdict(Record):
     sentence: str
     # effects: library causes stated; alternatives: causes stated with others that fit as well; discrepancy: a
     # smooth discrepancy and no library cause; outside_library: the closest combination describes the residual;
-    # none: nothing explains the gap; no_gap: nothing to explain
+    # fingerprinted: effects with a fingerprint stated, the rest of the gap flagged or open; none: nothing
+    # explains the gap; no_gap: nothing to explain
     kind: str = json_field(default=EFFECTS)
     alternatives: list[str] = json_field(default_factory=list)  # library effects named as alternatives
 
@@ -151,6 +159,39 @@ def _alternatives_text(expl: Explanations, stated: set[str]) -> tuple[str, list[
     return f" Other explanations fit about as well: {'; '.join(parts)}; to tell them apart, {'; '.join(how)}.", named
 
 
+def _fingerprinted_verdict(
+    marked: list[AcceptedEffect], rest: list[AcceptedEffect], *, expl: Explanations, share: float | None,
+    shrink: Shrinkage, outside: bool, critical: float | None, names: list[str],
+) -> Verdict:  # fmt: skip
+    """The verdict stating the fingerprinted effects ``marked`` alone, the ``rest`` of the final model describing
+    what stays unexplained (flagged as outside the library, or closing too little)."""
+    one = len(marked) == 1
+    stated = "; ".join(_clauses(marked))
+    parts = [stated[0].upper() + stated[1:] + ".",
+             f"{'It leaves a mark' if one else 'They leave marks'} on these pushes that no smooth discrepancy can make "
+             f"(such as a dependence on the push direction), so {'it is stated as a cause' if one else 'they are stated as causes'}."]  # fmt: skip
+    if any(e.effect == TILT for e in marked):  # the mechanism outside the library known to leave much the same mark
+        parts.append("Friction that varies along the table toward the same azimuth would leave much the same mark; to "
+                     "tell them apart, push one object from several start positions.")  # fmt: skip
+    closes = "the whole gap" if (share or 0.0) >= 1.0 else f"{max(share or 0.0, 0.0):.0%} of the gap"
+    if outside:
+        described = _clauses(rest) + (["a smooth discrepancy"] if expl.discrepancy else [])
+        parts.append(f"The rest of the gap is most likely a mechanism outside the library (the final model: "
+                     f"{expl.reason.split(': ')[0]}). The closest combination describes that rest, not its cause: "
+                     f"{'; '.join(described)}; all together close {closes}.")  # fmt: skip
+    else:
+        parts.append(f"The rest of the gap is not explained: all terms together ({' + '.join(names)}) close only "
+                     f"{closes}, and {shrink.unexplained_rms_above_floor:.3g} RMS log d remains above the noise floor; "
+                     "look for an effect outside the library, or a contact that differs from the table's.")  # fmt: skip
+    text = " ".join(parts)
+    return Verdict(
+        verdict="; ".join(e.cls for e in marked), effects=[e.effect for e in marked], cls=marked[0].cls,
+        effect=marked[0].effect, partial="+".join(names), lr_critical=critical,
+        reason="a fingerprinted effect; " + (expl.reason if outside else "the rest of the gap stays open"),
+        sentence=text, kind=FINGERPRINTED_ONLY,
+    )  # fmt: skip
+
+
 def judge(
     selection: Selection,
     effects: list[AcceptedEffect],
@@ -173,13 +214,20 @@ def judge(
         return Verdict(verdict=NONE, effects=[], cls=None, effect=None, reason=NO_GAP if no_gap else NO_CANDIDATE,
                        partial=None, lr_critical=critical, sentence=none_sentence(shrink, best=[], no_gap=no_gap),
                        kind=NOTHING_TO_EXPLAIN if no_gap else NOTHING)  # fmt: skip
-    if judged is not None and judged < min_share:
+    expl = explanations
+    # beside a smooth discrepancy (the contact differs from the table's), a fingerprinted effect stands whatever the
+    # rest does; without one, an open rest may be a directional mechanism outside the library, and nothing stands
+    marked = [e for e in effects if expl is not None and expl.discrepancy and e.effect in expl.fingerprinted]
+    low = judged is not None and judged < min_share
+    if marked and (low or expl.outside_library):
+        return _fingerprinted_verdict(marked, [e for e in effects if e not in marked], expl=expl, share=share,
+                                      shrink=shrink, outside=not low, critical=critical, names=names)  # fmt: skip
+    if low:
         return Verdict(
             verdict=NONE, effects=[], cls=None, effect=None, partial="+".join(names), lr_critical=critical,
             reason=f"the best candidates ({' + '.join(names)}) close only {judged:.0%} of the gap above the noise floor",
             sentence=none_sentence(shrink, best=names, no_gap=False), kind=NOTHING,
         )  # fmt: skip
-    expl = explanations
     if expl is not None and expl.outside_library:
         clauses = "; ".join(_clauses(effects)) if effects else "a smooth discrepancy"
         final = "+".join([e.effect for e in effects] + ([DISCREPANCY] if expl.discrepancy else []))
