@@ -412,3 +412,23 @@ def test_why_a_final_model_is_no_confident_verdict():
     assert outside_reason(pin, two) == (
         "viscous friction would go past the library's largest magnitude: most likely a mechanism outside the library"
     )
+
+
+def test_an_effect_the_pushes_prefer_to_the_discrepancy_is_not_confounded_with_it():
+    from imply.diagnose.candidates import discrepancy_candidate
+    from imply.diagnose.explanations import preferred_to_discrepancy
+
+    d = discrepancy_candidate(stop_time=False, prior_sd=0.1, bound=1.0)
+
+    def tried(c, gain):
+        return StepResult(c, _fit([]), 50.0, c.dim, 6.0, gain, 0.1, 0.1, 0.0, True, [])
+
+    viscous, offset = CANDIDATES["viscous"], CANDIDATES["speed_offset"]
+    # step 1: viscous beats the discrepancy by 500; step 2 (the discrepancy in the model): nothing to compare with
+    steps = [[tried(viscous, 1972.0), tried(d, 1472.0)], [tried(offset, 30.0)]]
+    assert preferred_to_discrepancy(Selection(_fit([]), steps, [viscous, offset], None), 6.0) == {"viscous"}
+    # within the margin of the discrepancy, or below it: the prior, not the pushes, shares the gap out
+    close = [[tried(viscous, 1475.0), tried(d, 1472.0)]]
+    assert preferred_to_discrepancy(Selection(_fit([]), close, [viscous], None), 6.0) == set()
+    below = [[tried(offset, 61.8), tried(d, 285.5)]]
+    assert preferred_to_discrepancy(Selection(_fit([]), below, [offset], None), 6.0) == set()

@@ -10,7 +10,9 @@ This step decides what the verdict can say of them:
   an alternative to the discrepancy;
 - **confounded with the discrepancy**: a library effect kept beside the discrepancy that
   the discrepancy can imitate on this log's design is named beside it ("part of it could
-  as well be ...") and not stated as a cause;
+  as well be ...") and not stated as a cause, unless the pushes themselves prefer it: at
+  the step it was accepted it lowered the held-out chi-square by more than ``alt_margin``
+  beyond the discrepancy tried at the same step;
 - **alternatives**: at the step where an effect was accepted, every other candidate whose
   held-out gain came within ``alt_margin`` of it fits about as well, and is named beside
   it with the measurement that would tell them apart;
@@ -222,6 +224,23 @@ def fingerprinted(
     return out
 
 
+def preferred_to_discrepancy(selection: Selection, margin: float) -> set[str]:
+    """The accepted library effects that, at the step they were accepted, lowered the held-out chi-square by more
+    than ``margin`` beyond the discrepancy tried at the same step: the pushes prefer them, not the prior."""
+    out = set()
+    for acc, step in zip(selection.accepted, selection.steps, strict=False):
+        chosen = next((r for r in step if r.candidate.name == acc.name), None)
+        disc = next((r for r in step if not r.candidate.is_library), None)
+        if (
+            acc.is_library
+            and chosen is not None
+            and disc is not None
+            and chosen.heldout_gain - disc.heldout_gain > margin
+        ):
+            out.add(acc.name)
+    return out
+
+
 def _pinned(fit: JointFit, level: float = 0.95) -> list[Pinned]:
     """Library effects at their bound that the data pull beyond it (one-step profiled drop of the sum of squares)."""
     crit = float(stats.chi2.ppf(level, 1))
@@ -243,7 +262,9 @@ def explain(
     ``alpha``: the level of the test for direction dependence left over."""
     fold_of = folds(problem.n_obj, n_folds)
     fit, dropped = _drop_mimicked(problem, selection.fit, fold_of, alt_margin)
-    confounded = [c.name for c in fit.model.library if c.name in mimics] if fit.model.discrepancy is not None else []
+    preferred = preferred_to_discrepancy(selection, alt_margin)
+    confounded = ([c.name for c in fit.model.library if c.name in mimics and c.name not in preferred]
+                  if fit.model.discrepancy is not None else [])  # fmt: skip
     alternatives = []
     # the discrepancy alone, against the whole final model (from the baseline's held-out sum of squares)
     first = selection.steps[0] if selection.steps else []
