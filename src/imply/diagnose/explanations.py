@@ -128,9 +128,8 @@ class Explanations(Record):
     # causes with a fingerprint no smooth discrepancy can make on this design, each significant in the final
     # model on its own: stated even where the rest of the gap is flagged or stays open
     fingerprinted: list[str] = json_field(default_factory=list)
-    removal_cost: dict[str, float] = json_field(
-        default_factory=dict
-    )  # what each one's removal costs (dispersion units)
+    # what each one's removal costs, held out, in units of the final model's dispersion
+    removal_cost: dict[str, float] = json_field(default_factory=dict)
     # p-value of the direction dependence the final model leaves in the residuals (None: not tested)
     direction_left_p: float | None = json_field(omit_none=True, default=None)
 
@@ -231,13 +230,9 @@ def preferred_to_discrepancy(selection: Selection, margin: float) -> set[str]:
     for acc, step in zip(selection.accepted, selection.steps, strict=False):
         chosen = next((r for r in step if r.candidate.name == acc.name), None)
         disc = next((r for r in step if not r.candidate.is_library), None)
-        if (
-            acc.is_library
-            and chosen is not None
-            and disc is not None
-            and chosen.heldout_gain - disc.heldout_gain > margin
-        ):
-            out.add(acc.name)
+        if acc.is_library and chosen is not None and disc is not None:
+            if chosen.heldout_gain - disc.heldout_gain > margin:
+                out.add(acc.name)
     return out
 
 
