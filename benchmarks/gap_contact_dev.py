@@ -7,8 +7,8 @@ The development set has the design of config ``gap.contact_benchmark`` with anot
 :func:`imply.diagnose.benchmark.score_contact_cases` scores it exactly as the workflow scores
 the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
 development seed 1001; the evaluation set is the config's 4242), scored by
-:func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic option (config ``gap.diagnose``);
-``--ignore-measured`` leaves the logs' weighed masses out. The logs are generated once per
+:func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
+option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out. The logs are generated once per
 folder and reused.
 
 Run: python benchmarks/gap_contact_dev.py --out /tmp/contact-dev [--seed 7117] [--set discrepancy_sd=0.3]
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     sealed = json.loads(labels.read_text())
     summaries = find_summaries(sealed, [run / "shard0", run / "shard1"])
     if args.main:
-        return _print_main(args, sealed, summaries, seconds, len(files))
+        return _print_main(args, design, sealed, summaries, seconds, len(files))
     result = score_contact_cases(sealed, summaries, targets=design["targets"], min_size_sd=design["min_size_sd"])
     print(f"{args.name}: {len(files)} development logs (seed {args.seed}), diagnosed in {seconds:.0f} s")
     for key in METRICS:
@@ -110,11 +110,13 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _print_main(args: argparse.Namespace, sealed: dict, summaries: dict, seconds: float, n_files: int) -> int:
+def _print_main(
+    args: argparse.Namespace, design: dict, sealed: dict, summaries: dict, seconds: float, n_files: int
+) -> int:
     from imply.cli.common import load_table
     from imply.realworld.cases import BenchmarkConfig
 
-    config = BenchmarkConfig.from_dict(yaml.safe_load((ROOT / "config.yaml").read_text())["gap"]["benchmark"])
+    config = BenchmarkConfig.from_dict(design, "gap.benchmark")
     accuracy = json.loads((args.out / "accuracy.json").read_text())
     sizes = visible_sizes(sealed, load_table(args.table), progress=False)
     result = score_cases(sealed, summaries, sizes, config=config, accuracy=accuracy)

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.analysis import Summary
+from imply.diagnose.estimates import AcceptedEffect
 from imply.realworld.cases import BenchmarkConfig
 
 LIBRARY_GROUPS = ("single", "double", "single_unidentifiable")
@@ -65,7 +66,7 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
     return float(np.sqrt(fit.sse.sum() / v.size))
 
 
-def stated(summary: Summary) -> list:
+def stated(summary: Summary) -> list[AcceptedEffect]:
     """The effects the verdict states as causes (of the final model's: not those it names only beside the
     discrepancy, or uses only to describe a rest it leaves open)."""
     if summary.verdict.is_none:
@@ -167,7 +168,7 @@ def score_cases(
             correct = all(_named(n, s) for n in true)
         exact = None
         if group in ("single", "double"):
-            named = [c for c in _classes(s)]
+            named = _classes(s)
             exact = len(named) == len(true) and all(_named(n, s) for n in true)
         for e in lab["effects"]:
             if group not in ("single", "double") or not big_each[e["name"]]:

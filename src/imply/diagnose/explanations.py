@@ -138,6 +138,11 @@ def _cv(problem: Problem, jf: JointFit, fold_of: np.ndarray) -> float:
     return float(jf.heldout_sse_quadratic(fold_of).sum())
 
 
+def _refit_without(problem: Problem, fit: JointFit, name: str) -> JointFit:
+    """``fit`` with the library effect ``name`` left out, the rest refitted from where they stood."""
+    return problem.fit(fit.model.without(name), fit.model.theta_without(fit.theta, name), fit.objects)
+
+
 def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin: float):
     """Library effects the discrepancy explains as well, dropped one at a time (cheapest first)."""
     dropped: dict[str, float] = {}
@@ -145,7 +150,7 @@ def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin:
         base = _cv(problem, fit, fold_of)
         trials = []
         for c in fit.model.library:
-            jf = problem.fit(fit.model.without(c.name), fit.model.theta_without(fit.theta, c.name), fit.objects)
+            jf = _refit_without(problem, fit, c.name)
             trials.append((_cv(problem, jf, fold_of) - base, c.name, jf))
         cost, name, jf = min(trials, key=lambda t: (t[0], t[1]))
         if cost >= margin:
@@ -157,8 +162,7 @@ def _drop_mimicked(problem: Problem, fit: JointFit, fold_of: np.ndarray, margin:
 
 def _removal_cost(problem: Problem, fit: JointFit, name: str, fold_of: np.ndarray) -> float:
     """The held-out chi-square that leaving library effect ``name`` out of ``fit`` (the rest refitted) costs."""
-    jf = problem.fit(fit.model.without(name), fit.model.theta_without(fit.theta, name), fit.objects)
-    return _cv(problem, jf, fold_of) - _cv(problem, fit, fold_of)
+    return _cv(problem, _refit_without(problem, fit, name), fold_of) - _cv(problem, fit, fold_of)
 
 
 def _direction_p(r: np.ndarray, phi: np.ndarray, obj: np.ndarray, n_obj: int, covariates: list[np.ndarray]) -> float:
