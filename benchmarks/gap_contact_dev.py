@@ -2,11 +2,11 @@
 evaluation sets.
 
 The development set has the design of config ``gap.contact_benchmark`` with another seed
-(default 7117; the evaluation set is the config's 2424): ``imply gap generate`` writes it,
+(default 7117; the evaluation set is the config's): ``imply gap generate`` writes it,
 ``imply gap diagnose-many`` diagnoses it in two shards (one process per core), and
 :func:`imply.diagnose.benchmark.score_contact_cases` scores it exactly as the workflow scores
 the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
-development seed 1001; the evaluation set is the config's 4242), scored by
+development seed 1001; the evaluation set is the config's), scored by
 :func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
 option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out. The logs are generated once per
 folder and reused.
@@ -34,7 +34,7 @@ import yaml
 from imply.diagnose.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
-METRICS = ("null_no_library", "null_discrepancy", "named", "named_any", "wrong_mechanism")
+METRICS = ("null_no_library", "among_named", "one_cause", "named", "wrong_single", "wrong_mechanism")
 MAIN_METRICS = {
     "false_alarm": "n_null",
     "top1_big": "n_big",
@@ -103,9 +103,11 @@ def main(argv: list[str] | None = None) -> int:
     for key in METRICS:
         print(f"  {key:18s} {result[key]:.3f} (n {result['n_' + key]}); MuJoCo contact "
               f"{result[key + '_mujoco']:.2f}, Bullet {result[key + '_bullet']:.2f}")  # fmt: skip
+    print(f"  contenders         mean {result['contenders_mean']:.2f}, largest {result['contenders_max']}; one cause "
+          f"right {result['one_cause_right']:.3f} (n {result['n_one_cause_right']})")  # fmt: skip
     if args.cases:
         frame = pd.DataFrame(result["cases"])
-        cols = ["case", "group", "engine", "effects", "verdict_kind", "causes", "alternatives"]
+        cols = ["case", "group", "engine", "effects", "identification", "causes", "contenders"]
         print(frame[cols].to_string(index=False))
     return 0
 

@@ -26,9 +26,11 @@ def fake_results(reg, stage: str, value: float = 0.5) -> dict:
     if stage == "gap":
         doc["world_error"]["table_rms"] = value
         contact = doc.setdefault("contact", {})
-        contact.update(targets={"null_no_library": 0.9, "named": 0.8, "magnitude_within": 0.3, "wrong_mechanism": 0.1},
+        contact.update(targets={"null_no_library": 0.9, "among_named": 0.9, "contenders_mean": 3.0,
+                                "magnitude_within": 0.3, "wrong_single": 0.1, "closed_loop": 0.6},
                        min_size_sd=2.0)  # fmt: skip
-        for key in ("null_no_library", "null_discrepancy", "named", "named_any", "wrong_mechanism"):
+        for key in ("null_no_library", "among_named", "one_cause", "one_cause_right", "named", "wrong_single",
+                    "wrong_mechanism", "contenders_mean", "contenders_max"):  # fmt: skip
             for suffix in ("", "_mujoco", "_bullet"):
                 contact.setdefault(f"{key}{suffix}", value)
                 contact.setdefault(f"n_{key}{suffix}", value)

@@ -53,8 +53,8 @@ def _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case: dict, extra=()
     argv = ["diagnose", str(log), "--table", str(tiny_table_path), "--effects", EFFECTS,
             "--effect-grid-json", GRID, "--cache-dir", str(cache), "--threads", "2", "-o", str(out), *extra]  # fmt: skip
     assert main(argv) == 0
-    for name in ("summary.json", "report.md", "residuals.csv", "residuals_vs_speed.png", "before_after.png",
-                 "ranking.png"):  # fmt: skip
+    for name in ("summary.json", "report.md", "residuals.csv", "next_pushes.csv", "residuals_vs_speed.png",
+                 "before_after.png", "ranking.png", "hypotheses.png"):  # fmt: skip
         assert (out / name).is_file(), name
     with open(out / "summary.json") as fh:
         return json.load(fh), label, (out / "report.md").read_text()
@@ -73,7 +73,8 @@ def test_oblique_tilt_is_one_effect_with_its_azimuth(tmp_path, tiny_table, tiny_
     assert s["observables"] == ["displacement", "stop_time"]
     # the report leads with the verdict in one sentence, then the evidence
     first = report.split("\n")[2]
-    assert first.startswith("**The table slopes") and "toward" in first and "closes" in first
+    assert first.startswith("**The gap is explained (the leading hypothesis closes ")
+    assert ", and by one cause: the table slopes" in first and "toward" in first
     assert "Observables used: displacement and stop time" in report
     assert s["shrinkage"]["gap_share_closed"] > 0.6
 
@@ -85,15 +86,18 @@ def test_two_effects_at_once_are_both_named(tmp_path, tiny_table, tiny_table_pat
     by = {e["effect"]: e for e in s["effects"]}
     assert abs(by["speed_offset"]["magnitude"] - 0.05) < 0.015
     assert abs(((by["tilt"]["azimuth_deg"] - 200.0) + 180) % 360 - 180) < 25
-    assert [step["accepted"] for step in s["selection"]][:2] in (["tilt", "speed_offset"], ["speed_offset", "tilt"])
-    assert "The table slopes" in report and "than commanded" in report
+    assert s["verdict"]["identification"] == "one_cause"
+    lead = s["hypotheses"][0]
+    assert sorted(lead["effects"]) == ["speed_offset", "tilt"] and lead["weight"] > 0.5
+    assert s["inclusion"]["tilt"] > 0.95 and s["inclusion"]["speed_offset"] > 0.95
+    assert "the table slopes" in report and "than commanded" in report
 
 
 def test_null_log_with_gross_outliers_raises_no_alarm(tmp_path, tiny_table, tiny_table_path, cache):
     """Heavy-tailed noise and gross outliers: the outliers are flagged and left out, and the verdict is none."""
     case = _case([], seed=13, noise="heavy")
     s, label, report = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case)
-    assert s["verdict"]["verdict"] == "none", s["verdict"]
+    assert s["verdict"]["effects"] == [] and s["verdict"]["adequacy"] == "no_gap", s["verdict"]
     flagged = {tuple(label["rows_kept"][r["row"]]) for r in s["outliers"]["displacement"]}
     true = {(p, r) for r, p in label["outliers"]}
     assert true <= flagged
@@ -134,8 +138,8 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
     assert main([*args, "-o", str(report), "--force"]) == 0
     assert (report / "my_reading.md").read_text() == "keep me"
     assert sorted(p.name for p in report.iterdir() if p.name != "my_reading.md") == sorted(
-        [".imply-manifest.json", "summary.json", "report.md", "residuals.csv", "residuals_vs_speed.png",
-         "before_after.png", "ranking.png"]
+        [".imply-manifest.json", "summary.json", "report.md", "residuals.csv", "next_pushes.csv",
+         "residuals_vs_speed.png", "before_after.png", "ranking.png", "hypotheses.png"]
     )  # fmt: skip
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".report")]  # no temporary folder left
 

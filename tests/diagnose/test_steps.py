@@ -19,11 +19,11 @@ from imply.diagnose.aliasing import aliasing
 from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
 from imply.diagnose.candidates import Model
 from imply.diagnose.fit import Problem
+from imply.diagnose.hypotheses import NO_EFFECT, enumerate_hypotheses, log_evidence
 from imply.diagnose.localisation import localise
 from imply.diagnose.model_error import model_error
 from imply.diagnose.noise import estimate_noise
 from imply.diagnose.pushlog import PushLog
-from imply.diagnose.selection import forward_select
 from imply.diagnose.shrinkage import heldout, share_closed, shrinkage
 
 SPEEDS = (0.3, 0.5, 0.7, 0.9)
@@ -143,29 +143,45 @@ def test_a_speed_gain_with_weighed_masses_is_aliased_with_friction(analytic_tabl
 # -- step 4: forward selection ---------------------------------------------------------------
 
 
-def _selected(log: PushLog, table):
+def _hypotheses(log: PushLog, table):
     prob = problem_of(log, table)
     prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
     cands = candidates.get(TABLELESS)
     alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
-    return prob, base, forward_select(prob, base, cands, alias=alias, opts=OPTS)
+    hyps = enumerate_hypotheses(prob, base, cands, alias=alias, max_effects=OPTS.max_effects, screen=OPTS.screen,
+                                scan=OPTS.scan, n_folds=OPTS.folds)  # fmt: skip
+    return prob, base, hyps
 
 
-def test_forward_selection_finds_a_speed_offset(analytic_table):
-    prob, base, sel = _selected(make_log(seed=7, offset=0.05), analytic_table)
-    assert [c.name for c in sel.accepted] == ["speed_offset"]
-    assert abs(sel.fit.theta[0] - 0.05) < 0.01
-    first = sel.steps[0]
-    assert first[0].candidate.name == "speed_offset" and first[0].qualifies
-    assert [r.heldout_gain for r in first] == sorted((r.heldout_gain for r in first), reverse=True)
-    # the accepted effect brings its model error: the selection says what it fitted under
-    assert sel.problem is not prob and sel.problem.noise_d == prob.noise_d
+def test_the_hypotheses_weigh_a_speed_offset_first(analytic_table):
+    prob, base, hyps = _hypotheses(make_log(seed=7, offset=0.05), analytic_table)
+    lead = hyps.table[0]
+    assert lead.effects == ["speed_offset"] and lead.weight > 0.5
+    assert abs(lead.estimates[0].magnitude - 0.05) < 0.01
+    assert [h.weight for h in hyps.table] == sorted((h.weight for h in hyps.table), reverse=True)
+    assert abs(sum(h.weight for h in hyps.table) - 1.0) < 1e-9
+    # every hypothesis that weighs holds the offset; a small gain beside it cannot be ruled out
+    assert sum(h.weight for h in hyps.table if "speed_offset" in h.effects) > 0.99
+    # the baseline, each effect alone, every pair (three classes at most, max_effects 2): 1 + 3 + 3
+    labels = {h.label for h in hyps.table}
+    assert {NO_EFFECT, "speed_gain", "speed_offset", "anisotropic", "speed_gain+speed_offset"} <= labels
+    assert len(labels) == len(hyps.table)  # each hypothesis once
 
 
-def test_forward_selection_accepts_nothing_on_a_null_log(analytic_table):
-    _, base, sel = _selected(make_log(seed=8), analytic_table)
-    assert sel.accepted == [] and sel.fit is base and len(sel.steps) == 1
-    assert not any(r.qualifies for r in sel.steps[0])
+def test_the_baseline_carries_the_weight_of_a_null_log(analytic_table):
+    _, base, hyps = _hypotheses(make_log(seed=8), analytic_table)
+    assert hyps.table[0].label == NO_EFFECT and hyps.fits[0] is base
+    assert hyps.table[0].weight > 0.5
+
+
+def test_the_evidence_pays_for_an_effect_it_does_not_need(analytic_table):
+    # the same fit quality, one more parameter with a wide prior: lower evidence (the Occam factor)
+    prob, base, hyps = _hypotheses(make_log(seed=8), analytic_table)
+    gain = next(f for f, h in zip(hyps.fits, hyps.table, strict=True) if h.label == "speed_gain")
+    assert gain.sse <= base.sse + 1e-9
+    assert log_evidence(gain, 1.0) < log_evidence(base, 1.0) - 1.0
+    # a larger dispersion shrinks every difference of chi-squares
+    assert abs(log_evidence(base, 4.0) - log_evidence(base, 1.0)) < abs(log_evidence(base, 1.0))
 
 
 def test_model_error_counts_the_numerical_floor_and_interpolation(analytic_table):
@@ -192,11 +208,10 @@ def test_share_closed():
 
 
 def test_shrinkage_of_a_found_speed_offset(analytic_table):
-    _, base, sel = _selected(make_log(seed=7, offset=0.05), analytic_table)
-    prob = sel.problem
+    prob, base, hyps = _hypotheses(make_log(seed=7, offset=0.05), analytic_table)
     rd, rt = baseline_residuals(prob, base)
-    held = heldout(prob, sel.fit, 0)
-    shrink = shrinkage(prob, sel.fit, resid_d=rd, resid_t=rt, held=held)
+    held = heldout(prob, hyps.fits[0], 0)
+    shrink = shrinkage(prob, hyps.fits[0], resid_d=rd, resid_t=rt, held=held)
     assert shrink.effects == ["speed_offset"] and shrink.effect == "speed_offset"
     assert shrink.before_rms > 3 * shrink.after_rms and shrink.gap_share_closed > 0.9
     assert shrink.judged == shrink.both_share_closed and shrink.stop_time_share_closed is None
@@ -213,30 +228,23 @@ def test_pipeline_names_anisotropy_and_its_summary_reads_back(analytic_table, tm
     diag = diagnose(prob, candidates.get(TABLELESS), OPTS.replace(model_floor=0.0, max_effects=1))
     s = diag.summary
     assert s.verdict.effects == ["anisotropic"], s.verdict
+    assert s.verdict.identification == "one_cause" and s.verdict.adequacy == "explained"
     aniso = s.effects[0]
     assert abs(aniso.magnitude - np.hypot(0.1, 0.1)) < 0.03
     assert abs((aniso.azimuth_deg - 22.5 + 90) % 180 - 90) < 10
-    assert s.verdict.sentence.startswith("Friction is 1") and " higher along 2" in s.verdict.sentence
+    assert s.sentence.startswith("The gap is explained (the leading hypothesis closes ")
+    assert ", and by one cause: friction is 1" in s.sentence and " higher along 2" in s.sentence
+    assert s.inclusion["anisotropic"] > 0.95
     write_report(diag, tmp_path)
     written = json.loads((tmp_path / "summary.json").read_text())
-    assert written["verdict"]["class"] == "anisotropic" and "cls" not in written["verdict"]
+    assert written["effects"][0]["class"] == "anisotropic" and "cls" not in written["effects"][0]
+    assert written["verdict"]["identification"] == "one_cause"
     ranked = {r["effect"]: r for r in written["ranking"]}
     assert "azimuth_deg" in ranked["anisotropic"] and "azimuth_deg" not in ranked["speed_gain"]  # absent, not null
     back = Summary.from_dict(written)
     assert back.to_dict() == written
     assert (back.verdict, back.effects, back.shrinkage, back.options) == (s.verdict, s.effects, s.shrinkage, s.options)
-
-
-def test_direction_dependence_left_in_the_residuals(analytic_table):
-    from imply.diagnose.candidates import CANDIDATES
-    from imply.diagnose.explanations import direction_left
-
-    # 10 objects x 4 speeds: 40 pushes against 10 object means and 16 directional terms
-    aniso = problem_of(make_log(aniso=(0.08, 0.05), seed=3, n_objects=10), analytic_table)
-    base = aniso.fit(Model(), np.zeros(0), aniso.initial_fit())
-    assert direction_left(aniso, base) < 1e-4  # unmodelled, the anisotropy shows
-    model = Model((CANDIDATES["anisotropic"],))
-    with_it = aniso.fit(model, np.array([0.08, 0.05]), aniso.initial_fit(model, np.array([0.08, 0.05])))
-    assert direction_left(aniso, with_it) > 0.01  # modelled, nothing is left
-    null = problem_of(make_log(seed=4, n_objects=10), analytic_table)
-    assert direction_left(null, null.fit(Model(), np.zeros(0), null.initial_fit())) > 0.01
+    assert back.hypotheses == s.hypotheses
+    # one contender: nothing to separate, and the next pushes file says so with its header alone
+    assert s.next_pushes is None
+    assert (tmp_path / "next_pushes.csv").read_text().strip() == "object_id,speed,direction,mass"

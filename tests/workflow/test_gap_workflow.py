@@ -25,9 +25,10 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
             "gapShrinkMedian", "gapWorldErrMax", "gapTableErrMax", "gapLogsN"} <= set(part["numbers"])  # fmt: skip
     assert {c["id"] for c in part["claims"]} == {
         "gap-world", "gap-null", "gap-top1", "gap-both", "gap-outside", "gap-magnitude", "gap-shrink",
-        "gap-contact-null", "gap-contact-named", "gap-contact-wrong",
+        "gap-contact-null", "gap-contact-named", "gap-contact-contenders", "gap-contact-wrong", "gap-contact-loop",
     }  # fmt: skip
-    assert {"gapContactLogsN", "gapContactNullNoLib", "gapContactNamed", "gapContactWrong"} <= set(part["numbers"])
+    assert {"gapContactLogsN", "gapContactNullNoLib", "gapContactAmongNamed", "gapContactWrongSingle",
+            "gapLoopRight", "gapLoopRandomRight"} <= set(part["numbers"])  # fmt: skip
     bench = json.loads((tmp_path / "results/gap/benchmark.json").read_text())["result"]
     assert bench["n_logs"] == 7 and bench["n_null"] == 3 and bench["n_double"] == 1 and bench["n_outside"] == 1
     # the world measured its own error, and the table's is beside it
@@ -49,3 +50,9 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert "# Other contact models" in md
     report = next((tmp_path / "results/gap/reports").glob("shard*/log-*/report.md")).read_text()
     assert report.startswith("# Sim-to-real gap diagnosis\n\n**")
+    # the closed loop: every undecided log's next pushes run in its world, and as many random ones
+    loop = bench["contact"]["closed_loop"]
+    rows = [json.loads((d / "closed_loop.json").read_text())["rows"]
+            for d in (tmp_path / "results/gap/contact/closed_loop").iterdir()]  # fmt: skip
+    assert sum(len(r) for r in rows) == len(loop["rows"])
+    assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md

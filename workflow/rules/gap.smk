@@ -123,6 +123,34 @@ rule gap_contact_diagnose:
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
 
 
+rule gap_contact_closed_loop:
+    conda:
+        IMPLY_ENV
+    input:
+        logs=gap_contact_shard_logs,
+        reports="results/gap/contact/reports/shard{shard}",
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/contact/closed_loop/shard{shard}"),
+    params:
+        bench=as_json(config["gap"]["contact_benchmark"]),
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(config["gap"]["diagnose"]),
+        effects=gap_effects_option(),
+        folder=lambda wildcards, input: folder_of(input.logs),
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=30,
+    log:
+        "results/logs/gap_contact_closed_loop_shard{shard}.log",
+    shell:
+        "imply gap closed-loop --contact-bench-json {params.bench} --logs {params.folder} --reports {input.reports}"
+        " --table {input.table} --effect-grid-json {params.grid} {params.effects} --options-json {params.options}"
+        " --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
+
+
 rule gap_benchmark:
     conda:
         IMPLY_ENV
@@ -133,6 +161,7 @@ rule gap_benchmark:
         table="results/table/table.npz",
         contact_reports=expand("results/gap/contact/reports/shard{shard}", shard=GAP_SHARDS),
         contact_sealed="results/gap/contact/sealed/labels.json",
+        closed_loop=expand("results/gap/contact/closed_loop/shard{shard}", shard=GAP_SHARDS),
     output:
         result=report(
             "results/gap/benchmark.json",
@@ -158,4 +187,4 @@ rule gap_benchmark:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
         " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
-        " --contact-reports {input.contact_reports} > {log} 2>&1"
+        " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop} > {log} 2>&1"

@@ -1,9 +1,10 @@
-"""``imply gap tables|generate|diagnose-many|benchmark``: the diagnostic's benchmark, step by step.
+"""``imply gap tables|generate|diagnose-many|closed-loop|benchmark``: the diagnostic's benchmark, step by step.
 
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
 sealed in a separate file, ``diagnose-many`` runs ``imply diagnose`` on many logs in
-one process, ``benchmark`` scores the diagnoses against the sealed labels (a result
+one process, ``closed-loop`` runs the recommended next pushes of the undecided logs in
+their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
 document the gap stage's numbers are read from) and writes the benchmark's report.
 """
 
@@ -72,6 +73,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     gen.add_argument("--threads", type=int_range(0), default=0)
     gen.set_defaults(func=cmd_generate)
 
+    cl = gsub.add_parser(
+        "closed-loop",
+        help="run the next pushes of every undecided log (and as many random pushes of its own design) in the same "
+        "world, append them and diagnose again (the other-contact benchmark)",
+    )  # fmt: skip
+    cl.add_argument("--contact-bench-json", type=json_arg, required=True, help="config gap.contact_benchmark")
+    cl.add_argument("--logs", required=True, help="folder of the benchmark's push logs")
+    cl.add_argument("--reports", required=True, help="folder of their report folders (one per log)")
+    cl.add_argument("-o", "--output", required=True, help="folder for the appended logs and their reports")
+    add_diagnose_options(cl)
+    cl.set_defaults(func=cmd_closed_loop)
+
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
     b.add_argument("--table", default=DEFAULT_TABLE)
     b.add_argument("--bench-json", type=json_arg, required=True)
@@ -83,6 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--contact-bench-json", type=json_arg, help="config gap.contact_benchmark (its targets)")
     b.add_argument("--contact-sealed", help="the contact benchmark's sealed labels")
     b.add_argument("--contact-reports", nargs="+", default=[], help="folders of the contact benchmark's reports")
+    b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply gap closed-loop'")
     b.set_defaults(func=cmd_benchmark)
 
 
@@ -103,6 +117,25 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
             raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
         stems[stem] = path
     run(diagnose_request(args, [(path, out / Path(path).stem) for path in args.pushlogs]))
+    return 0
+
+
+def cmd_closed_loop(args: argparse.Namespace) -> int:
+    from imply.diagnose.closed_loop import run_closed_loop
+    from imply.diagnose.run import prepare
+    from imply.realworld.cases import ContactBenchmarkConfig
+    from imply.sim import SceneConfig
+
+    design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+    for name in ("logs", "reports"):
+        if not Path(getattr(args, name)).is_dir():
+            raise UserError(f"--{name} {getattr(args, name)}: no such folder")
+    out = output_dir(args.output)
+    request = diagnose_request(args, [])
+    scene = SceneConfig.from_dict(request.table.meta.get("scene"), "the table's scene")
+    rows = run_closed_loop(design=design, scene=scene, logs=Path(args.logs), reports=Path(args.reports),
+                           session=prepare(request), out=out, nthread=args.threads)  # fmt: skip
+    log.info("closed loop: %d logs x 2 arms diagnosed again -> %s", len(rows) // 2, out)
     return 0
 
 
@@ -173,6 +206,16 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
         result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=dict(design.targets),
                                                 min_size_sd=design.min_size_sd)  # fmt: skip
+        if args.closed_loop:
+            from imply.diagnose.benchmark import effect_size_on_contact
+            from imply.diagnose.closed_loop import score_closed_loop
+
+            sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
+                     for cid, lab in contact_labels.items() if len(lab["effects"]) == 1}  # fmt: skip
+            result["contact"]["closed_loop"] = score_closed_loop(
+                contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
+                min_size_sd=design.min_size_sd, sizes=sizes,
+            )  # fmt: skip
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
     log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "

@@ -1,5 +1,5 @@
-"""The diagnosis of a push log, as a pipeline of plain steps: where the gap lies, which effects explain
-it, how far it shrinks.
+"""The diagnosis of a push log, as a pipeline of plain steps: where the gap lies, which explanations of it
+remain and how strongly the pushes prefer each, how far it shrinks, and which pushes to run next.
 
 :func:`diagnose` runs the steps in order, each a module with an immutable input and output
 (on log displacement, and on log stop time where the log has stop times; each observable's
@@ -13,21 +13,22 @@ chi-squares):
    displacement, direction, fitted mass and friction, and by object;
 3. :mod:`~imply.diagnose.aliasing`: which candidates these pushes can see and tell apart,
    from each other and from the per-object (mass, friction) fit;
-4. :mod:`~imply.diagnose.selection`: forward selection of the candidates that qualify;
-5. :mod:`~imply.diagnose.shrinkage`: how far the accepted effects close the gap, held out;
-6. :mod:`~imply.diagnose.verdict`: the verdict and its one sentence;
-7. the :class:`Summary` (``summary.json``) that :mod:`~imply.diagnose.report` writes out.
+4. :mod:`~imply.diagnose.hypotheses`: every hypothesis (a set of library effects, with or
+   without the model discrepancy) fitted and weighed by its evidence;
+5. :mod:`~imply.diagnose.shrinkage`: how far the leading hypothesis closes the gap, held out;
+6. :mod:`~imply.diagnose.verdict`: adequacy and identification, as data;
+7. :mod:`~imply.diagnose.next_pushes`: the pushes that would best separate the contenders;
+8. the :class:`Summary` (``summary.json``), its sentence from :mod:`~imply.diagnose.render`,
+   which :mod:`~imply.diagnose.report` writes out.
 
 Each step returns a new value; the problem a step fits under (its noise, weights and model
 error) is passed to it, never changed behind it (:class:`imply.diagnose.fit.Problem`).
-Every accepted effect is reported with its magnitude (and azimuth for a tilt or an
-anisotropy) and 95% interval from the joint fit's curvature (:mod:`~imply.diagnose.estimates`).
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -36,13 +37,16 @@ from imply.diagnose.aliasing import Aliasing, aliasing
 from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate
 from imply.diagnose.discrepancy import DiscrepancyReport, describe
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
-from imply.diagnose.explanations import Explanations, explain
 from imply.diagnose.fit import JointFit, Problem
+from imply.diagnose.hypotheses import Hypothesis, enumerate_hypotheses, inclusion_weights, posterior_precision
 from imply.diagnose.localisation import Localisation, localise
 from imply.diagnose.model_error import model_error
+from imply.diagnose.next_pushes import PushDesign, design_pushes
 from imply.diagnose.noise import Noise, ObservableNoise, estimate_noise
+from imply.diagnose.pushlog import PushLog
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.selection import Selection, forward_select
+from imply.diagnose.render import verdict_text
+from imply.diagnose.screening import folds, screen_result
 from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
 from imply.diagnose.verdict import Verdict, judge
 from imply.options import Config, option
@@ -57,7 +61,8 @@ class DiagnosisConfig(Config):
     grid: int = option(101, doc="(m, mu) grid per axis for the objects' global search (at most 61 used)", minimum=11)
     folds: int = option(0, doc="held-out folds of objects (0: leave one object out)", minimum=0)
     alpha: float = option(
-        0.05, doc="family-wise level over the candidates left at each step (Bonferroni)", exclusive_minimum=0,
+        0.05, doc="level of the localisation's tests and of the ranking's likelihood-ratio test (Bonferroni)",
+        exclusive_minimum=0,
         exclusive_maximum=1,
     )  # fmt: skip
     alias_cos: float = option(
@@ -77,11 +82,17 @@ class DiagnosisConfig(Config):
     model_floor: float | None = option(None, doc="the model's own log d error (null: measured)", minimum=0)
     stop_time_floor: float | None = option(None, doc="the model's own stop time error (null: measured)", minimum=0)
     min_share: float = option(
-        0.8, doc="share of the held-out gap above the floor the accepted effects must close", minimum=0, maximum=1
-    )
+        0.8, doc="share of the held-out gap above the noise floor the leading hypothesis must close for the gap to be "
+        "explained (below 1 - min_share it is not explained; between, partly)", minimum=0.5, maximum=1,
+    )  # fmt: skip
+    contender_ratio: float = option(
+        0.05, doc="weight, relative to the leading explanation's, that keeps an explanation in contention",
+        exclusive_minimum=0, maximum=1,
+    )  # fmt: skip
     use_measured: bool = option(True, doc="use weighed masses where the log has them")
     use_stop_time: bool = option(True, doc="use stop_time where the log has it")
-    max_effects: int = option(3, doc="effects accepted at most", minimum=0)
+    max_effects: int = option(3, doc="library effects in one hypothesis at most", minimum=0, maximum=3)
+    screen: int = option(4, doc="alias classes, best alone first, whose combinations are fitted", minimum=0)
     outlier_sd: float = option(
         6.0, doc="replicate disagreement (robust sds) that flags a gross outlier", exclusive_minimum=0
     )
@@ -92,9 +103,13 @@ class DiagnosisConfig(Config):
         exclusive_minimum=0,
     )  # fmt: skip
     discrepancy_bound: float = option(1.0, doc="largest |discrepancy coefficient| (log units)", exclusive_minimum=0)
-    alt_margin: float = option(
-        6.0, doc="held-out chi-square within which another explanation fits about as well (named beside)", minimum=0
-    )
+    discrepancy_scales: int = option(
+        1, doc="prior sds of the discrepancy the evidence averages over, halving from discrepancy_sd (1: that one)",
+        minimum=1,
+    )  # fmt: skip
+    next_pushes: int = option(12, doc="pushes recommended to separate the contenders", minimum=0)
+    next_speeds: int = option(9, doc="candidate speeds of the next pushes, across the table's range", minimum=2)
+    next_directions: int = option(12, doc="candidate directions of the next pushes (logs with directions)", minimum=1)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -127,16 +142,6 @@ class Baseline(Record):
 
 
 @dataclass(frozen=True, kw_only=True)
-class SelectionStep(Record):
-    """One step of the forward selection: the effects before it, every candidate tried, the one accepted."""
-
-    step: int
-    accepted: str | None
-    model_before: list[str]
-    candidates: list[RankedCandidate]
-
-
-@dataclass(frozen=True, kw_only=True)
 class Summary(Record):
     """What a diagnosis found (``summary.json``)."""
 
@@ -153,15 +158,18 @@ class Summary(Record):
     baseline: Baseline
     localisation: Localisation
     aliasing: Aliasing
-    ranking: list[RankedCandidate]  # every candidate on its own (the first step)
-    selection: list[SelectionStep]
-    effects: list[AcceptedEffect]  # the final model's library effects: the verdict's, or the best combination tried
+    ranking: list[RankedCandidate]  # every candidate on its own (the screening pass)
+    hypotheses: list[Hypothesis]  # every hypothesis fitted, heaviest first
+    inclusion: dict[str, float]  # each library effect's (and the discrepancy's) inclusion weight
+    dispersion: float  # the chi-square per degree of freedom the weights were computed under (at least 1)
+    effects: list[AcceptedEffect]  # the leading hypothesis's library effects
     verdict: Verdict
+    sentence: str  # the verdict in words (imply.diagnose.render)
     shrinkage: Shrinkage
     options: DiagnosisConfig
     model_floor: dict | None  # the effect tables' measured model floor
     seconds: float
-    explanations: Explanations | None = json_field(omit_none=True, default=None)
+    next_pushes: PushDesign | None = json_field(omit_none=True, default=None)
     discrepancy: DiscrepancyReport | None = json_field(omit_none=True, default=None)
 
 
@@ -183,6 +191,7 @@ class Residuals:
 class Diagnosis:
     summary: Summary
     residuals: Residuals
+    pushlog: PushLog  # the log diagnosed (the next pushes are written in its columns)
 
 
 def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, JointFit]:
@@ -220,19 +229,6 @@ def _outliers(problem: Problem, noise: Noise) -> dict[str, list[Outlier]]:
     }
 
 
-def _path(selection: Selection, alias: Aliasing, n: int) -> list[SelectionStep]:
-    """Every step of the forward selection as reported."""
-    path = []
-    model_before = Model()
-    for j, res in enumerate(selection.steps):
-        chosen = selection.accepted[j].name if j < len(selection.accepted) else None
-        path.append(SelectionStep(step=j + 1, accepted=chosen, model_before=model_before.names,
-                                  candidates=ranked(res, alias, model_before=model_before, n=n)))  # fmt: skip
-        if chosen:
-            model_before = model_before.plus(selection.accepted[j])
-    return path
-
-
 def baseline_residuals(problem: Problem, base: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
     """Every push's raw residuals (log d, log T) under the baseline fit ``base``."""
     lm, lu = base.objects.lm[problem.c_obj], base.objects.lu[problem.c_obj]
@@ -253,19 +249,28 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     alias = aliasing(problem, pool, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
     # a two-component effect of which these directions show one combination is fitted along it alone
     pool = [c.restricted(alias.restricted[c.name].direction) if c.name in alias.restricted else c for c in pool]
-    selection = forward_select(problem, base, pool, alias=alias, opts=opts)  # 4. which terms
-    problem = selection.problem  # fitted under the accepted effects' model error
-    # 5. what the verdict may state: effects the discrepancy mimics, alternatives, mechanisms outside the library
-    expl, final = explain(problem, selection, n_folds=opts.folds, alt_margin=opts.alt_margin, mimics=alias.mimicked,
-                          mimic_r=alias.discrepancy_mimics, alpha=opts.alpha)  # fmt: skip
-    held = heldout(problem, final, opts.folds)  # 6. how far, held out
+    hyps = enumerate_hypotheses(problem, base, pool, alias=alias, max_effects=opts.max_effects, screen=opts.screen,
+                                scan=opts.scan, n_folds=opts.folds,
+                                scales=opts.discrepancy_scales)  # 4. every explanation, weighed  # fmt: skip
+    final = hyps.fits[0]  # the leading hypothesis
+    held = heldout(problem, final, opts.folds)  # 5. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
-    effects = accepted_effects(final.model, final.theta, cov=final.covariance() * shrink.dispersion, alias=alias)
+    share = shrink.judged if shrink.judged is not None else shrink.gap_share_closed
+    verdict = judge(hyps.table, share=share, min_share=opts.min_share,
+                    contender_ratio=opts.contender_ratio)  # 6. adequacy and identification  # fmt: skip
+    cov = np.linalg.pinv(posterior_precision(final, hyps.dispersion)) if final.model.dim else np.zeros((0, 0))
+    effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)
     disc = describe(problem, final, mimics=alias.mimicked)
-    verdict = judge(selection, effects, shrink=shrink, min_share=opts.min_share, explanations=expl,
-                    discrepancy=disc)  # 7. the verdict, in one sentence  # fmt: skip
+    by_label = {h.label: f for h, f in zip(hyps.table, hyps.fits, strict=True)}
+    design = design_pushes(problem, [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
+                           n=opts.next_pushes, speeds=opts.next_speeds, directions=opts.next_directions,
+                           opts=opts)  # 7. the pushes that would tell the contenders apart  # fmt: skip
+    fold_of = folds(problem.n_obj, opts.folds)
+    screened = [screen_result(problem, base, f, f.model.candidates[-1], n_tried=len(hyps.singles), alpha=opts.alpha,
+                              fold_of=fold_of) for f in hyps.singles]  # fmt: skip
+    screened.sort(key=lambda r: (-r.heldout_gain, r.candidate.name))
 
-    # 7. the report's summary and residuals
+    # 8. the report's summary and residuals
     observables, note = _observables(problem)
     outliers = _outliers(problem, noise)
     summary = Summary(
@@ -279,16 +284,17 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),
         localisation=where, aliasing=alias,
-        ranking=ranked(selection.steps[0], alias, model_before=Model(), n=problem.n_rows) if selection.steps else [],
-        selection=_path(selection, alias, problem.n_rows),
-        effects=effects, verdict=verdict, shrinkage=shrink, options=opts,
+        ranking=ranked(screened, alias, model_before=Model(), n=problem.n_rows), hypotheses=hyps.table,
+        inclusion=inclusion_weights(hyps.table), dispersion=hyps.dispersion, effects=effects, verdict=verdict,
+        sentence="", shrinkage=shrink, options=opts,
         model_floor=problem.etables.meta.get("model_floor") if problem.etables is not None else None,
-        seconds=round(time.perf_counter() - t0, 3), explanations=expl, discrepancy=disc,
+        seconds=round(time.perf_counter() - t0, 3), next_pushes=design, discrepancy=disc,
     )  # fmt: skip
+    summary = replace(summary, sentence=verdict_text(summary))
     with_effects = bool(final.model.dim)
     residuals = Residuals(
         speed=problem.v, direction=problem.phi, log_d=problem.y, resid_before=resid_d,
         resid_after=held.resid_d if with_effects else None, flagged=problem.w_d == 0, stop_resid_before=resid_t,
         stop_resid_after=held.resid_t if with_effects else None,
     )  # fmt: skip
-    return Diagnosis(summary=summary, residuals=residuals)
+    return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log)

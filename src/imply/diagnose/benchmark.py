@@ -37,6 +37,7 @@ import pandas as pd
 
 from imply.diagnose.analysis import Summary
 from imply.diagnose.estimates import AcceptedEffect
+from imply.diagnose.verdict import Identification
 from imply.realworld.cases import BenchmarkConfig
 
 LIBRARY_GROUPS = ("single", "double", "single_unidentifiable")
@@ -83,7 +84,7 @@ def _named(true: str, summary: Summary) -> bool:
     return any(true in cls for cls in _classes(summary))
 
 
-def _true_theta(e: dict) -> dict:
+def true_theta(e: dict) -> dict:
     return {"magnitude": abs(e["magnitude"]) if e["name"] in ("tilt", "anisotropic") else e["magnitude"],
             "azimuth_deg": None if e.get("azimuth") is None else float(np.degrees(e["azimuth"]))}  # fmt: skip
 
@@ -176,7 +177,7 @@ def score_cases(
             hit = next((r for r in stated(s) if r.effect == e["name"]), None)
             if hit is None:
                 continue
-            t = _true_theta(e)
+            t = true_theta(e)
             rel = abs(hit.magnitude - t["magnitude"]) / abs(t["magnitude"]) if t["magnitude"] else None
             az = None
             if t["azimuth_deg"] is not None and hit.azimuth_deg is not None:
@@ -296,7 +297,7 @@ def effect_size_on_contact(label: dict, name: str) -> float:
     return float(np.sqrt(np.mean(resid**2))) if resid.size else float("nan")
 
 
-def _restricted_truth(e: dict, hit) -> float:
+def restricted_truth(e: dict, hit) -> float:
     """The true magnitude of what a restricted (one-combination) estimate measures: the true effect projected on
     the direction the design identifies."""
     az = np.radians(hit.azimuth_deg or 0.0)
@@ -304,18 +305,29 @@ def _restricted_truth(e: dict, hit) -> float:
     return float(abs(e["magnitude"]) * np.cos(mult * (e["azimuth"] - az)))
 
 
+def named_classes(summary: Summary) -> list[set[str]]:
+    """The alias class (a set of candidate names) of every library effect the verdict names: the causes, then the
+    contenders' other effects."""
+    effects = summary.aliasing.effects
+    return [set(effects[n].cls.split("+")) if n in effects and effects[n].identifiable else {n}
+            for n in summary.verdict.named]  # fmt: skip
+
+
 def score_contact_cases(
     labels: dict[str, dict], summaries: dict[str, Summary], *, targets: dict, min_size_sd: float
 ) -> dict:
     """The other-contact benchmark's metrics from sealed labels and diagnose summaries.
 
-    - ``null_no_library``: null logs whose verdict names no library effect, as cause or alternative;
-    - ``null_discrepancy``: null logs whose verdict leads with the discrepancy;
-    - ``named``: one-effect logs (effect at least ``min_size_sd`` noise sds on top of the contact model) whose
-      verdict states the effect (its alias class) as a cause with magnitude within ``targets["magnitude_within"]``;
-      ``named_any``: named at all, as cause or alternative, whatever the magnitude;
-    - ``wrong_mechanism``: logs with an effect outside the library whose verdict states a library effect as a cause
-      (confident or with alternatives).
+    - ``null_no_library``: null logs whose verdict states no library effect as a cause;
+    - ``among_named``: one-effect logs (effect at least ``min_size_sd`` noise sds on top of the contact model) whose
+      true effect (its alias class) is among the effects the verdict names (stated, or in a contender);
+      ``contenders_mean`` / ``contenders_max``: how many explanations those verdicts keep in contention;
+    - ``one_cause``: the share of those logs whose verdict says "one cause", and ``one_cause_right``: of these, the
+      share whose cause is the true effect alone (its alias class, no other effect stated beside it) with magnitude
+      within ``targets["magnitude_within"]``;
+    - ``named``: one-effect logs whose verdict states the true effect as a cause with magnitude within that;
+    - ``wrong_single``: logs with an effect outside the library whose verdict states a library mechanism as the one
+      cause; ``wrong_mechanism``: ... states one as a cause at all.
     """
     rows = []
     within = float(targets.get("magnitude_within", 0.3))
@@ -326,11 +338,13 @@ def score_contact_cases(
         v = s.verdict
         causes = [e.effect for e in stated(s)]
         classes = _classes(s)
-        alternatives = list(getattr(v, "alternatives", []) or [])
         row = {"case": cid, "group": group, "engine": lab.get("engine", "mujoco"), "design": lab.get("design", "random"),
-               "effects": "+".join(true) or "null", "verdict_kind": v.kind, "causes": "+".join(causes) or "none",
-               "alternatives": "+".join(alternatives), "sentence": v.sentence, "seconds": s.seconds,
-               "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"]}  # fmt: skip
+               "effects": "+".join(true) or "null", "adequacy": str(v.adequacy),
+               "identification": str(v.identification), "causes": "+".join(causes) or "none",
+               "contenders": " | ".join("+".join(c.effects) or "none" for c in v.contenders),
+               "n_contenders": len(v.contenders), "sentence": s.sentence, "seconds": s.seconds,
+               "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"],
+               "one_cause": v.identification == Identification.ONE_CAUSE}  # fmt: skip
         if group in CONTACT_SINGLE:
             e = lab["effects"][0]
             size = effect_size_on_contact(lab, e["name"])
@@ -339,11 +353,12 @@ def score_contact_cases(
             rel = None
             if hit is not None:
                 restricted = any(k.endswith("_along") for k in hit.components)
-                t = _restricted_truth(e, hit) if restricted else _true_theta(e)["magnitude"]
+                t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
                 rel = abs(hit.magnitude - t) / abs(t) if t else None
+            named = bool(named_cls and rel is not None and rel <= within)
             row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
-                       relative_error=rel, named=bool(named_cls and rel is not None and rel <= within),
-                       named_any=bool(named_cls or e["name"] in alternatives))  # fmt: skip
+                       relative_error=rel, named=named, among_named=any(e["name"] in c for c in named_classes(s)),
+                       one_cause_right=bool(row["one_cause"] and named and len(classes) == 1))  # fmt: skip
         rows.append(row)
     frame = pd.DataFrame(rows)
     g = frame["group"] if len(frame) else pd.Series(dtype=str)
@@ -353,20 +368,25 @@ def score_contact_cases(
         return (float(sub[column].astype(float).mean()) if len(sub) else float("nan")), int(len(sub))
 
     null = g.isin(CONTACT_NULL)
-    frame["no_library"] = (frame["causes"] == "none") & (frame["alternatives"] == "")
-    frame["discrepancy_lead"] = frame["verdict_kind"] == "discrepancy"
+    frame["no_library"] = frame["causes"] == "none"
     frame["wrong"] = frame["causes"] != "none"
+    frame["wrong_single"] = frame["wrong"] & frame["one_cause"]
     single = g.isin(CONTACT_SINGLE) & frame.get("big", pd.Series(False, index=frame.index)).fillna(False).astype(bool)
     outside = g.isin(CONTACT_OUTSIDE)
     out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
-    for key, mask, column in (("null_no_library", null, "no_library"), ("null_discrepancy", null, "discrepancy_lead"),
-                              ("named", single, "named"), ("named_any", single, "named_any"),
-                              ("wrong_mechanism", outside, "wrong")):  # fmt: skip
+    for key, mask, column in (("null_no_library", null, "no_library"), ("among_named", single, "among_named"),
+                              ("named", single, "named"), ("one_cause", single, "one_cause"),
+                              ("wrong_single", outside, "wrong_single"), ("wrong_mechanism", outside, "wrong")):  # fmt: skip
         out[key], out[f"n_{key}"] = share(mask, column)
         for engine in ("mujoco", "bullet"):
             out[f"{key}_{engine}"], out[f"n_{key}_{engine}"] = share(mask & (frame["engine"] == engine), column)
+    out["one_cause_right"], out["n_one_cause_right"] = share(single & frame["one_cause"], "one_cause_right")
+    n_cont = frame.loc[single, "n_contenders"] if len(frame) else pd.Series(dtype=float)
+    out["contenders_mean"] = float(n_cont.mean()) if len(n_cont) else float("nan")
+    out["contenders_max"] = int(n_cont.max()) if len(n_cont) else 0
     truth = np.where(g.isin(CONTACT_NULL), "null", frame["effects"]) + " (" + frame["engine"] + ")"
-    pred = np.where(frame["causes"] != "none", frame["causes"], frame["verdict_kind"])
+    pred = np.where(frame["causes"] != "none", frame["causes"], frame["identification"])
+    pred = np.where(frame["identification"] == "undecided", "undecided: " + frame["causes"], pred)
     confusion = pd.crosstab(pd.Series(truth, name="true"), pd.Series(pred, name="verdict")).sort_index()
     out["confusion"] = {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index}
     out["seconds_per_log_median"] = float(frame["seconds"].median()) if len(frame) else None

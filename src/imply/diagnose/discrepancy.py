@@ -10,7 +10,7 @@ parameters: where the log carries weighed masses, the masses a free fit would gi
 :func:`describe` turns a fitted discrepancy into numbers a lab can act on: how much the
 table's slides change relative to these from the slowest to the fastest push, how that
 differs for rough against smooth and heavy against light objects, the stop times' offset,
-and the implied masses; :func:`discrepancy_sentence` says it in one sentence.
+and the implied masses; :mod:`imply.diagnose.render` says it in words.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imply.diagnose.candidates import CANDIDATES, Model, discrepancy_basis, scaled
+from imply.diagnose.candidates import Model, discrepancy_basis, scaled
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.records import Record, json_field
 
@@ -77,37 +77,3 @@ def implied_mass_ratio(problem: Problem, fit: JointFit) -> float | None:
     free = replace(problem, fixed_lm=None)
     objs = free.initial_fit(Model(), np.zeros(0))
     return float(np.exp(np.median(objs.lm - problem.fixed_lm)))
-
-
-def _pct(x: float) -> str:
-    return f"{abs(np.expm1(x)):.0%}"
-
-
-def discrepancy_sentence(d: DiscrepancyReport, *, share: float | None) -> str:
-    """The discrepancy in one sentence: how the table's slides differ from these pushes', and what it closes."""
-    t = d.speed_trend
-    if abs(t) >= 0.005:
-        text = (f"these pushes differ from the table by a smooth discrepancy that no library effect explains: "
-                f"relative to the table, their slides grow {_pct(t)} {'more' if t > 0 else 'less'} from the slowest "
-                "push to the fastest")  # fmt: skip
-        details = []
-        for value, hi, lo in ((d.speed_trend_rough_minus_smooth, "rough", "smooth"),
-                              (d.speed_trend_heavy_minus_light, "heavy", "light")):  # fmt: skip
-            if abs(value) >= 0.01:
-                more = (value < 0) == (t < 0)
-                details.append(f"{'more' if more else 'less'} so for {hi} objects than {lo} ones")
-        if details:
-            text += f" ({', '.join(details)})"
-    else:
-        text = ("these pushes differ from the table by a smooth discrepancy that no library effect explains "
-                f"(RMS {d.rms_log_d:.2g} in log d)")  # fmt: skip
-    if d.stop_time_offset is not None and abs(d.stop_time_offset) >= 0.01:
-        text += f"; their stop times are {_pct(d.stop_time_offset)} {'longer' if d.stop_time_offset > 0 else 'shorter'}"
-    if d.implied_mass_ratio is not None and abs(np.log(d.implied_mass_ratio)) >= 0.05:
-        text += f"; fitted freely, the objects' implied masses are {d.implied_mass_ratio:.2g}x the weighed ones"
-    text = text[0].upper() + text[1:]
-    if share is not None:
-        text += (f"; the discrepancy closes {'the whole gap, down to the noise' if share >= 1.0 else f'{max(share, 0):.0%} of the gap'}")  # fmt: skip
-    if d.mimics:
-        text += f". On these pushes it could also imitate {' or '.join(CANDIDATES[n].phrase for n in d.mimics)}"
-    return text + "."

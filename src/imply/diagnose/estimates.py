@@ -15,7 +15,7 @@ import numpy as np
 from imply.diagnose.aliasing import Aliasing
 from imply.diagnose.candidates import Candidate, Model
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.selection import StepResult
+from imply.diagnose.screening import StepResult
 
 Z95 = 1.959964
 

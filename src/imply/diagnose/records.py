@@ -12,6 +12,7 @@ own ``from_dict``), so what is written is exactly what is read.
 from __future__ import annotations
 
 import dataclasses
+import enum
 import types
 import typing
 from typing import Any, TypeVar
@@ -69,6 +70,8 @@ def _read(tp: Any, value: Any) -> Any:
         return {k: _read(args[1], v) for k, v in value.items()}
     if isinstance(tp, type) and hasattr(tp, "from_dict"):
         return tp.from_dict(value)
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        return tp(value)
     return value
 
 

@@ -1,19 +1,24 @@
-"""The diagnose report directory: ``summary.json``, ``report.md`` and its plots.
+"""The diagnose report directory: ``summary.json``, ``report.md``, ``next_pushes.csv`` and the plots.
 
-``summary.json`` (machine-readable, keys sorted, floats unrounded): ``verdict`` (the
-accepted effects, or ``none``, with the one-sentence ``sentence`` the report leads with),
-``effects`` (every accepted effect: magnitude, azimuth for a tilt or an anisotropy, 95%
-intervals, alias class, aliasing with the per-object fit), ``observables`` (displacement,
-and stop time where used), ``outliers`` (the gross outliers left out), ``localisation``
-(residual bands with intervals, objects, the regions beyond noise), ``aliasing``
-(identifiability, projected cosines, classes, what the per-object fit absorbs),
-``ranking`` (every candidate on its own: magnitude, 95% interval, likelihood-ratio
-statistic and its critical value, delta BIC, held-out gain, whether it qualifies and why
-not), ``selection`` (every step of the forward selection), ``shrinkage`` (held-out RMS
-gap, stop times and anchored disagreement before/after, noise floor, shares closed),
-``noise`` and ``options``. ``residuals.csv`` holds every push's residual before and after
-the accepted effects (held out) and whether it was flagged. The plots:
-``residuals_vs_speed.png``, ``before_after.png`` and ``ranking.png``.
+``summary.json`` (machine-readable, keys sorted, floats unrounded): ``verdict`` (adequacy,
+identification, the causes stated, the contenders with their weights, the effects not
+separable from the discrepancy or at their library bound), ``sentence`` (the verdict in
+words, the report's first line), ``hypotheses`` (every hypothesis fitted: effects,
+discrepancy or not, log evidence, weight, chi-square in sample and held out, magnitudes
+with 95% intervals), ``inclusion`` (each effect's inclusion weight), ``effects`` (the
+leading hypothesis's effects: magnitude, azimuth for a tilt or an anisotropy, 95%
+intervals, alias class, aliasing with the per-object fit), ``next_pushes`` (the recommended
+pushes and the separation they would bring), ``observables``, ``outliers`` (the gross
+outliers left out), ``localisation`` (residual bands with intervals, objects, the regions
+beyond noise), ``aliasing`` (identifiability, projected cosines, classes, what the
+per-object fit absorbs), ``ranking`` (every candidate on its own: magnitude, 95% interval,
+likelihood-ratio statistic and its critical value, delta BIC, held-out gain),
+``shrinkage`` (held-out RMS gap, stop times and anchored disagreement before/after, noise
+floor, shares closed), ``noise`` and ``options``. ``residuals.csv`` holds every push's
+residual before and after the leading hypothesis (held out) and whether it was flagged;
+``next_pushes.csv`` the recommended pushes as push-log columns with what each contender
+predicts (:mod:`imply.diagnose.next_pushes`). The plots: ``residuals_vs_speed.png``,
+``before_after.png``, ``ranking.png`` and ``hypotheses.png`` (the contenders' weights).
 """
 
 from __future__ import annotations
@@ -28,11 +33,14 @@ import pandas as pd
 from imply.diagnose.analysis import Diagnosis, Summary
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.localisation import FACTORS
+from imply.diagnose.next_pushes import write_next_pushes
+from imply.diagnose.verdict import explanations
 from imply.io import atomic_path, write_csv, write_json, write_text
 
 # every file write_report puts in the report folder
 REPORT_FILES = (
-    "summary.json", "residuals.csv", "residuals_vs_speed.png", "before_after.png", "ranking.png", "report.md",
+    "summary.json", "residuals.csv", "next_pushes.csv", "residuals_vs_speed.png", "before_after.png", "ranking.png",
+    "hypotheses.png", "report.md",
 )  # fmt: skip
 
 
@@ -59,6 +67,7 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
             frame["stop_resid_after"] = r.stop_resid_after
     frame["outlier"] = np.asarray(r.flagged, bool)
     write_csv(out / "residuals.csv", frame)
+    write_next_pushes(out / "next_pushes.csv", s.next_pushes, diag.pushlog)
     _plots(diag, out)
     write_text(out / "report.md", markdown(s))
 
@@ -110,13 +119,33 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     plt.close(fig)
 
     _ranking_plot(plt, s, out / "ranking.png")
+    _hypotheses_plot(plt, s, out / "hypotheses.png")
+
+
+def _hypotheses_plot(plt, s: Summary, path: Path) -> None:
+    """The weight of each explanation (hypotheses grouped by their library effects), contenders marked."""
+    groups = explanations(s.hypotheses)[:10]
+    contenders = {c.label for c in s.verdict.contenders}
+    fig, ax = plt.subplots(figsize=(6, 0.3 * len(groups) + 1.4))
+    names = [" + ".join(g.effects) or "no library effect" for g in groups][::-1]
+    disc = np.array([g.discrepancy_weight for g in groups])[::-1]
+    alone = np.array([g.weight - g.discrepancy_weight for g in groups])[::-1]
+    colours = ["C2" if g.label in contenders else "0.7" for g in groups][::-1]
+    ax.barh(names, alone, color=colours)
+    ax.barh(names, disc, left=alone, color=colours, hatch="//", edgecolor="w")
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("weight (hatched: with the smooth discrepancy)")
+    ax.set_title("green: in contention", fontsize=8)
+    fig.subplots_adjust(left=0.35, right=0.95, bottom=0.5 / fig.get_figheight() + 0.05, top=0.9)
+    _save(fig, path)
+    plt.close(fig)
 
 
 def ranking_colours(ranking: list[RankedCandidate], verdict_effects: list[str]) -> list[str]:
     """Bar colour per ranked candidate: green only for the verdict's effect.
 
     Green: an effect of the verdict; blue: identifiable and improves the held-out fit
-    (alone, at the first step); red: makes it worse; grey: not identifiable from these
+    (alone); red: makes it worse; grey: not identifiable from these
     pushes. Green must never mark a candidate that is not in the verdict.
     """
     chosen = set(verdict_effects)
@@ -186,9 +215,9 @@ def _effect_line(e: AcceptedEffect) -> str:
 
 
 def _discrepancy_lines(s: Summary) -> list[str]:
-    """The discrepancy, what it can imitate on this design, alternatives and what these directions identify."""
+    """The discrepancy, what it can imitate on this design, and what these directions identify."""
     lines: list[str] = []
-    d, ex, al = s.discrepancy, s.explanations, s.aliasing
+    d, al = s.discrepancy, s.aliasing
     if d is not None:
         coef = ", ".join(f"{k} {v:+.3g}" for k, v in d.coefficients.items())
         lines += ["", f"**Model discrepancy** (a smooth function of speed, mass and friction fitted beside the effects; "
@@ -203,24 +232,20 @@ def _discrepancy_lines(s: Summary) -> list[str]:
         can = [f"{k} ({v:.2f})" for k, v in sorted(al.discrepancy_mimics.items(), key=lambda x: -x[1])]
         lines += ["", "What the discrepancy could imitate on these pushes (canonical correlation of projected changes; "
                   f"at least {s.options.alias_cos:g} counts as imitating): " + ", ".join(can) + "."]  # fmt: skip
-    if ex is not None:
-        if ex.mimicked:
-            lines += ["", "Effects dropped because the discrepancy explains the pushes about as well without them "
-                      f"(held-out chi-square cost below {ex.alt_margin:g}): "
-                      + ", ".join(f"{k} ({v:.1f})" for k, v in ex.mimicked_margin.items()) + "."]  # fmt: skip
-        if ex.confounded:
-            lines += ["", "Fitted beside the discrepancy but not stated as causes, since on these pushes the discrepancy "
-                      f"can imitate them: {', '.join(ex.confounded)}."]  # fmt: skip
-        for a in ex.alternatives:
-            lines += ["", f"Alternatives to {a.effect} (held-out chi-square within {ex.alt_margin:g}): "
-                      + ", ".join(f"{n} ({m:+.1f})" for n, m in zip(a.instead, a.margin, strict=True))
-                      + f"; to tell them apart: {'; '.join(a.separate_by)}."]  # fmt: skip
-        for p in ex.pinned:
-            lines += ["", f"{p.effect} is at the library's largest magnitude and the pushes pull it further (the sum "
-                      f"of squares would fall by {p.drop_beyond_bound:.1f} beyond it, critical {p.critical:.2f}): no "
-                      "confident verdict rests on it."]  # fmt: skip
     for name, r in al.restricted.items():
         lines += ["", f"Identifiable from these directions: {name}: {r.note}."]
+    return lines
+
+
+def _next_push_lines(s: Summary) -> list[str]:
+    d = s.next_pushes
+    if d is None or not d.pushes:
+        return ["", "Next pushes: none needed (a single explanation is in contention); `next_pushes.csv` has no rows."]
+    lines = ["", f"**Next pushes** (`next_pushes.csv`, {len(d.pushes)} pushes chosen to separate "
+             f"{', '.join(d.contenders)}; separation in noise sds, against as many pushes of this log's own kind):", "",
+             "| pair | these pushes | the log's kind |", "|---|---|---|"]  # fmt: skip
+    for pair, sd in d.separation_sd.items():
+        lines.append(f"| {pair} | {sd:.1f} | {d.log_design_separation_sd.get(pair, float('nan')):.1f} |")
     return lines
 
 
@@ -229,7 +254,7 @@ def markdown(s: Summary) -> str:
     lines = [
         "# Sim-to-real gap diagnosis",
         "",
-        f"**{v.sentence}**",
+        f"**{s.sentence}**",
         "",
         f"Push log: `{s.pushlog}` ({s.n_pushes} pushes, {s.n_objects} objects"
         f"{', with directions' if s.has_direction else ', no directions'}"
@@ -242,13 +267,24 @@ def markdown(s: Summary) -> str:
         "## Verdict",
         "",
     ]
-    if v.is_none:
-        lines.append(f"**None of the candidates** ({v.reason}). Unexplained residual above the noise floor: "
-                     f"{_fmt(sh.unexplained_rms_above_floor)} RMS log d.")  # fmt: skip
-    else:
-        lines.append("Accepted effects (fitted jointly, with every object's mass and friction):")
-        lines.append("")
-        lines += [_effect_line(e) for e in s.effects]
+    lines.append(
+        f"Adequacy: **{v.adequacy.replace('_', ' ')}**; identification: "
+        f"**{v.identification.replace('_', ' ')}**; causes stated: {', '.join(v.effects) or 'none'}."
+    )
+    lines += [
+        "",
+        f"Explanations in contention (weight at least {v.contender_ratio:g} of the leading one's; "
+        f"hypotheses weighed by their evidence under a dispersion of {s.dispersion:.3g}):",
+        "",
+        "| explanation | weight | of which with the discrepancy | effects at their bound |",
+        "|---|---|---|---|",
+    ]
+    for c in v.contenders:
+        lines.append(f"| {' + '.join(c.effects) or 'no library effect'} | {c.weight:.3f} | "
+                     f"{c.discrepancy_weight:.3f} | {', '.join(c.at_bound) or ''} |")  # fmt: skip
+    lines += ["", f"The leading hypothesis ({v.leading}), fitted jointly with every object's mass and friction:", ""]
+    lines += [_effect_line(e) for e in s.effects] or ["- no library effect"]
+    lines += _next_push_lines(s)
     notes = [e.fit_alias for e in s.effects if e.fit_alias]
     if notes:
         lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
@@ -297,24 +333,35 @@ def markdown(s: Summary) -> str:
     lines += [
         "## Which (candidate effects)",
         "",
-        "Forward selection: each step adds every candidate in turn to the effects already accepted and refits "
-        "them all jointly; a candidate qualifies when its likelihood-ratio statistic (at the noise and the model's "
-        "own error) beats the Bonferroni-corrected chi-square quantile, it lowers the leave-one-object-out held-out "
-        "sum of squares, and it explains more than the model's own error could. The best qualifying one is accepted.",
+        "Every hypothesis (at most "
+        f"{s.options.max_effects} library effects, one per alias class, with or "
+        "without the smooth discrepancy) is fitted jointly with every object's mass and friction and weighed by its "
+        "Laplace-approximated evidence (fit, prior volume and posterior width), chi-squares divided by the "
+        "dispersion. Inclusion weights: " + (", ".join(f"{k} {w:.3f}" for k, w in s.inclusion.items()) or "none") + ".",
         "",
+        "![hypotheses](hypotheses.png)",
+        "",
+        "| hypothesis | weight | log evidence | chi-square | held out | parameters | at bound |",
+        "|---|---|---|---|---|---|---|",
     ]
-    for step in s.selection:
-        lines += [f"**Step {step.step}** (on top of: {', '.join(step.model_before) or 'the table alone'}; "
-                  f"accepted: {step.accepted or 'none'})", "",
-                  "| effect | class | magnitude | 95% CI | LR (critical) | held-out gain | qualifies |",
-                  "|---|---|---|---|---|---|---|"]  # fmt: skip
-        for r in step.candidates:
-            az = f" @ {r.azimuth_deg:.0f} deg" if r.azimuth_deg is not None else ""
-            lines.append(f"| {r.effect} | {r.cls} | {_fmt(r.magnitude)} {r.unit}{az} | "
-                         f"[{_fmt(r.ci95[0])}, {_fmt(r.ci95[1])}] | {_fmt(r.lr_stat, '.1f')} "
-                         f"({_fmt(r.lr_critical, '.1f')}) | {_fmt(r.heldout_gain, '.1f')} | "
-                         f"{'yes' if r.qualifies else '; '.join(r.reasons)} |")  # fmt: skip
-        lines.append("")
+    for h in s.hypotheses[:20]:
+        lines.append(f"| {h.label} | {h.weight:.3g} | {h.log_evidence:.1f} | {h.chi2:.1f} | {h.heldout_chi2:.1f} | "
+                     f"{h.n_parameters} | {', '.join(h.at_bound)} |")  # fmt: skip
+    if len(s.hypotheses) > 20:
+        lines.append(f"| ({len(s.hypotheses) - 20} more in summary.json) | | | | | | |")
+    lines += [
+        "",
+        "Each candidate alone, on top of the table (the screening pass):",
+        "",
+        "| effect | class | magnitude | 95% CI | LR (critical) | held-out gain |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in s.ranking:
+        az = f" @ {r.azimuth_deg:.0f} deg" if r.azimuth_deg is not None else ""
+        lines.append(f"| {r.effect} | {r.cls} | {_fmt(r.magnitude)} {r.unit}{az} | [{_fmt(r.ci95[0])}, "
+                     f"{_fmt(r.ci95[1])}] | {_fmt(r.lr_stat, '.1f')} ({_fmt(r.lr_critical, '.1f')}) | "
+                     f"{_fmt(r.heldout_gain, '.1f')} |")  # fmt: skip
+    lines.append("")
     al = s.aliasing
     lines += [
         f"Not identifiable from these pushes (projected effect below {s.options.min_visible} RMS at the "

@@ -113,7 +113,7 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
     diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp), force=force)
     v = diag.summary.verdict
-    log.info("%s: verdict %s (%s) -> %s", report.pushlog.path, v.verdict, v.reason, report.folder)
+    log.info("%s: %s, %s -> %s", report.pushlog.path, v.adequacy, v.identification, report.folder)
     return diag.summary
 
 

@@ -18,7 +18,7 @@ from scipy import stats
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.selection import folds
+from imply.diagnose.screening import folds
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,8 @@ TARGETS = ("false_alarm", "top1", "both_named", "none_outside", "magnitude_error
 # (MuJoCo), or another engine's world, with no effect, one library effect or one outside it
 CONTACT_GROUPS = ("null_contact", "single_contact", "outside_contact", "null_engine", "single_engine",
                   "outside_engine")  # fmt: skip
-CONTACT_TARGETS = ("null_no_library", "named", "magnitude_within", "wrong_mechanism")
+CONTACT_TARGETS = ("null_no_library", "among_named", "contenders_mean", "magnitude_within", "wrong_single",
+                   "closed_loop")  # fmt: skip
 DIRECTIONS = 4  # pushes per object and speed in the four-direction design, 90 degrees apart
 
 
@@ -110,7 +111,7 @@ class BenchmarkConfig(Config):
 
     config_key: ClassVar[str] = "gap.benchmark"
 
-    seed: int = option(4242, doc="seed of the logs' draws (the development set: 1001)", required=True)
+    seed: int = option(5151, doc="seed of the logs' draws (the development set: 1001)", required=True)
     logs: dict[str, int] = option(
         {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12, "double": 40,
          "outside": 48},
@@ -189,7 +190,7 @@ class ContactBenchmarkConfig(BenchmarkConfig):
 
     config_key: ClassVar[str] = "gap.contact_benchmark"
 
-    seed: int = option(2424, doc="seed of the logs' draws", required=True)
+    seed: int = option(3131, doc="seed of the logs' draws (the development set: 7117)", required=True)
     logs: dict[str, int] = option(
         {"null_contact": 16, "single_contact": 20, "outside_contact": 10, "null_engine": 8, "single_engine": 12,
          "outside_engine": 6},
@@ -206,9 +207,12 @@ class ContactBenchmarkConfig(BenchmarkConfig):
     )  # fmt: skip
     contact: ContactDraw = option(ContactDraw(), doc="how each MuJoCo log's contact model is drawn", required=True)
     targets: dict[str, float] = option(
-        {"null_no_library": 0.9, "named": 0.8, "magnitude_within": 0.3, "wrong_mechanism": 0.1},
-        doc="null logs naming no library effect (share, at least); single-effect logs naming theirs within "
-        "magnitude_within (share, at least); outside logs stating a library mechanism as the cause (share, at most)",
+        {"null_no_library": 0.9, "among_named": 0.9, "contenders_mean": 3.0, "magnitude_within": 0.3,
+         "wrong_single": 0.1, "closed_loop": 0.6},
+        doc="null logs stating no library effect as a cause (share, at least); one-effect logs naming theirs among "
+        "the causes or contenders (share, at least), with contenders_mean contenders on average (at most); outside "
+        "logs stating a library mechanism as the one cause (share, at most); after the next pushes, undecided "
+        "one-effect logs stating theirs as the one cause within magnitude_within (share, at least)",
         keys=CONTACT_TARGETS,
     )  # fmt: skip
 
@@ -337,6 +341,11 @@ def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effec
     return p
 
 
+def object_names(n: int) -> list[str]:
+    """The object ids of a benchmark log's ``n`` objects, in their order."""
+    return [f"obj{i:02d}" for i in range(n)]
+
+
 def _noise(rng: np.random.Generator, kind: str, sd: float, heavy_sd: float, df: float, shape) -> np.ndarray:
     if kind == "heavy":
         return rng.standard_t(df, shape) * heavy_sd * np.sqrt((df - 2.0) / df)
@@ -410,7 +419,7 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
             if rng.random() < 0.5:
                 e_t[r, j] += rng.uniform(*nm.outlier_size) * rng.choice([-1.0, 1.0])
             outliers.append([r, j])
-    names = [f"obj{i:02d}" for i in range(n_obj)]
+    names = object_names(n_obj)
     he = scene.box_half_extents
     size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
     rows = []
@@ -452,6 +461,44 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
         if key in case:
             label[key] = case[key]
     return frame, label
+
+
+def extra_pushes(
+    case: dict, design: BenchmarkConfig, scene: SceneConfig, obj: np.ndarray, speed: np.ndarray, direction: np.ndarray,
+    *, seed: int, nthread: int = 0,
+) -> pd.DataFrame:  # fmt: skip
+    """New pushes of ``case``'s objects (indices ``obj``) at ``speed`` and ``direction``, run in the same world (its
+    contact model, engine and effects) with the same protocol and noise as its log: ``design.replicates`` noise
+    draws per push (fresh ones, from ``seed``), the log's columns, pushes whose box failed the world's checks left
+    out."""
+    obj = np.asarray(obj, int)
+    p = WorldPushes.nominal(np.asarray(speed, float), np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
+                            np.asarray(direction, float), scene)  # fmt: skip
+    if "contact" in case:
+        apply_contact(p, case["contact"])
+    for e in case["effects"]:
+        apply_effect(p, e["name"], e["magnitude"], e["azimuth"] or 0.0, e)
+    res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
+    rng = np.random.default_rng([case["noise_seed"], seed])
+    nm = design.noise
+    he = scene.box_half_extents
+    size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
+    frames = []
+    for _ in range(design.replicates):
+        shape = speed.shape
+        names = object_names(len(case["mass"]))
+        cols = {"object_id": [names[i] for i in obj], "speed": np.asarray(speed, float),
+                "direction": np.round(np.asarray(direction, float), 9),
+                "displacement": res.displacement * np.exp(_noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df,
+                                                                 shape))}  # fmt: skip
+        if case["stop_time"]:
+            cols["stop_time"] = res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd,
+                                                              nm.heavy_df, shape))  # fmt: skip
+        cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
+        if case["measured_mass"]:
+            cols["mass"] = np.round(np.asarray(case["mass"])[obj], 3)
+        frames.append(pd.DataFrame(cols)[np.asarray(res.ok, bool)])
+    return pd.concat(frames, ignore_index=True)
 
 
 def write_benchmark_logs(

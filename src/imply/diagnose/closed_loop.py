@@ -1,0 +1,143 @@
+"""The next pushes, checked in a closed loop on the other-contact benchmark's worlds.
+
+For every log whose verdict is ``undecided``, the pushes its report recommends
+(``next_pushes.csv``) are run in the same world (its objects, contact model, engine and
+effects, the log's protocol and noise: :func:`imply.realworld.cases.extra_pushes`),
+appended to the log, and the log is diagnosed again. The baseline arm appends as many
+pushes drawn at random from the log's own design (its distinct object, speed and
+direction), run the same way. :func:`run_closed_loop` writes both arms' logs and reports;
+:func:`score_closed_loop` scores them against the sealed labels: how often the true effect
+is then stated as the one cause with its magnitude within the target's tolerance (one-effect
+logs), how often a null log states no library effect, and how often an effect outside
+the library is stated as a library mechanism's one cause.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from imply.diagnose.analysis import Summary
+from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, restricted_truth, true_theta
+from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
+from imply.diagnose.verdict import Identification
+from imply.io import write_csv, write_json
+from imply.realworld.cases import ContactBenchmarkConfig, draw_cases, extra_pushes, object_names
+from imply.sim.scene import SceneConfig
+
+log = logging.getLogger("imply.diagnose")
+
+ARMS = {"next": 1, "random": 2}  # arm -> the seed of its noise draws (beside the log's own)
+
+
+def _summary(folder: Path) -> Summary:
+    with open(folder / "summary.json") as fh:
+        return Summary.from_dict(json.load(fh))
+
+
+def _log_design(frame: pd.DataFrame, n: int, rng: np.random.Generator) -> pd.DataFrame:
+    """``n`` distinct pushes (object, speed, direction) of the log's own, drawn at random."""
+    design = frame[["object_id", "speed", "direction"]].drop_duplicates().reset_index(drop=True)
+    return design.iloc[np.sort(rng.choice(len(design), size=min(n, len(design)), replace=False))]
+
+
+def run_closed_loop(
+    *, design: ContactBenchmarkConfig, scene: SceneConfig, logs: Path, reports: Path, session: Session, out: Path,
+    nthread: int = 0, progress: bool = True,
+) -> list[dict]:  # fmt: skip
+    """Both arms for every undecided log of ``reports`` (one report folder per log of ``logs``): the appended logs
+    in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
+    cases = {c["id"]: c for c in draw_cases(design)}
+    folders = sorted(p for p in reports.iterdir() if (p / "summary.json").is_file())
+    chosen = [f for f in folders if _summary(f).verdict.identification == Identification.UNDECIDED]
+    log.info("%d of %d logs undecided: running their next pushes and as many random ones", len(chosen), len(folders))
+    rows = []
+    for folder in tqdm(chosen, desc="closed loop", unit="log", disable=not progress):
+        cid = folder.name
+        case = cases[cid]
+        frame = pd.read_csv(logs / f"{cid}.csv")
+        nxt = pd.read_csv(folder / "next_pushes.csv")
+        index = {name: i for i, name in enumerate(object_names(design.n_objects))}
+        picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, len(rows)]))}
+        for arm, pushes in picks.items():
+            new = extra_pushes(case, design, scene, pushes["object_id"].map(index).to_numpy(),
+                               pushes["speed"].to_numpy(float), pushes["direction"].to_numpy(float),
+                               seed=ARMS[arm], nthread=nthread)  # fmt: skip
+            appended = pd.concat([frame, new[frame.columns]], ignore_index=True)
+            path = out / "logs" / f"{cid}-{arm}.csv"
+            write_csv(path, appended)
+            report = Report(pushlog=read_checked_pushlog(path, session.table), folder=out / "reports" / f"{cid}-{arm}")
+            diagnose_report(report, session, force=True)
+            rows.append({"case": cid, "arm": arm, "pushes_added": int(len(new)), "report": f"{cid}-{arm}"})
+    write_json(out / "closed_loop.json", {"rows": rows})
+    return rows
+
+
+def _one_cause_right(label: dict, s: Summary, within: float) -> bool:
+    """The log's one effect stated as the one cause, alone, with its magnitude within ``within``."""
+    if s.verdict.identification != Identification.ONE_CAUSE or len(s.verdict.effects) != 1:
+        return False
+    e = label["effects"][0]
+    hit = next((h for h in s.effects if h.effect == e["name"] and h.effect in s.verdict.effects), None)
+    if hit is None:
+        return False
+    restricted = any(k.endswith("_along") for k in hit.components)
+    t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
+    return bool(t and abs(hit.magnitude - t) / abs(t) <= within)
+
+
+def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: float, min_size_sd: float,
+                      sizes: dict[str, float]) -> dict:  # fmt: skip
+    """The closed loop's figures from the sealed ``labels`` and the closed-loop ``folders`` (each with
+    ``closed_loop.json`` and ``reports/``); ``sizes``: each one-effect log's effect size on its contact (log d)."""
+    rows = []
+    for folder in folders:
+        with open(folder / "closed_loop.json") as fh:
+            for r in json.load(fh)["rows"]:
+                lab = labels[r["case"]]
+                s = _summary(folder / "reports" / r["report"])
+                group = lab["group"]
+                row = {**r, "group": group, "engine": lab.get("engine", "mujoco"),
+                       "effects": "+".join(e["name"] for e in lab["effects"]) or "null",
+                       "identification": str(s.verdict.identification), "causes": "+".join(s.verdict.effects) or "none",
+                       "n_contenders": len(s.verdict.contenders)}  # fmt: skip
+                if group in CONTACT_SINGLE:
+                    row["big"] = bool(sizes.get(r["case"], 0.0) >= min_size_sd * lab["noise"]["sd"])
+                    row["one_cause_right"] = _one_cause_right(lab, s, within)
+                elif group in CONTACT_NULL:
+                    row["no_library"] = not s.verdict.effects
+                elif group in CONTACT_OUTSIDE:
+                    row["wrong_single"] = (
+                        bool(s.verdict.effects) and s.verdict.identification == Identification.ONE_CAUSE
+                    )
+                rows.append(row)
+    frame = pd.DataFrame(rows)
+    out: dict = {"rows": rows}
+    for arm in ARMS:
+        sub = frame[frame["arm"] == arm] if len(frame) else frame
+        single = (
+            sub[
+                sub["group"].isin(CONTACT_SINGLE)
+                & sub.get("big", pd.Series(False, index=sub.index)).fillna(False).astype(bool)
+            ]
+            if len(sub)
+            else sub
+        )
+        null = sub[sub["group"].isin(CONTACT_NULL)] if len(sub) else sub
+        outside = sub[sub["group"].isin(CONTACT_OUTSIDE)] if len(sub) else sub
+        out[arm] = {
+            "one_cause_right": float(single["one_cause_right"].astype(float).mean()) if len(single) else float("nan"),
+            "n_single": int(len(single)),
+            "null_no_library": float(null["no_library"].astype(float).mean()) if len(null) else float("nan"),
+            "n_null": int(len(null)),
+            "wrong_single": float(outside["wrong_single"].astype(float).mean()) if len(outside) else float("nan"),
+            "n_outside": int(len(outside)),
+            "contenders_mean": float(sub["n_contenders"].mean()) if len(sub) else float("nan"),
+            "pushes_added_mean": float(sub["pushes_added"].mean()) if len(sub) else float("nan"),
+        }  # fmt: skip
+    return out
