@@ -62,11 +62,13 @@ def _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case: dict, extra=()
 
 def test_oblique_tilt_is_one_effect_with_its_azimuth(tmp_path, tiny_table, tiny_table_path, cache):
     """A table sloping toward 35 degrees (not along an axis) is found as one tilt, with its direction."""
-    case = _case([_effect("tilt", 0.03, 35.0)], seed=11, stop_time=True)
+    # inside the library's range: a tilt at its largest magnitude (0.03) lands on the bound half the time, and an
+    # effect on its bound is never stated
+    case = _case([_effect("tilt", 0.025, 35.0)], seed=11, stop_time=True)
     s, label, report = _diagnose(tmp_path, tiny_table, tiny_table_path, cache, case)
     assert s["verdict"]["effects"] == ["tilt"], s["verdict"]
     tilt = s["effects"][0]
-    assert abs(tilt["magnitude"] - 0.03) < 0.008
+    assert abs(tilt["magnitude"] - 0.025) < 0.008
     assert abs(((tilt["azimuth_deg"] - 35.0) + 180) % 360 - 180) < 20
     lo, hi = tilt["azimuth_ci95_deg"]
     assert lo < tilt["azimuth_deg"] < hi

@@ -3,8 +3,8 @@
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
 sealed in a separate file, ``diagnose-many`` runs ``imply diagnose`` on many logs in
-one process, ``closed-loop`` runs the recommended next pushes of the undecided logs in
-their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
+one process, ``closed-loop`` runs the recommended next pushes of the logs with several
+explanations in contention in their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
 document the gap stage's numbers are read from) and writes the benchmark's report.
 """
 
@@ -75,8 +75,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     cl = gsub.add_parser(
         "closed-loop",
-        help="run the next pushes of every undecided log (and as many random pushes of its own design) in the same "
-        "world, append them and diagnose again (the other-contact benchmark)",
+        help="run the next pushes of every log with several explanations in contention (and as many random pushes of "
+        "its own design) in the same world, append them and diagnose again (the other-contact benchmark)",
     )  # fmt: skip
     cl.add_argument("--contact-bench-json", type=json_arg, required=True, help="config gap.contact_benchmark")
     cl.add_argument("--logs", required=True, help="folder of the benchmark's push logs")

@@ -96,7 +96,7 @@ def contact_claims(c: dict | None) -> list[Claim]:
               f"stated as the one cause in <= {t['wrong_single']:.0%}", _holds(c["wrong_single"],
               lambda x: x <= t["wrong_single"]), f"{_f(c['wrong_single'])} on {c['n_wrong_single']} logs "
               f"({split('wrong_single')}); stated as a cause at all {_f(c['wrong_mechanism'], '.2f')}"),
-        Claim("gap-contact-loop", "gap", f"Undecided one-effect logs, once the recommended next pushes are run and "
+        Claim("gap-contact-loop", "gap", f"One-effect logs with several contenders, once the recommended next pushes are run and "
               f"appended: the true effect the one cause within {t['magnitude_within']:.0%} in >= {t['closed_loop']:.0%}",
               _holds(nxt.get("one_cause_right"), lambda x: x >= t["closed_loop"]),
               f"{_f(nxt.get('one_cause_right'))} on {nxt.get('n_single', 0)} logs; as many pushes drawn from the log's "
@@ -199,7 +199,7 @@ def contact_markdown(c: dict | None) -> list[str]:
         lines.append(f"- {'HOLDS' if cl.holds else 'FAILS'}: {cl.statement} ({cl.detail})")
     loop = c.get("closed_loop")
     if loop:
-        lines += ["", "## Closed loop (undecided logs: the recommended next pushes against as many random pushes of "
+        lines += ["", "## Closed loop (logs with several explanations in contention: the recommended next pushes against as many random pushes of "
                   "the log's own design, each run in the same world and appended, then diagnosed again)", "",
                   "| | next pushes | random pushes of the log's design |", "|---|---|---|"]  # fmt: skip
         n, r = loop["next"], loop["random"]

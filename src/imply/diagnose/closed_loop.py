@@ -1,6 +1,7 @@
 """The next pushes, checked in a closed loop on the other-contact benchmark's worlds.
 
-For every log whose verdict is ``undecided``, the pushes its report recommends
+For every log whose verdict keeps several explanations in contention (a set of
+hypotheses, whatever it states), the pushes its report recommends
 (``next_pushes.csv``) are run in the same world (its objects, contact model, engine and
 effects, the log's protocol and noise: :func:`imply.realworld.cases.extra_pushes`),
 appended to the log, and the log is diagnosed again. The baseline arm appends as many
@@ -50,12 +51,13 @@ def run_closed_loop(
     *, design: ContactBenchmarkConfig, scene: SceneConfig, logs: Path, reports: Path, session: Session, out: Path,
     nthread: int = 0, progress: bool = True,
 ) -> list[dict]:  # fmt: skip
-    """Both arms for every undecided log of ``reports`` (one report folder per log of ``logs``): the appended logs
+    """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the appended logs
     in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
     cases = {c["id"]: c for c in draw_cases(design)}
     folders = sorted(p for p in reports.iterdir() if (p / "summary.json").is_file())
-    chosen = [f for f in folders if _summary(f).verdict.identification == Identification.UNDECIDED]
-    log.info("%d of %d logs undecided: running their next pushes and as many random ones", len(chosen), len(folders))
+    chosen = [f for f in folders if len(_summary(f).verdict.contenders) > 1]
+    log.info("%d of %d logs with several explanations in contention: running their next pushes and as many random "
+             "ones", len(chosen), len(folders))  # fmt: skip
     rows = []
     for folder in tqdm(chosen, desc="closed loop", unit="log", disable=not progress):
         cid = folder.name

@@ -39,7 +39,6 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from imply.diagnose.aliasing import Aliasing
 from imply.diagnose.candidates import DISCREPANCY, Candidate, Model
@@ -168,14 +167,11 @@ def at_zero(c: Candidate, theta: np.ndarray, rtol: float = 1e-3) -> bool:
     return bool(abs(float(theta[0])) <= rtol * (c.hi[0] - c.lo[0]))
 
 
-def at_bound(fit: JointFit, dispersion: float, level: float = 0.95) -> list[str]:
-    """The library effects of ``fit`` at their largest magnitude that the pushes pull beyond it: the one-step
-    profiled drop of the sum of squares beyond the bound, over the dispersion, above the chi-square quantile at
-    ``level`` (1 degree of freedom). An effect that merely lands on its bound is not one of them."""
-    crit = float(stats.chi2.ppf(level, 1))
-    drops = fit.pulled_past_bounds(0.0)
+def at_bound(fit: JointFit) -> list[str]:
+    """The library effects of ``fit`` at the bound of their library range that is not zero (their largest
+    magnitude): the pushes ask for at least as much as the library holds, so the effect is no cause to state."""
     return [c.name for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
-            if drops.get(c.name, 0.0) / dispersion > crit and not at_zero(c, fit.theta[sl])]  # fmt: skip
+            if c.bound_direction(fit.theta[sl]) is not None and not at_zero(c, fit.theta[sl])]  # fmt: skip
 
 
 def degenerate(fit: JointFit) -> bool:
@@ -254,7 +250,7 @@ def enumerate_hypotheses(
             chi2=f.sse,
             heldout_chi2=float(f.heldout_sse_quadratic(fold_of).sum()),
             n_parameters=f.model.dim,
-            at_bound=at_bound(f, dispersion),
+            at_bound=at_bound(f),
             estimates=_estimates(f, dispersion),
         )  # fmt: skip
         for f, z, w in zip(ordered, log_z, weights, strict=True)

@@ -22,6 +22,8 @@ from imply.diagnose.verdict import Adequacy, Contender, Identification, Verdict
 if TYPE_CHECKING:  # the summary only as a type: it renders itself through this module
     from imply.diagnose.analysis import Summary
 
+LISTED = 4  # contenders a sentence lists (the report's table lists them all)
+
 # what would tell an effect from the others in contention (by candidate; "discrepancy" for the model discrepancy)
 SEPARATE_BY = {
     SPEED_GAIN: "measure the pusher's actual speed",
@@ -136,8 +138,7 @@ def headline(summary: Summary) -> str:
     v: Verdict = summary.verdict
     sh = summary.shrinkage
     # the explanation the verdict rests on: the contenders' common core where it is one of them, else the leading one
-    core = set(v.contenders[0].effects).intersection(*(c.effects for c in v.contenders[1:]))
-    stands = next((c for c in v.contenders if set(c.effects) == core), v.contenders[0])
+    stands = v.contenders[v.core] if v.core >= 0 else v.contenders[0]
     if v.adequacy == Adequacy.NO_GAP:
         return (f"No gap beyond noise: the table agrees with these pushes within their noise (RMS residual "
                 f"{sh.before_rms:.3g} against a noise floor of {sh.noise_floor_rms:.3g} in log d), and no effect is "
@@ -167,7 +168,12 @@ def headline(summary: Summary) -> str:
         ),  # fmt: skip
         Identification.UNDECIDED: (
             f", and the pushes cannot tell {len(v.contenders)} explanations apart: "
-            + "; ".join(contender_words(summary, c) for c in v.contenders)
+            + "; ".join(contender_words(summary, c) for c in v.contenders[:LISTED])
+            + (
+                f"; and {len(v.contenders) - LISTED} more with less weight (listed in the report)"
+                if len(v.contenders) > LISTED
+                else ""
+            )
             + "."
         ),
     }[v.identification]
@@ -180,7 +186,7 @@ def verdict_text(summary: Summary) -> str:
     parts = [headline(summary)]
     if v.adequacy == Adequacy.NO_GAP and len(v.contenders) > 1:
         parts.append("A small effect cannot be ruled out: "
-                     + "; ".join(contender_words(summary, c) for c in v.contenders[1:]) + ".")  # fmt: skip
+                     + "; ".join(contender_words(summary, c) for c in v.contenders[1:LISTED]) + ".")  # fmt: skip
     if v.identification == Identification.UNDECIDED and v.effects:
         stated = [e for e in summary.effects if e.effect in v.effects]
         one = len(v.effects) == 1

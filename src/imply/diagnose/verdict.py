@@ -81,8 +81,9 @@ class Verdict(Record):
     identification: Identification
     effects: list[str]  # library effects stated as causes
     contenders: list[Contender]  # best first
+    core: int  # the index in contenders of the one whose effects every contender holds (-1: none is)
     not_separable: list[str]  # effects of contenders that a contender with the discrepancy explains without them
-    not_ruled_out: list[str]  # the contenders' other effects that are not stated (nor at their bound)
+    not_ruled_out: list[str]  # the contenders' effects outside the core that are not separable either
     at_bound: list[str]  # effects of contenders at their library bound, never stated
     share_closed: float | None  # of the held-out gap above the noise floor, by the leading hypothesis
     leading: str  # the label of the hypothesis of largest weight
@@ -160,11 +161,12 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
     not_separable, open_ = [], []
     for c in contenders:
         for e in c.effects:
-            if e in causes or e in not_separable or e in open_ or e in bound:
+            if e in core or e in not_separable or e in open_ or e in bound:
                 continue
             (not_separable if any(e not in w for w in with_disc) else open_).append(e)
     return Verdict(
-        adequacy=share_adequacy, identification=ident, effects=causes,
-        contenders=contenders, not_separable=not_separable, not_ruled_out=open_, at_bound=bound, share_closed=share,
-        leading=leading.label, min_share=min_share, contender_ratio=contender_ratio,
+        adequacy=share_adequacy, identification=ident, effects=causes, contenders=contenders,
+        core=contenders.index(stands) if stands is not None else -1, not_separable=not_separable,
+        not_ruled_out=open_, at_bound=bound, share_closed=share, leading=leading.label, min_share=min_share,
+        contender_ratio=contender_ratio,
     )  # fmt: skip

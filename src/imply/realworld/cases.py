@@ -211,8 +211,8 @@ class ContactBenchmarkConfig(BenchmarkConfig):
          "wrong_single": 0.1, "closed_loop": 0.6},
         doc="null logs stating no library effect as a cause (share, at least); one-effect logs naming theirs among "
         "the causes or contenders (share, at least), with contenders_mean contenders on average (at most); outside "
-        "logs stating a library mechanism as the one cause (share, at most); after the next pushes, undecided "
-        "one-effect logs stating theirs as the one cause within magnitude_within (share, at least)",
+        "logs stating a library mechanism as the one cause (share, at most); after the next pushes, "
+        "one-effect logs with several contenders stating theirs as the one cause within magnitude_within (share, at least)",
         keys=CONTACT_TARGETS,
     )  # fmt: skip
 
