@@ -10,17 +10,30 @@ what the next pushes would do.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
 from imply.diagnose.discrepancy import DiscrepancyReport
 from imply.diagnose.estimates import EffectEstimate
+from imply.diagnose.hypotheses import Hypothesis
+from imply.diagnose.next_pushes import PushDesign
+from imply.diagnose.shrinkage import Shrinkage
 from imply.diagnose.verdict import Adequacy, Contender, Identification, Verdict
 
-if TYPE_CHECKING:  # the summary only as a type: it renders itself through this module
-    from imply.diagnose.analysis import Summary
+
+class Summary(Protocol):
+    """What the renderer reads of a diagnosis (:class:`imply.diagnose.analysis.Summary` has it all)."""
+
+    verdict: Verdict
+    shrinkage: Shrinkage
+    hypotheses: list[Hypothesis]
+    effects: list[EffectEstimate]
+    inclusion: dict[str, float]
+    discrepancy: DiscrepancyReport | None
+    next_pushes: PushDesign | None
+
 
 LISTED = 4  # contenders a sentence lists (the report's table lists them all)
 
