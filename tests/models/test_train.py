@@ -10,7 +10,7 @@ from test_ac_predictor import TINY, tiny_model
 from imply.models.config import Layout, PredictorConfig, TrainConfig
 from imply.models.examples import derangement, training_sequences
 from imply.models.features import load_feature_split
-from imply.models.train import losses, train
+from imply.models.train import load_model, losses, train
 from synthetic_features import synth_split
 
 # tiny tensors: extra torch threads only contend with the rest of the suite
@@ -65,7 +65,7 @@ def test_resumed_run_matches_uninterrupted(synth, tmp_path):
     full = train(seqs, **run, data_seed=7, out=tmp_path / "a.pt", checkpoint=tmp_path / "a.ckpt")
     stopped = train(seqs, **run, data_seed=7, out=tmp_path / "b.pt", checkpoint=tmp_path / "b.ckpt", stop_after_epoch=1)
     assert stopped is None and not (tmp_path / "b.pt").exists()
-    assert torch.load(tmp_path / "b.ckpt", weights_only=False)["epoch"] == 1
+    assert torch.load(tmp_path / "b.ckpt", weights_only=True)["epoch"] == 1  # tensors and plain types only
     resumed = train(seqs, **run, data_seed=7, out=tmp_path / "b.pt", checkpoint=tmp_path / "b.ckpt")
     assert [h["epoch"] for h in resumed["history"]] == [1, 2, 3]
     for k, v in full["model"].items():
@@ -74,6 +74,23 @@ def test_resumed_run_matches_uninterrupted(synth, tmp_path):
     # another data-order seed gives other weights
     other = train(seqs, **run, data_seed=8, out=tmp_path / "c.pt", checkpoint=tmp_path / "c.ckpt")
     assert not torch.equal(other["model"]["out.weight"], full["model"]["out.weight"])
+    model, loaded_layout, payload = load_model(tmp_path / "a.pt")
+    assert loaded_layout == layout and payload["history"] == full["history"]
+
+
+class _RunsCode:
+    """What a shared checkpoint could hold: an object whose unpickling calls a function."""
+
+    def __reduce__(self):
+        return (print, ("this ran while the file was read",))
+
+
+def test_a_model_file_whose_pickle_would_run_code_is_refused(tmp_path, capsys):
+    torch.save({"predictor": {}, "model": {}, "payload": _RunsCode()}, tmp_path / "shared.pt")
+    with pytest.raises(ValueError, match=r"shared.pt: not a plain model file") as err:
+        load_model(tmp_path / "shared.pt")
+    assert "\n" not in str(err.value)
+    assert "this ran" not in capsys.readouterr().out
 
 
 def test_derangement_has_no_fixed_point():

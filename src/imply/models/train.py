@@ -45,6 +45,7 @@ import json
 import logging
 import math
 import os
+import pickle
 from collections.abc import Callable
 from pathlib import Path
 
@@ -132,11 +133,33 @@ def run_digest(
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
+def _plain(obj):
+    """``obj`` with numpy scalars as Python numbers (tensors and plain types only: loadable with weights_only)."""
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return type(obj)(_plain(v) for v in obj)
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
 def _save(path: Path, obj: dict) -> None:
     buf = io.BytesIO()
-    torch.save(obj, buf)
+    torch.save(_plain(obj), buf)
     with atomic_path(path) as tmp:
         tmp.write_bytes(buf.getvalue())
+
+
+def _load(path: str | os.PathLike, *, map_location: str) -> dict:
+    """A model or checkpoint file, read as tensors and plain types only: a file whose pickle would build any other
+    object (and so could run code) is refused (ValueError naming it)."""
+    try:
+        return torch.load(path, map_location=map_location, weights_only=True)
+    except pickle.UnpicklingError as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"{path}: not a plain model file (it would build other objects than tensors when read, "
+                         f"so it is not loaded): {first}") from None
 
 
 def train(
@@ -173,7 +196,7 @@ def train(
     total = per_epoch * config.epochs
     start_epoch, history = 0, []
     if checkpoint.exists():
-        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        state = _load(checkpoint, map_location=device)
         if state.get("digest") == digest:
             model.load_state_dict(state["model"])
             opt.load_state_dict(state["optimizer"])
@@ -279,7 +302,7 @@ def train_variant(
 
 def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:
     """A trained predictor (eval mode), its layout and the saved payload."""
-    payload = torch.load(path, map_location="cpu", weights_only=False)
+    payload = _load(path, map_location="cpu")
     model = ACPredictor(PredictorConfig.from_dict(payload["predictor"]))
     model.load_state_dict(payload["model"])
     model.eval()
