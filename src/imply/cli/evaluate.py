@@ -34,8 +34,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a model to run in process (repeatable)")  # fmt: skip
     p.add_argument("--rollouts", action="append", default=[], metavar="FILE",
                    help="rollouts generated elsewhere (.npz, or .csv of displacements; repeatable)")  # fmt: skip
+    p.add_argument("--videos", action="append", default=[], metavar="FOLDER",
+                   help="a folder of generated videos named as 'imply suite export' says (MP4 or PNG folders; "
+                        "repeatable; the model's name is the folder's)")  # fmt: skip
+    p.add_argument("--check", action="store_true",
+                   help="only check the --videos folders (missing, extra, duplicated, undecodable files, mixed frame "
+                        "rates, no frame after the context); exit 2 on any problem")  # fmt: skip
     p.add_argument("--suite", required=True, help="suite folder (results/suite from the workflow)")
-    p.add_argument("-o", "--output", required=True, help="report folder to write")
+    p.add_argument("-o", "--output", help="report folder to write (needed unless --check)")
     p.add_argument("--force", action="store_true", help="replace a report written there before")
     p.add_argument("--conditions", default=",".join(default_of(EvaluateConfig, "conditions")),
                    help="calibration conditions to ask, comma-separated (default %(default)s)")  # fmt: skip
@@ -54,6 +60,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
 
+def _checked_videos(folders: list[str], suite, conditions: tuple[str, ...]) -> list:
+    """Every --videos folder checked and read as rollouts; every problem of every folder is printed (one line per
+    kind) before the command stops with status 2."""
+    import sys
+
+    from imply.evaluate.video_package import VideoFolderError, read_videos
+
+    out, problems = [], []
+    for folder in folders:
+        try:
+            out.append(read_videos(folder, suite, conditions))
+        except VideoFolderError as exc:
+            problems += exc.problems
+    if problems:
+        for line in problems[:-1]:
+            print(f"error: {line}", file=sys.stderr)
+        raise UserError(problems[-1] + " (nothing scored)")
+    return out
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from imply.evaluate.config import EvaluateConfig
     from imply.evaluate.harness import evaluate
@@ -64,24 +90,33 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from imply.io import OutputError
     from imply.table import OutOfRangeError
 
-    if not args.model and not args.rollouts:
-        raise UserError("give at least one --model MODULE:FACTORY or --rollouts FILE")
-    out = output_dir(args.output)
+    if not args.model and not args.rollouts and not args.videos:
+        raise UserError("give at least one --model MODULE:FACTORY, --rollouts FILE or --videos FOLDER")
+    if args.check and not args.videos:
+        raise UserError("--check checks --videos folders: give at least one")
+    if not args.check and not args.output:
+        raise UserError("give the report folder: -o REPORT")
+    out = output_dir(args.output) if args.output else None
     conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
     with user_errors(ValueError, message="--conditions: {error}"):
         settings = EvaluateConfig(
             conditions=conditions, samples=args.samples, bootstrap=args.bootstrap, seed=args.seed,
             static_limit=args.static_limit,
         )  # fmt: skip
-    inputs = [Path(f) for f in args.rollouts]
-    with user_errors(OutputError):
-        check_report_folder(out, force=args.force, inputs=inputs)
+    inputs = [Path(f) for f in args.rollouts + args.videos]
+    if not args.check:
+        with user_errors(OutputError):
+            check_report_folder(out, force=args.force, inputs=inputs)
     with user_errors(SuiteError, message="--suite: {error}"):
         suite = load_suite(args.suite)
+    videos = _checked_videos(args.videos, suite, settings.conditions)  # always before any scoring
+    if args.check:
+        log.info("%d folder(s) of videos checked: nothing wrong", len(videos))
+        return 0
     cache = None if args.no_cache else Path(args.cache) if args.cache else out.with_name(out.name + ".cache")
     with user_errors(ModelError, RolloutsFileError, SuiteError, OutOfRangeError):
         evaluations = evaluate(
-            args.model, suite=suite, rollouts=args.rollouts, settings=settings, cache_dir=cache,
+            args.model, suite=suite, rollouts=[*args.rollouts, *videos], settings=settings, cache_dir=cache,
             progress=not args.no_progress,
         )  # fmt: skip
     with user_errors(OutputError, ValueError):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import config_from_json, int_range, json_arg, output_dir, user_errors
+from imply.cli.common import UserError, config_from_json, int_range, json_arg, output_dir, positive_float, user_errors
 
 log = logging.getLogger("imply")
 
@@ -26,6 +26,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
     b.add_argument("-o", "--out", required=True, help="the suite folder (a previous suite there is replaced)")
     b.set_defaults(func=cmd_build)
+    e = ssub.add_parser(
+        "export",
+        help="the suite as files for a model in any environment: context frames (PNG), calibration pushes (MP4 and "
+        "PNG), cases.csv and cases.json naming the video each case must produce; never the truth",
+    )
+    e.add_argument("suite", help="the suite folder")
+    e.add_argument("-o", "--out", required=True, help="the package folder (new or empty)")
+    e.add_argument("--size", type=_size, help="HEIGHTxWIDTH of the exported frames (default: the suite's camera)")
+    e.add_argument("--fps", type=positive_float, default=30.0, help="frame rate of the videos (default %(default)g)")
+    e.add_argument("--conditions", default="own,other,none",
+                   help="calibration conditions to export cases of, comma-separated (default %(default)s)")  # fmt: skip
+    e.set_defaults(func=cmd_export)
     w = ssub.add_parser("show", help="check a suite's checksums and print its sizes, camera and settings")
     w.add_argument("suite", help="the suite folder")
     w.set_defaults(func=cmd_show)
@@ -46,6 +58,36 @@ def cmd_build(args: argparse.Namespace) -> int:
     with user_errors(SuiteError, OutputError):
         build_suite(cfg, clips=clips, scene=scene, speeds=speeds, table_path=args.table, out_dir=out,
                     nthread=args.threads)  # fmt: skip
+    return 0
+
+
+def _size(text: str) -> tuple[int, int]:
+    """HEIGHTxWIDTH, or one number for a square."""
+    parts = text.lower().split("x")
+    try:
+        h, w = (int(parts[0]), int(parts[0])) if len(parts) == 1 else (int(parts[0]), int(parts[1]))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HEIGHTxWIDTH (e.g. 256x256)") from None
+    if len(parts) > 2 or h < 2 or w < 2:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HEIGHTxWIDTH (e.g. 256x256)")
+    return h, w
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from imply.evaluate.config import CONDITIONS
+    from imply.evaluate.suite import SuiteError, load_suite
+    from imply.evaluate.video_package import export_package
+
+    conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
+    bad = [c for c in conditions if c not in CONDITIONS]
+    if bad or not conditions:
+        raise UserError(f"--conditions: {', '.join(bad) or 'none given'} (known: {', '.join(CONDITIONS)})")
+    with user_errors(SuiteError, message="{error}"):
+        suite = load_suite(args.suite)
+    with user_errors(ValueError):
+        m = export_package(suite, output_dir(args.out), conditions=conditions, size=args.size, fps=args.fps)
+    log.info("exported %d cases (%dx%d px, %g fps) -> %s", m["n_cases"], m["size"]["height"], m["size"]["width"],
+             m["fps"], args.out)  # fmt: skip
     return 0
 
 

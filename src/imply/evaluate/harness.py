@@ -257,7 +257,7 @@ def evaluate(
     models: Sequence[Any] = (),
     *,
     suite: Suite | str | Path,
-    rollouts: Sequence[str | Path] = (),
+    rollouts: Sequence[str | Path | RolloutsFile] = (),
     settings: EvaluateConfig | None = None,
     score: ScoreConfig | None = None,
     samples: int | None = None,
@@ -267,7 +267,8 @@ def evaluate(
     """Evaluate world models on a suite: one :class:`Evaluation` per model, models first, then files.
 
     models: model objects or ``MODULE:FACTORY`` strings (see :mod:`imply.evaluate.interface`).
-    rollouts: rollouts files written elsewhere (:mod:`imply.evaluate.rollouts_file`).
+    rollouts: rollouts files written elsewhere (:mod:`imply.evaluate.rollouts_file`), or rollouts already read
+      (a folder of generated videos: :func:`imply.evaluate.video_package.read_videos`).
     samples: sample sets asked of a stochastic model (default ``settings.samples``).
     cache_dir: keep each finished batch there, so a rerun skips it (None: no cache).
     """
@@ -285,8 +286,13 @@ def evaluate(
         label = m if isinstance(m, str) else f"model {i + 1}"
         model = load_model(m, suite=suite) if isinstance(m, str) else m
         sources.append(ModelSource(model, label=label, samples=n_samples))
-    for path in rollouts:
-        sources.append(FileSource(read_rollouts_file(path, suite=suite, conditions=settings.conditions)))
+    for path in rollouts:  # a file's path, or rollouts already read (a folder of videos)
+        data = (
+            path
+            if isinstance(path, RolloutsFile)
+            else read_rollouts_file(path, suite=suite, conditions=settings.conditions)
+        )
+        sources.append(FileSource(data))
     names = [src.name for src in sources]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:

@@ -158,8 +158,10 @@ def _load(path: str | os.PathLike, *, map_location: str) -> dict:
         return torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ValueError(f"{path}: not a plain model file (it would build other objects than tensors when read, "
-                         f"so it is not loaded): {first}") from None
+        raise ValueError(
+            f"{path}: not a plain model file (it would build other objects than tensors when read, "
+            f"so it is not loaded): {first}"
+        ) from None
 
 
 def train(
