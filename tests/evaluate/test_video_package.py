@@ -157,3 +157,29 @@ def test_export_and_evaluate_from_the_command_line(tiny_suite, tmp_path):
                  "--bootstrap", "20"]) == 0  # fmt: skip
     results = json.loads((out / "results.json").read_text())
     assert results["models"][0]["model"] == "oracle" and results["models"][0]["kind"] == "frames"
+
+
+def test_the_readme_example_runs_as_written(tiny_suite, tmp_path, repo_root):
+    """The README's three commands, as written, in a folder whose results/suite is the tiny suite."""
+    import re
+    import shlex
+    import subprocess
+    import sys
+
+    text = (repo_root / "README.md").read_text()
+    block = re.search(r"```bash\n(imply suite export .*?)```", text, re.S)
+    assert block, "README must hold the file-door example as a ```bash block starting 'imply suite export'"
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "suite").symlink_to(tiny_suite)
+    (tmp_path / "examples").symlink_to(repo_root / "examples")
+    for line in block.group(1).strip().splitlines():
+        argv = shlex.split(line)
+        if argv[0] == "imply":
+            argv = [sys.executable, "-m", "imply.cli", *argv[1:]]
+        elif argv[0] == "python":
+            argv = [sys.executable, *argv[1:]]
+        run = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True)
+        assert run.returncode == 0, (line, run.stderr[-2000:])
+    results = json.loads((tmp_path / "my-video-report" / "results.json").read_text())
+    (model,) = results["models"]
+    assert model["model"] == "my-videos" and model["kind"] == "frames"
