@@ -183,3 +183,35 @@ def test_the_readme_example_runs_as_written(tiny_suite, tmp_path, repo_root):
     results = json.loads((tmp_path / "my-video-report" / "results.json").read_text())
     (model,) = results["models"]
     assert model["model"] == "my-videos" and model["kind"] == "frames"
+
+
+def test_a_command_in_its_own_environment_generates_then_is_scored_and_resumes(tiny_suite, tmp_path, repo_root,
+                                                                              capsys):  # fmt: skip
+    import sys
+
+    script = repo_root / "examples" / "video_world_model.py"
+    out = tmp_path / "report"
+    command = f"{sys.executable} {script} {{package}} {{out}} --cases {{cases}}"
+    args = ["evaluate", "--command", command, "--name", "power-law", "--suite", str(tiny_suite), "-o", str(out),
+            "--no-progress", "--bootstrap", "20"]  # fmt: skip
+    assert main(args) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["models"][0]["model"] == "power-law"
+    videos = tmp_path / "report.videos" / "power-law"
+    n = len(list(videos.glob("*.mp4")))
+    assert n == load_suite(tiny_suite).n_objects * 3 * 5
+    # interrupted: two videos lost; a rerun asks the command for those two only
+    lost = sorted(videos.glob("*.mp4"))[:2]
+    for p in lost:
+        p.unlink()
+    assert main([*args, "--force"]) == 0
+    runs = [line for line in (tmp_path / "report.command.log").read_text().splitlines() if line.startswith("$ ")]
+    assert [r.rsplit("# ", 1)[1] for r in runs] == [f"{n} cases", "2 cases"]
+    assert all(p.exists() for p in lost)
+    # a command that fails stops with its last lines, nothing scored
+    bad = ["evaluate", "--command", f"{sys.executable} -c \"import sys; print('no GPU here'); sys.exit(3)\"",
+           "--suite", str(tiny_suite), "-o", str(tmp_path / "bad"), "--no-progress"]  # fmt: skip
+    assert main(bad) == 2
+    err = capsys.readouterr().err
+    assert "--command exited with status 3" in err and "no GPU here" in err
+    assert not (tmp_path / "bad").exists()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import logging
 import shutil
+import sys
 from pathlib import Path
 
 from imply.cli.common import UserError, int_range, output_dir, positive_float, user_errors
@@ -40,6 +41,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--check", action="store_true",
                    help="only check the --videos folders (missing, extra, duplicated, undecodable files, mixed frame "
                         "rates, no frame after the context); exit 2 on any problem")  # fmt: skip
+    p.add_argument("--command", metavar="'CMD {package} {cases} {out}'",
+                   help="a generation command run in its own environment: the suite is exported beside the report "
+                        "(REPORT.package), the command writes the pending cases' videos into REPORT.videos, which is "
+                        "then checked and scored; an interrupted run asks only for the cases still missing")  # fmt: skip
+    p.add_argument("--name", default="command", help="the --command model's name in the report (default %(default)s)")
     p.add_argument("--suite", required=True, help="suite folder (results/suite from the workflow)")
     p.add_argument("-o", "--output", help="report folder to write (needed unless --check)")
     p.add_argument("--force", action="store_true", help="replace a report written there before")
@@ -63,8 +69,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _checked_videos(folders: list[str], suite, conditions: tuple[str, ...]) -> list:
     """Every --videos folder checked and read as rollouts; every problem of every folder is printed (one line per
     kind) before the command stops with status 2."""
-    import sys
-
     from imply.evaluate.video_package import VideoFolderError, read_videos
 
     out, problems = [], []
@@ -80,6 +84,33 @@ def _checked_videos(folders: list[str], suite, conditions: tuple[str, ...]) -> l
     return out
 
 
+def _generate(args: argparse.Namespace, suite, conditions: tuple[str, ...], out: Path) -> Path:
+    """Export the suite beside the report (once), run the --command for the cases not generated yet, and return
+    the videos folder (named by --name)."""
+    from imply.evaluate.video_package import CommandError, export_package, read_manifest, run_command
+
+    package = out.with_name(out.name + ".package")
+    videos = out.with_name(out.name + ".videos") / args.name
+    made = None
+    if package.exists():
+        with user_errors(ValueError):
+            made = read_manifest(package)
+    if made is None or made["suite"] != suite.checksum or made["conditions"] != list(conditions):
+        if package.exists():
+            shutil.rmtree(package)
+        with user_errors(ValueError):
+            export_package(suite, package, conditions=conditions)
+    try:
+        n = run_command(args.command, package=package, videos=videos, log_path=out.with_name(out.name + ".command.log"))
+    except CommandError as exc:
+        first, *rest = str(exc).splitlines()
+        for line in rest:  # the command's own last lines, as it printed them
+            print(line, file=sys.stderr)
+        raise UserError(first) from None
+    log.info("--command generated %d case(s) -> %s", n, videos)
+    return videos
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from imply.evaluate.config import EvaluateConfig
     from imply.evaluate.harness import evaluate
@@ -90,8 +121,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from imply.io import OutputError
     from imply.table import OutOfRangeError
 
-    if not args.model and not args.rollouts and not args.videos:
-        raise UserError("give at least one --model MODULE:FACTORY, --rollouts FILE or --videos FOLDER")
+    if not args.model and not args.rollouts and not args.videos and not args.command:
+        raise UserError("give at least one --model MODULE:FACTORY, --rollouts FILE, --videos FOLDER or --command")
     if args.check and not args.videos:
         raise UserError("--check checks --videos folders: give at least one")
     if not args.check and not args.output:
@@ -109,6 +140,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             check_report_folder(out, force=args.force, inputs=inputs)
     with user_errors(SuiteError, message="--suite: {error}"):
         suite = load_suite(args.suite)
+    if args.command:
+        if out is None:
+            raise UserError("--command needs the report folder: -o REPORT")
+        args.videos = [*args.videos, str(_generate(args, suite, settings.conditions, out))]
     videos = _checked_videos(args.videos, suite, settings.conditions)  # always before any scoring
     if args.check:
         log.info("%d folder(s) of videos checked: nothing wrong", len(videos))

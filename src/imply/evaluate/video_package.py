@@ -354,3 +354,50 @@ def read_manifest(path: str | Path) -> dict:
     if m.get("format") != PACKAGE_FORMAT:
         raise ValueError(f"{path}: not an imply video package")
     return m
+
+
+class CommandError(RuntimeError):
+    """The user's generation command failed: the message holds its exit status and last lines."""
+
+
+def pending_cases(package: Path, videos: Path) -> pd.DataFrame:
+    """The package's cases whose video is not in ``videos`` yet (a video, or a folder of PNG frames, of the case's
+    output name): what an interrupted generation still owes."""
+    cases = pd.read_csv(Path(package) / "cases.csv", keep_default_na=False)
+    done = {p.stem if p.is_file() else p.name for p in Path(videos).iterdir()} if Path(videos).is_dir() else set()
+    return cases[[Path(name).stem not in done for name in cases["output"]]]
+
+
+def run_command(command: str, *, package: Path, videos: Path, log_path: Path, tail: int = 15) -> int:
+    """Run the user's generation ``command`` for the cases still pending, in its own process (no shell): the
+    placeholders ``{package}`` (the exported folder), ``{cases}`` (a cases file of the pending cases) and
+    ``{out}`` (the videos folder) are filled in; its output is appended to ``log_path``. Returns how many cases
+    it was asked for; CommandError with its last ``tail`` lines when it exits non-zero."""
+    import shlex
+    import subprocess
+
+    videos = Path(videos)
+    videos.mkdir(parents=True, exist_ok=True)
+    todo = pending_cases(package, videos)
+    if todo.empty:
+        return 0
+    cases_path = videos.parent / f".{videos.name}.pending.csv"
+    write_csv(cases_path, todo)
+    try:
+        argv = [part.format(package=str(package), cases=str(cases_path), out=str(videos))
+                for part in shlex.split(command)]  # fmt: skip
+    except (KeyError, IndexError, ValueError) as exc:
+        raise CommandError(f"--command: {exc} (placeholders: {{package}}, {{cases}}, {{out}})") from None
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(log_path, "a") as log_file:
+        log_file.write(f"$ {shlex.join(argv)}  # {len(todo)} cases\n")
+        log_file.flush()
+        try:
+            status = subprocess.run(argv, stdout=log_file, stderr=subprocess.STDOUT).returncode
+        except OSError as exc:
+            raise CommandError(f"--command: {argv[0]}: {exc.strerror}") from None
+    cases_path.unlink(missing_ok=True)
+    if status != 0:
+        last = log_path.read_text().splitlines()[-tail:]
+        raise CommandError(f"--command exited with status {status}; its last lines ({log_path}):\n" + "\n".join(last))
+    return len(todo)
