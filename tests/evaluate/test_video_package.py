@@ -215,3 +215,22 @@ def test_a_command_in_its_own_environment_generates_then_is_scored_and_resumes(t
     err = capsys.readouterr().err
     assert "--command exited with status 3" in err and "no GPU here" in err
     assert not (tmp_path / "bad").exists()
+
+
+def test_slides_no_pushed_box_could_make_are_flagged(tiny_suite, tmp_path, capsys):
+    import sys
+
+    sys.path.insert(0, str(tmp_path))
+    (tmp_path / "millimetres.py").write_text(
+        "import numpy as np\n"
+        "class M:\n    kind = 'displacements'\n    name = 'millimetres'\n"
+        "    def rollout(self, request):\n"
+        "        return np.tile(1000.0 * 0.2 * (request.query_speeds / 0.55) ** 2, (len(request.object_ids), 1))\n"
+        "def build(suite):\n    return M()\n"
+    )  # fmt: skip
+    out = tmp_path / "report"
+    assert main(["evaluate", "--model", str(tmp_path / "millimetres.py") + ":build", "--suite", str(tiny_suite),
+                 "-o", str(out), "--no-progress", "--bootstrap", "20"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "millimetres: 90 rollout(s) read a slide more than ten times" in err
+    assert "read a slide more than ten times the longest real one" in (out / "report.md").read_text()

@@ -159,6 +159,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if cache is not None and args.cache is None and cache.exists():
         shutil.rmtree(cache, ignore_errors=True)
     for ev in evaluations:
+        far = sum(d.unphysical for d in ev.degenerate)
+        if far:
+            print(f"warning: {ev.model}: {far} rollout(s) read a slide more than ten times the suite's longest real "
+                  "one (a units slip?); flagged in the report", file=sys.stderr)  # fmt: skip
         own = ev.condition("own") or ev.conditions[0]
         log.info("%s (%s, %s readout): %s tracking r %s, log error %s", ev.model, ev.kind, ev.readout.name,
                  own.condition, own.track.format(".2f"), own.error.format(".3f"))  # fmt: skip

@@ -104,7 +104,9 @@ class Degenerate:
     static: sets whose every slide stays below the static limit (a future where nothing
     moves, which consistency scores reward). not_growing: sets whose slide does not grow
     with speed (least-squares slope of log slide on log speed <= 0). no_box: rollouts
-    whose rest frame holds no box the readout can find (frames only).
+    whose rest frame holds no box the readout can find (frames only). unphysical: rollouts
+    whose read slide is more than ten times the largest real slide of the suite (no pushed
+    box slides that far: a units slip, millimetres for metres, shows this way).
     """
 
     condition: str
@@ -113,6 +115,7 @@ class Degenerate:
     static: int
     not_growing: int
     no_box: int
+    unphysical: int = 0
 
 
 @dataclass(frozen=True)

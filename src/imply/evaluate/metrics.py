@@ -168,8 +168,14 @@ def select(
     return Selection(among=among, n_candidates=m, rows=rows)
 
 
+# a read slide this many times the largest real one (of the suite's pushes) is no physics: a units slip, say
+UNPHYSICAL_FACTOR = 10.0
+
+
 def degenerate(condition: str, ci: int, readings: Readings, *, static_limit: float, floor: float) -> Degenerate:
-    d = np.maximum(readings.displacement[ci], floor)  # (S, N, K)
+    raw = readings.displacement[ci]
+    largest = max(float(np.max(readings.true_displacement)), float(np.max(readings.calibration_displacement)))
+    d = np.maximum(raw, floor)  # (S, N, K)
     static = (d < static_limit).all(axis=2)
     logv = np.log(readings.query_speeds)
     logv = logv - logv.mean()
@@ -181,6 +187,7 @@ def degenerate(condition: str, ci: int, readings: Readings, *, static_limit: flo
         static=int(static.sum()),
         not_growing=int((slope <= 1e-9).sum()),  # a flat set's slope is rounding, not growth
         no_box=int((~readings.box_found[ci]).sum()),
+        unphysical=int((raw > UNPHYSICAL_FACTOR * largest).sum()),
     )
 
 

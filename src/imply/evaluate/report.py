@@ -158,7 +158,7 @@ def comparison_rows(evaluations: Sequence[Evaluation]) -> list[dict[str, Any]]:
     own_lower_self and own_lower_anchored (shares 0..1 of objects whose score is lower with
     their own calibration than with another's); corr_self_own and corr_anchored_own (each
     score's correlation with the log error, own condition); sets and rollouts (over all
-    conditions) with static_sets, not_growing_sets and no_box_rollouts among them.
+    conditions) with static_sets, not_growing_sets, no_box_rollouts and unphysical_rollouts among them.
     """
     present = conditions_present(evaluations)
     rows = []
@@ -184,6 +184,7 @@ def comparison_rows(evaluations: Sequence[Evaluation]) -> list[dict[str, Any]]:
         row["static_sets"] = sum(d.static for d in ev.degenerate)
         row["not_growing_sets"] = sum(d.not_growing for d in ev.degenerate)
         row["no_box_rollouts"] = sum(d.no_box for d in ev.degenerate)
+        row["unphysical_rollouts"] = sum(d.unphysical for d in ev.degenerate)
         rows.append({key: _json_value(value) for key, value in row.items()})
     return rows
 
@@ -438,6 +439,13 @@ def _degenerate_lines(ev: Evaluation) -> list[str]:
             flags.append(
                 f"In condition {d.condition}, {d.not_growing} of {d.n_sets} sets "
                 f"{_verb(d.not_growing, 'does', 'do')} not slide further when pushed faster."
+            )
+        if d.unphysical:
+            flags.append(
+                f"In condition {d.condition}, {d.unphysical} of {d.n_rollouts} rollouts "
+                f"{_verb(d.unphysical, 'reads', 'read')} a slide more than ten times the longest real one of the "
+                "suite: no pushed box slides that far (a units slip, millimetres for metres?); they are scored as "
+                "read."
             )
         if d.no_box:
             flags.append(
