@@ -108,6 +108,10 @@ def test_videos_at_another_size_and_through_h264_read_back_close(tiny_suite, tmp
     assert np.median(np.abs(np.log(tiny.readings.displacement / d0))) > np.median(
         np.abs(np.log(read.readings.displacement / d0))
     )
+    # the readout is checked on the real check clips through each submission's own encoding, and the report says so
+    assert direct.readout.encoding is None and np.isnan(direct.readout.r2_codec)
+    assert read.readout.encoding.startswith("h264, 256x64 px, 10 fps") and np.isfinite(read.readout.r2_codec)
+    assert tiny.readout.encoding.startswith("h264, 64x16 px") and tiny.readout.error_codec > read.readout.error_codec
 
 
 def test_a_bad_folder_is_refused_with_one_line_per_problem_and_nothing_scored(tiny_suite, tmp_path, capsys):

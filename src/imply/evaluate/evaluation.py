@@ -38,7 +38,10 @@ class ReadoutInfo:
     name: ``frame difference``, ``ridge on encode()`` or ``as given``. fitted_on: what it
     was fitted on (never the outputs it reads). n_fit, n_check: real clips it was fitted
     and checked on. r2_check, error_check: R^2 of log slide and mean |log error| on the real
-    check clips (NaN for displacements, which are taken as given).
+    check clips (NaN for displacements, which are taken as given). encoding, r2_codec,
+    error_codec: for videos read from files, how they were encoded (codec, size, fps,
+    bit rate) and the same check on the real check clips passed through that encoding
+    (None and NaN otherwise).
     """
 
     name: str
@@ -47,6 +50,9 @@ class ReadoutInfo:
     n_check: int
     r2_check: float
     error_check: float
+    encoding: str | None = None
+    r2_codec: float = float("nan")
+    error_codec: float = float("nan")
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from imply.evaluate.interface import (
     model_name,
 )
 from imply.evaluate.metrics import score_readings
-from imply.evaluate.readouts import BatchReadings, Readout, encode_in_batches, fit_readout
+from imply.evaluate.readouts import BatchReadings, Readout, codec_checked, encode_in_batches, fit_readout
 from imply.evaluate.rollouts_file import RolloutsFile, read_rollouts_file
 from imply.evaluate.suite import SUITE_VERSION, Suite, SuiteTruth, load_suite, load_truth, suite_table_path
 from imply.io import write_npz
@@ -227,6 +227,9 @@ def evaluate_source(
         raise ModelError(f"{source.name}: unknown output kind {source.kind!r}")
     train, check = source.encodings(suite)
     readout = fit_readout(source.kind, suite=suite, truth=truth, train_tokens=train, check_tokens=check)
+    encoding = getattr(getattr(source, "data", None), "encoding", None)
+    if source.kind == "frames" and encoding:  # lossy videos: the readout checked through the same encoding
+        readout = codec_checked(readout, suite=suite, truth=truth, encoding=encoding)
     log.info("%s: %s readout, R^2 %.3f on %d real check clips", source.name, readout.info.name,
              readout.info.r2_check, readout.info.n_check)  # fmt: skip
     readings = read_source(

@@ -68,8 +68,8 @@ def _nan(shape: tuple[int, ...]) -> np.ndarray:
 
 class FrameReadout(Readout):
     def __init__(self, suite: Suite, truth: SuiteTruth) -> None:
-        self._line = FrameDiffReadout.fit(suite.train_frames, suite.train_displacement)
-        check = self._line.predict(suite.check_frames)
+        self.line = FrameDiffReadout.fit(suite.train_frames, suite.train_displacement)
+        check = self.line.predict(suite.check_frames)
         r2, err = _check_scores(truth.check_displacement, check)
         self.info = ReadoutInfo(
             name="frame difference",
@@ -79,7 +79,7 @@ class FrameReadout(Readout):
             r2_check=r2,
             error_check=err,
         )
-        self.fingerprint = f"frames:{self._line.slope!r}:{self._line.intercept!r}"
+        self.fingerprint = f"frames:{self.line.slope!r}:{self.line.intercept!r}"
         # every rollout is compared with its query's first frame and its true rest frame:
         # their box moments once for the suite, (N, K) each
         self._first_moment, self._first_mass = saliency_moments(suite.context_frames[:, :, 0])
@@ -89,7 +89,7 @@ class FrameReadout(Readout):
         rest = outputs[:, :, -1]
         moment, mass = saliency_moments(rest)
         shift = (moment - self._first_moment[index]) / np.maximum(self._first_mass[index], 1e-9)
-        d = self._line.from_shift(shift)
+        d = self.line.from_shift(shift)
         box_found = mass >= MIN_BOX_MASS * self._first_mass[index]
         ratio = mass / np.maximum(self._true_mass[index], 1e-9)
         diff = rest.astype(np.int16) - true_rest.astype(np.int16)
@@ -168,6 +168,26 @@ def encode_in_batches(encode: Callable[[np.ndarray], np.ndarray], frames: np.nda
             raise ValueError("encode() returned NaN or infinite values on real frames")
         parts.append(out.astype(np.float32, copy=False))
     return np.concatenate(parts)
+
+
+def codec_checked(readout: Readout, *, suite: Suite, truth: SuiteTruth, encoding: dict) -> Readout:
+    """``readout`` (frames) with its check repeated on the suite's real check clips passed through ``encoding``
+    (codec, size, fps, bit rate of a submission's videos): a readout that compression breaks shows there."""
+    import dataclasses
+
+    from imply.evaluate.video_package import through_codec
+
+    if not isinstance(readout, FrameReadout):
+        raise TypeError("only the frame-difference readout reads videos")
+    coded = through_codec(suite.check_frames, encoding, suite.frame_shape[:2])
+    r2, err = _check_scores(truth.check_displacement, readout.line.predict(coded))
+    kbps = encoding.get("bit_rate", 0) / 1000
+    readout.info = dataclasses.replace(
+        readout.info, r2_codec=r2, error_codec=err,
+        encoding=f"{encoding['codec']}, {encoding['width']}x{encoding['height']} px, {encoding['fps']:g} fps"
+        + (f", {kbps:.0f} kb/s" if kbps else ""),
+    )  # fmt: skip
+    return readout
 
 
 def fit_readout(

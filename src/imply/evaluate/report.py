@@ -168,6 +168,7 @@ def comparison_rows(evaluations: Sequence[Evaluation]) -> list[dict[str, Any]]:
             "kind": ev.kind,
             "readout": ev.readout.name,
             "readout_r2_check": ev.readout.r2_check,
+            "readout_r2_codec": ev.readout.r2_codec,
         }
         for name in present:
             scores = ev.condition(name)
@@ -392,6 +393,12 @@ def _readout_paragraph(ev: Evaluation) -> str:
         )
     else:
         text += " Not checked on real clips: the model's displacements are scored as given."
+    if r.encoding:
+        text += (
+            f" Through the submission's own encoding ({r.encoding}), the same real check clips read with R^2 "
+            f"{_number(r.r2_codec, LOG_SPEC)} and mean |log error| {_number(r.error_codec, LOG_SPEC)}: what "
+            "compression costs the readout before any rollout is read."
+        )
     return text
 
 

@@ -55,6 +55,7 @@ class RolloutsFile:
     output: np.ndarray
     encoded_train: np.ndarray | None
     encoded_check: np.ndarray | None
+    encoding: dict | None = None  # videos read from files: codec, height, width, fps, bit_rate (lossy ones only)
 
     def batch(self, condition: str, sample: int, index: np.ndarray) -> np.ndarray:
         """(B, K, ...) outputs of objects ``index`` in ``condition``, sample set ``sample``."""

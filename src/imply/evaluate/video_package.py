@@ -127,15 +127,51 @@ def write_mp4(path: Path, frames: np.ndarray, fps: float) -> None:
 
 def read_mp4(path: Path) -> tuple[np.ndarray, float]:
     """Every frame of a video (F, H, W, 3) uint8 and its frame rate."""
+    frames, fps, _ = read_video(path)
+    return frames, fps
+
+
+def read_video(path: Path) -> tuple[np.ndarray, float, dict]:
+    """Every frame of a video (F, H, W, 3) uint8, its frame rate, and its encoding (codec, height, width, fps,
+    bit_rate in bits/s)."""
     import av
 
     with av.open(str(path)) as src:
         stream = src.streams.video[0]
         fps = float(stream.average_rate) if stream.average_rate else float("nan")
         frames = [f.to_ndarray(format="rgb24") for f in src.decode(stream)]
+        rate = stream.bit_rate or src.bit_rate or 0
+        encoding = {"codec": stream.codec_context.name, "height": stream.codec_context.height,
+                    "width": stream.codec_context.width, "fps": fps, "bit_rate": int(rate)}  # fmt: skip
     if not frames:
         raise ValueError("no frame")
-    return np.stack(frames), fps
+    return np.stack(frames), fps, encoding
+
+
+def through_codec(clips: np.ndarray, encoding: dict, shape: tuple[int, int]) -> np.ndarray:
+    """Clips (M, F, H, W, 3) encoded as ``encoding`` says (codec, size, fps, bit rate), decoded, and resized back
+    to the camera's ``shape``: what a submission's encoding does to real frames."""
+    import tempfile
+
+    import av
+
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for m, clip in enumerate(clips):
+            frames = np.stack([to_camera(f, (encoding["height"], encoding["width"])) for f in clip])
+            path = Path(tmp) / f"clip{m}.mp4"
+            with av.open(str(path), mode="w") as dst:
+                stream = dst.add_stream(encoding["codec"], rate=max(round(encoding["fps"]), 1))
+                stream.height, stream.width = frames.shape[1:3]
+                stream.pix_fmt = "yuv420p"
+                if encoding.get("bit_rate"):
+                    stream.bit_rate = int(encoding["bit_rate"])
+                for f in frames:
+                    dst.mux(stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="rgb24")))
+                dst.mux(stream.encode())
+            back, _, _ = read_video(path)
+            out.append(np.stack([to_camera(f, shape) for f in back]))
+    return np.stack(out)
 
 
 def _resized(frames: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -240,16 +276,16 @@ def _entries(folder: Path) -> tuple[dict[tuple[str, int | None], list[Path]], li
     return found, other
 
 
-def _decode(path: Path) -> tuple[np.ndarray, float | None]:
-    """A video's or a PNG folder's frames (F, h, w, 3) and fps (None for PNG frames)."""
+def _decode(path: Path) -> tuple[np.ndarray, float | None, dict | None]:
+    """A video's or a PNG folder's frames (F, h, w, 3), fps and encoding (None for PNG frames: lossless)."""
     if path.is_dir():
         from PIL import Image
 
         pngs = sorted(q for q in path.iterdir() if q.suffix.lower() == ".png")
         if not pngs:
             raise ValueError("no PNG frame")
-        return np.stack([np.asarray(Image.open(q).convert("RGB")) for q in pngs]), None
-    return read_mp4(path)
+        return np.stack([np.asarray(Image.open(q).convert("RGB")) for q in pngs]), None, None
+    return read_video(path)
 
 
 def _problem(kind: str, names: list[str]) -> str:
@@ -264,6 +300,7 @@ class CheckedFolder:
     frames: dict[tuple[str, int], np.ndarray]
     n_samples: int
     fps: float | None
+    encoding: dict | None  # the lossy videos' codec, size, fps and median bit rate (None: all PNG)
 
 
 def check_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...]) -> CheckedFolder:
@@ -300,13 +337,14 @@ def check_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...]) 
     C = suite.context_frames.shape[2]
     frames: dict[tuple[str, int], np.ndarray] = {}
     rates: dict[float, list[str]] = {}
+    encodings: list[dict] = []
     shape = suite.frame_shape[:2]
     for c, s in wanted:
         paths = found.get((c, s))
         if not paths or len(paths) > 1:
             continue
         try:
-            video, fps = _decode(paths[0])
+            video, fps, encoding = _decode(paths[0])
         except Exception as exc:  # noqa: BLE001 (any decoder failure is the file's problem, named)
             add("undecodable", f"{paths[0].name} ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
             continue
@@ -315,6 +353,8 @@ def check_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...]) 
             continue
         if fps is not None:
             rates.setdefault(round(fps, 3), []).append(paths[0].name)
+        if encoding is not None:
+            encodings.append(encoding)
         frames[(c, 0 if s is None else s)] = np.stack([to_camera(video[0], shape), to_camera(video[-1], shape)])
     if len(rates) > 1:
         listed = sorted(rates.items(), key=lambda kv: -len(kv[1]))
@@ -322,7 +362,11 @@ def check_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...]) 
     if problems:
         raise VideoFolderError([f"{folder}: {_problem(kind, names)}" for kind, names in problems.items()])
     fps_all = next(iter(rates)) if rates else None
-    return CheckedFolder(frames=frames, n_samples=n_samples, fps=fps_all)
+    encoding = None
+    if encodings:
+        first = encodings[0]
+        encoding = {**first, "bit_rate": int(np.median([e["bit_rate"] for e in encodings]))}
+    return CheckedFolder(frames=frames, n_samples=n_samples, fps=fps_all, encoding=encoding)
 
 
 def read_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...], *, model: str | None = None,
@@ -341,7 +385,8 @@ def read_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...], *
             row[conditions.index(c.condition), s, c.n, c.k] = len(outputs)
             outputs.append(checked.frames[(c.case_id, s)])
     return RolloutsFile(model=model or folder.name, kind="frames", conditions=tuple(conditions), n_samples=S,
-                        row=row, output=np.stack(outputs), encoded_train=None, encoded_check=None)  # fmt: skip
+                        row=row, output=np.stack(outputs), encoded_train=None, encoded_check=None,
+                        encoding=checked.encoding)  # fmt: skip
 
 
 def read_manifest(path: str | Path) -> dict:
