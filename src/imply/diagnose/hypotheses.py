@@ -75,10 +75,6 @@ class FittedHypotheses:
     dispersion: float
     singles: list[JointFit]  # each library effect alone, then the discrepancy alone (the screening pass)
 
-    def best(self) -> int:
-        """The index of the hypothesis of largest weight."""
-        return int(np.argmax([h.weight for h in self.table]))
-
 
 def label_of(model: Model) -> str:
     """A hypothesis's label: its library effects (by name) joined by "+", and "discrepancy" where it holds it."""
