@@ -1,7 +1,8 @@
 """The verdict: two separate answers, read off the weighed hypotheses (:mod:`imply.diagnose.hypotheses`).
 
 *Adequacy* says whether the gap is accounted for: ``no_gap`` where the baseline (no
-effect, no discrepancy) carries the most weight; otherwise from the share of the held-out
+effect, no discrepancy) carries the most weight or the baseline's held-out gap is inside
+the noise floor; otherwise from the share of the held-out
 gap above the noise floor that the leading hypothesis closes
 (:attr:`imply.diagnose.shrinkage.Shrinkage.judged`): ``explained`` at ``min_share`` or more,
 ``not_explained`` below ``1 - min_share``, ``partly_explained`` between.
@@ -144,7 +145,7 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
     # contenders only add effects to them and the pushes have chosen them
     core = set(contenders[0].effects).intersection(*(c.effects for c in contenders[1:]))
     stands = next((c for c in contenders if set(c.effects) == core), None)
-    if no_gap:
+    if share_adequacy == Adequacy.NO_GAP:  # the baseline leads, or nothing is left above the noise floor to close
         ident = Identification.NOTHING_TO_IDENTIFY
     elif stands is None or (not core and (stands is not contenders[0] or stands.discrepancy_weight == 0)):
         ident = Identification.UNDECIDED
