@@ -26,6 +26,8 @@ rule clips_render:
         runtime=30,
     log:
         "results/logs/clips_render_{clip_split}.log",
+    benchmark:
+        "results/benchmarks/clips_render/{clip_split}.tsv"
     shell:
         "imply clips render --split {wildcards.clip_split} --clips-json {params.clips} --score-json {params.score}"
         " --scene-json {params.scene} --threads {threads} --out-npz {output.npz} --out-csv {output.csv}"
@@ -47,6 +49,8 @@ rule encoder_pretrain:
         runtime=30,
     log:
         "results/logs/encoder_pretrain.log",
+    benchmark:
+        "results/benchmarks/encoder_pretrain/all.tsv"
     shell:
         "OMP_WAIT_POLICY=PASSIVE imply encoder pretrain --clips {input} --encoder-json {params.encoder}"
         " --threads {threads} -o {output} > {log} 2>&1"
@@ -70,6 +74,8 @@ rule encoder_encode:
         gpu=int(config["encoder"]["kind"] != "cpu"),
     log:
         "results/logs/encoder_encode_{feature_split}.log",
+    benchmark:
+        "results/benchmarks/encoder_encode/{feature_split}.tsv"
     shell:
         "OMP_WAIT_POLICY=PASSIVE imply encoder encode --clips {input.clips} --encoder-json {params.encoder}"
         " {params.weights} --threads {threads} -o {output} > {log} 2>&1"
@@ -99,6 +105,8 @@ rule readout_fit:
         runtime=20,
     log:
         "results/logs/readout_fit.log",
+    benchmark:
+        "results/benchmarks/readout_fit/all.tsv"
     shell:
         "imply readout fit --train {input.train} --heldout {input.heldout_calib} --heldout {input.heldout_nocalib}"
         " --readout-json {params.readout} --pretrain-episodes {params.pretrain_episodes}"

@@ -25,6 +25,8 @@ rule suite_build:
         runtime=30,
     log:
         "results/logs/suite_build.log",
+    benchmark:
+        "results/benchmarks/suite_build/all.tsv"
     shell:
         "imply suite build --suite-json {params.suite} --clips-json {params.clips} --scene-json {params.scene}"
         " --score-json {params.score} --table {input.table} --threads {threads} -o {params.out} > {log} 2>&1"
@@ -63,6 +65,8 @@ rule evaluate_standins:
         runtime=15,
     log:
         "results/logs/evaluate_standins.log",
+    benchmark:
+        "results/benchmarks/evaluate_standins/all.tsv"
     shell:
         "imply section4 through-evaluate --suite {params.suite} --report {params.report} -o {output.summary}"
         " --evaluate-json {params.evaluate} --score-json {params.score} --no-progress > {log} 2>&1"

@@ -24,6 +24,8 @@ rule gap_tables:
         runtime=15,
     log:
         "results/logs/gap_tables.log",
+    benchmark:
+        "results/benchmarks/gap_tables/all.tsv"
     shell:
         "imply gap tables --table {input.table} --effect-grid-json {params.grid} --options-json {params.options}"
         " {params.effects} --threads {threads} -o {output} > {log} 2>&1"
@@ -47,6 +49,8 @@ rule gap_generate:
         runtime=20,
     log:
         "results/logs/gap_generate.log",
+    benchmark:
+        "results/benchmarks/gap_generate/all.tsv"
     shell:
         "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.folder}"
         " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
@@ -71,6 +75,8 @@ rule gap_diagnose:
         runtime=20,
     log:
         "results/logs/gap_diagnose_shard{shard}.log",
+    benchmark:
+        "results/benchmarks/gap_diagnose/{shard}.tsv"
     shell:
         "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
@@ -94,6 +100,8 @@ rule gap_contact_generate:
         runtime=20,
     log:
         "results/logs/gap_contact_generate.log",
+    benchmark:
+        "results/benchmarks/gap_contact_generate/all.tsv"
     shell:
         "imply gap generate --table {input.table} --contact-bench-json {params.bench} --logs {params.folder}"
         " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
@@ -118,6 +126,8 @@ rule gap_contact_diagnose:
         runtime=20,
     log:
         "results/logs/gap_contact_diagnose_shard{shard}.log",
+    benchmark:
+        "results/benchmarks/gap_contact_diagnose/{shard}.tsv"
     shell:
         "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
@@ -145,6 +155,8 @@ rule gap_contact_closed_loop:
         runtime=30,
     log:
         "results/logs/gap_contact_closed_loop_shard{shard}.log",
+    benchmark:
+        "results/benchmarks/gap_contact_closed_loop/{shard}.tsv"
     shell:
         "imply gap closed-loop --contact-bench-json {params.bench} --logs {params.folder} --reports {input.reports}"
         " --table {input.table} --effect-grid-json {params.grid} {params.effects} --options-json {params.options}"
@@ -183,6 +195,8 @@ rule gap_benchmark:
         runtime=10,
     log:
         "results/logs/gap_benchmark.log",
+    benchmark:
+        "results/benchmarks/gap_benchmark/all.tsv"
     shell:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"

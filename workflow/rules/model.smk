@@ -28,6 +28,8 @@ rule model_readout:
         runtime=20,
     log:
         "results/logs/model_readout.log",
+    benchmark:
+        "results/benchmarks/model_readout/all.tsv"
     shell:
         "imply model readout --features {input.features} --clips {input.clips} --heldout {input.calib}"
         " --heldout {input.nocalib} {params.token_grid} -o {output.readout} --report {output.report} > {log} 2>&1"
@@ -61,6 +63,8 @@ rule model_train:
         gpu=config["model"]["resources"]["gpu"],
     log:
         "results/logs/model_train_{variant}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/model_train/{variant}-{seed}.tsv"
     shell:
         # a killed run leaves checkpoint.pt beside the model; rerunning resumes from it
         "imply model train --features {input.features} --clips {input.clips} --readout {input.readout}"
@@ -89,5 +93,7 @@ rule model_training_plot:
         runtime=5,
     log:
         "results/logs/model_training_plot.log",
+    benchmark:
+        "results/benchmarks/model_training_plot/all.tsv"
     shell:
         "imply model plot {input} -o {output} > {log} 2>&1"

@@ -16,6 +16,8 @@ rule paper_part:
         runtime=2,
     log:
         "results/logs/paper_part_{stage}.log",
+    benchmark:
+        "results/benchmarks/paper_part/{stage}.tsv"
     shell:
         "imply paper part {wildcards.stage} {input} -o {output} > {log} 2>&1"
 
@@ -43,6 +45,8 @@ rule paper_tables_section4:
         runtime=1,
     log:
         "results/logs/paper_tables_section4.log",
+    benchmark:
+        "results/benchmarks/paper_tables_section4/all.tsv"
     shell:
         "imply paper tables --part {input.part} --table1 {output.table1} --table2 {output.table2} > {log} 2>&1"
 
@@ -64,6 +68,8 @@ rule paper_table3:
         runtime=1,
     log:
         "results/logs/paper_table3.log",
+    benchmark:
+        "results/benchmarks/paper_table3/all.tsv"
     shell:
         "imply paper tables --part {input.part} --table3 {output} > {log} 2>&1"
 
@@ -87,6 +93,8 @@ rule paper_figure1:
         runtime=2,
     log:
         "results/logs/paper_figure1.log",
+    benchmark:
+        "results/benchmarks/paper_figure1/all.tsv"
     shell:
         "imply paper figure1 --scores {input.scores} --noise {input.noise} --pdf {output.pdf} --png {output.png}"
         " > {log} 2>&1"
@@ -110,6 +118,8 @@ rule paper_figure2:
         runtime=2,
     log:
         "results/logs/paper_figure2.log",
+    benchmark:
+        "results/benchmarks/paper_figure2/all.tsv"
     shell:
         "imply paper figure2 --per-object {input.per_object} --pdf {output.pdf} --png {output.png} > {log} 2>&1"
 
@@ -119,6 +129,9 @@ rule paper_merge:
         IMPLY_ENV
     input:
         paper_parts,
+    params:
+        # read, not an input: every job before this one wrote its benchmark file (the last run's timeline)
+        benchmarks="results/benchmarks",
     output:
         macros=report(
             "results/paper/macros.tex",
@@ -155,6 +168,9 @@ rule paper_merge:
         runtime=1,
     log:
         "results/logs/paper_merge.log",
+    benchmark:
+        "results/benchmarks/paper_merge/all.tsv"
     shell:
         "imply paper merge {input} --macros {output.macros} --numbers {output.numbers}"
-        " --report-md {output.report_md} --report-csv {output.report_csv} --report-html {output.report_html} > {log} 2>&1"
+        " --report-md {output.report_md} --report-csv {output.report_csv} --report-html {output.report_html}"
+        " --benchmarks {params.benchmarks} > {log} 2>&1"

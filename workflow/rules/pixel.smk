@@ -23,6 +23,8 @@ rule pixel_train:
         runtime=30,
     log:
         "results/logs/pixel_train_{variant}.log",
+    benchmark:
+        "results/benchmarks/pixel_train/{variant}.tsv"
     shell:
         "imply pixel train --clips {input.clips} --recipe-json {params.recipe} --variant {wildcards.variant}"
         " --threads {threads} -o {output.model} --history {output.history} --no-progress > {log} 2>&1"
@@ -55,6 +57,8 @@ rule pixel_evaluate:
         runtime=30,
     log:
         "results/logs/pixel_evaluate_{variant}.log",
+    benchmark:
+        "results/benchmarks/pixel_evaluate/{variant}.tsv"
     shell:
         # --force: snakemake removed the old outputs; the folder may keep a report's figures
         "OMP_NUM_THREADS={threads} imply evaluate --model {params.spec} --suite {params.suite} -o {params.report}"
@@ -84,6 +88,8 @@ rule pixel_score:
         runtime=2,
     log:
         "results/logs/pixel_score.log",
+    benchmark:
+        "results/benchmarks/pixel_score/all.tsv"
     shell:
         "imply pixel score --calib {params.calib} --nocalib {params.nocalib} --calib-history {input.calib_history}"
         " --nocalib-history {input.nocalib_history} -o {output} > {log} 2>&1"
@@ -112,6 +118,8 @@ rule paper_figure3:
         runtime=5,
     log:
         "results/logs/paper_figure3.log",
+    benchmark:
+        "results/benchmarks/paper_figure3/all.tsv"
     shell:
         "imply pixel figure --metrics {input.metrics} --calib-model {input.calib_model} --calib {input.calib}"
         " --nocalib {input.nocalib} --suite {params.suite} --pdf {output.pdf} --png {output.png} > {log} 2>&1"

@@ -20,6 +20,8 @@ rule s4_objects:
         runtime=2,
     log:
         "results/logs/s4_objects.log",
+    benchmark:
+        "results/benchmarks/s4_objects/all.tsv"
     shell:
         "imply section4 objects --table {input.table} --seed {params.seed} --objects-json {params.objects}"
         " --scene-json {params.scene} -o {output} > {log} 2>&1"
@@ -41,6 +43,8 @@ rule s4_truth:
         runtime=10,
     log:
         "results/logs/s4_truth.log",
+    benchmark:
+        "results/benchmarks/s4_truth/all.tsv"
     shell:
         "imply section4 truth --objects {input.objects} --score-json {params.score} --scene-json {params.scene}"
         " --threads {threads} -o {output} > {log} 2>&1"
@@ -66,6 +70,8 @@ rule s4_standins:
         runtime=10,
     log:
         "results/logs/s4_standins.log",
+    benchmark:
+        "results/benchmarks/s4_standins/all.tsv"
     shell:
         "imply section4 standins --objects {input.objects} --truth {input.truth} --table {input.table}"
         " --seed {params.seed} --standins-json {params.standins} --score-json {params.score}"
@@ -89,6 +95,8 @@ rule s4_scores:
         runtime=5,
     log:
         "results/logs/s4_scores.log",
+    benchmark:
+        "results/benchmarks/s4_scores/all.tsv"
     shell:
         "imply section4 scores --objects {input.objects} --truth {input.truth} --rollouts {input.rollouts}"
         " --table {input.table} --score-json {params.score} -o {output} > {log} 2>&1"
@@ -115,6 +123,8 @@ rule s4_metrics:
         runtime=2,
     log:
         "results/logs/s4_metrics.log",
+    benchmark:
+        "results/benchmarks/s4_metrics/all.tsv"
     shell:
         "imply section4 metrics --scores {input.scores} --table {input.table} --standins-json {params.standins}"
         " --score-json {params.score} -o {output} > {log} 2>&1"
@@ -143,6 +153,8 @@ rule s4_noise:
         runtime=5,
     log:
         "results/logs/s4_noise.log",
+    benchmark:
+        "results/benchmarks/s4_noise/all.tsv"
     shell:
         "imply section4 noise --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
         " --seed {params.seed} --noise-json {params.noise} --score-json {params.score} -o {output} > {log} 2>&1"
@@ -172,6 +184,8 @@ rule s4_selection:
         runtime=5,
     log:
         "results/logs/s4_selection.log",
+    benchmark:
+        "results/benchmarks/s4_selection/all.tsv"
     shell:
         "imply section4 selection --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
         " --seed {params.seed} --selection-json {params.selection} --score-json {params.score}"

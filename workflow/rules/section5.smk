@@ -26,6 +26,8 @@ rule section5_suite_nocalib:
         runtime=30,
     log:
         "results/logs/section5_suite_nocalib.log",
+    benchmark:
+        "results/benchmarks/section5_suite_nocalib/all.tsv"
     shell:
         "imply suite build --suite-json {params.suite} --clips-json {params.clips} --scene-json {params.scene}"
         " --score-json {params.score} --table {input.table} --threads {threads} -o {params.out} > {log} 2>&1"
@@ -59,6 +61,8 @@ rule section5_evaluate:
         runtime=config["model"]["resources"]["rollout_runtime"],
     log:
         "results/logs/section5_evaluate_{variant}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/section5_evaluate/{variant}-{seed}.tsv"
     shell:
         # --force: snakemake removed the old outputs; the folder may keep a report's figures
         "OMP_NUM_THREADS={threads} imply evaluate --model {params.spec} --suite {params.suite} -o {params.report}"
@@ -98,6 +102,8 @@ rule section5:
         runtime=10,
     log:
         "results/logs/section5.log",
+    benchmark:
+        "results/benchmarks/section5/all.tsv"
     shell:
         "imply section5 {params.evaluations} --table {input.table} --train-clips {input.train_clips}"
         " --score-json {params.score}"

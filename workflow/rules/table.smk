@@ -16,6 +16,8 @@ rule table:
         runtime=15,
     log:
         "results/logs/table.log",
+    benchmark:
+        "results/benchmarks/table/all.tsv"
     shell:
         "imply table build --scene-json {params.scene} --grid-json {params.grid}"
         " --check-json {params.check} --threads {threads} -o {output} > {log} 2>&1"
@@ -33,5 +35,7 @@ rule scene_xml:
         runtime=1,
     log:
         "results/logs/scene_xml.log",
+    benchmark:
+        "results/benchmarks/scene_xml/all.tsv"
     shell:
         "imply sim export-xml --scene-json {params.scene} -o {output} > {log} 2>&1"

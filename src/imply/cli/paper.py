@@ -64,6 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--report-md", required=True, help="reproduction.md to write")
     m.add_argument("--report-csv", required=True, help="reproduction.csv to write")
     m.add_argument("--report-html", help="reproduction.html to write (the page the Snakemake report shows)")
+    m.add_argument("--benchmarks", help="folder of the rules' benchmark files (results/benchmarks): the last run's "
+                   "time per rule and critical path join the report")  # fmt: skip
     m.set_defaults(func=cmd_merge)
 
 
@@ -174,9 +176,15 @@ def cmd_merge(args: argparse.Namespace) -> int:
     with user_errors(KeyError, ValueError):
         merged = merge_parts(args.parts)
     write_macros(merged, args.macros, args.numbers)
+    timings = None
+    if args.benchmarks:
+        from imply.paper.timings import markdown, read_benchmarks
+
+        timings = markdown(read_benchmarks(args.benchmarks))
     frame = write_report(
-        load_registry(), merged, md_path=args.report_md, csv_path=args.report_csv, html_path=args.report_html
-    )
+        load_registry(), merged, md_path=args.report_md, csv_path=args.report_csv, html_path=args.report_html,
+        timings=timings,
+    )  # fmt: skip
     counts = frame["status"].value_counts().to_dict()
     log.info("merged %d parts, %d numbers; paper numbers: %s", len(merged.stages), len(merged.numbers), counts)
     return 0

@@ -196,11 +196,16 @@ def write_report(
     md_path: str | os.PathLike,
     csv_path: str | os.PathLike,
     html_path: str | os.PathLike | None = None,
+    timings: list[str] | None = None,
 ) -> pd.DataFrame:
-    """Write the reproduction report (Markdown, CSV and, if asked, HTML); returns its numbers frame."""
+    """Write the reproduction report (Markdown, CSV and, if asked, HTML); returns its numbers frame. ``timings``:
+    the Markdown lines of the last run's time per rule (:func:`imply.paper.timings.markdown`), appended."""
     frame = reproduction_frame(registry, merged)
     write_csv(csv_path, frame)
-    write_text(md_path, reproduction_md(registry, merged, frame))
+    md = reproduction_md(registry, merged, frame)
+    if timings:
+        md = md.rstrip("\n") + "\n\n" + "\n".join(timings) + "\n"
+    write_text(md_path, md)
     if html_path is not None:
         write_text(html_path, reproduction_html(registry, merged, frame))
     return frame

@@ -1,0 +1,119 @@
+"""The last run's time, rule by rule: Snakemake's per-rule benchmarks read into the reproduction report.
+
+Every rule of the workflow writes ``results/benchmarks/<rule>/<wildcards>.tsv`` (Snakemake's
+``benchmark:`` directive: wall seconds ``s``, ``cpu_time``, ``max_rss`` in MB, ...). A
+job's end is its file's modification time, its start that less its wall time.
+:func:`read_benchmarks` reads them; :func:`by_rule` sums them per rule; :func:`critical_path`
+walks back from the job that ended last, each time to the job that ended last before the
+current one started: the chain of jobs the run waited on (a timeline's reading of the
+critical path, which needs no copy of the DAG and is exact where every job waits on its
+inputs alone).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Job:
+    """One job of the last run: its rule and wildcards, wall and CPU seconds, peak memory, and when it ended."""
+
+    rule: str
+    wildcards: str  # "all" for a rule without wildcards
+    seconds: float
+    cpu_seconds: float
+    max_rss_mb: float
+    end: float  # seconds since the epoch
+
+    @property
+    def start(self) -> float:
+        return self.end - self.seconds
+
+    @property
+    def name(self) -> str:
+        return self.rule if self.wildcards == "all" else f"{self.rule} ({self.wildcards})"
+
+
+def _number(row: dict, key: str) -> float:
+    try:
+        return float(row.get(key, "nan"))
+    except ValueError:
+        return float("nan")
+
+
+def read_benchmarks(folder: str | Path) -> list[Job]:
+    """Every benchmark file under ``folder`` (``<rule>/<wildcards>.tsv``), oldest end first (none: an empty list)."""
+    folder = Path(folder)
+    jobs = []
+    for path in sorted(folder.glob("*/*.tsv")) if folder.is_dir() else []:
+        with open(path, newline="") as fh:
+            rows = list(csv.DictReader(fh, delimiter="\t"))
+        if not rows:
+            continue
+        row = rows[-1]
+        jobs.append(Job(rule=path.parent.name, wildcards=path.stem, seconds=_number(row, "s"),
+                        cpu_seconds=_number(row, "cpu_time"), max_rss_mb=_number(row, "max_rss"),
+                        end=path.stat().st_mtime))  # fmt: skip
+    return sorted(jobs, key=lambda j: j.end)
+
+
+@dataclass(frozen=True)
+class RuleTime:
+    """One rule's jobs in the last run: how many, their wall and CPU seconds summed, the longest, peak memory."""
+
+    rule: str
+    jobs: int
+    seconds: float
+    longest: float
+    cpu_seconds: float
+    max_rss_mb: float
+
+
+def by_rule(jobs: list[Job]) -> list[RuleTime]:
+    """Per rule, longest total wall time first."""
+    rules: dict[str, list[Job]] = {}
+    for j in jobs:
+        rules.setdefault(j.rule, []).append(j)
+    out = [RuleTime(rule=r, jobs=len(js), seconds=sum(j.seconds for j in js), longest=max(j.seconds for j in js),
+                    cpu_seconds=sum(j.cpu_seconds for j in js), max_rss_mb=max(j.max_rss_mb for j in js))
+           for r, js in rules.items()]  # fmt: skip
+    return sorted(out, key=lambda r: -r.seconds)
+
+
+def critical_path(jobs: list[Job], slack: float = 2.0) -> list[Job]:
+    """The chain the run waited on, first job first: back from the job that ended last, each time the job that ended
+    last before the current one started (within ``slack`` seconds: files are written a moment apart)."""
+    if not jobs:
+        return []
+    chain = [max(jobs, key=lambda j: j.end)]
+    while True:
+        before = [j for j in jobs if j.end <= chain[-1].start + slack and j is not chain[-1] and j not in chain]
+        if not before:
+            break
+        chain.append(max(before, key=lambda j: j.end))
+    return chain[::-1]
+
+
+def markdown(jobs: list[Job]) -> list[str]:
+    """The report's section: the run's span, the time per rule, and the critical path."""
+    if not jobs:
+        return ["## Time per rule", "", "No per-rule benchmarks were found (`results/benchmarks/`): the workflow's "
+                "rules write them when they run.", ""]  # fmt: skip
+    span = max(j.end for j in jobs) - min(j.start for j in jobs)
+    cpu = sum(j.cpu_seconds for j in jobs)
+    lines = ["## Time per rule", "",
+             f"The last run's {len(jobs)} jobs (Snakemake's `benchmark:` files in `results/benchmarks/`) span "
+             f"{span / 60:.1f} min from the first start to the last end, {cpu / 60:.1f} CPU min in all.", "",
+             "| rule | jobs | wall s (all jobs) | longest job s | CPU s | peak MB |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for r in by_rule(jobs):
+        lines.append(f"| {r.rule} | {r.jobs} | {r.seconds:.1f} | {r.longest:.1f} | {r.cpu_seconds:.1f} | "
+                     f"{r.max_rss_mb:.0f} |")  # fmt: skip
+    chain = critical_path(jobs)
+    total = sum(j.seconds for j in chain)
+    lines += ["", f"Critical path (back from the last job, each time the job that ended last before it started): "
+              f"{total / 60:.1f} min of the run's {span / 60:.1f}.", "", "| job | wall s |", "|---|---|"]  # fmt: skip
+    lines += [f"| {j.name} | {j.seconds:.1f} |" for j in chain]
+    return lines + [""]

@@ -1,0 +1,40 @@
+"""The last run's time per rule and its critical path, from Snakemake's benchmark files."""
+
+from __future__ import annotations
+
+import os
+
+from imply.paper.timings import by_rule, critical_path, markdown, read_benchmarks
+
+HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+
+
+def _job(folder, rule, wildcards, seconds, end, cpu=None, rss=100.0):
+    path = folder / rule / f"{wildcards}.tsv"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(HEADER + f"{seconds}\t0:00:00\t{rss}\t0\t0\t0\t0\t0\t0\t{cpu if cpu is not None else seconds}\n")
+    os.utime(path, (end, end))
+
+
+def test_time_per_rule_and_the_chain_the_run_waited_on(tmp_path):
+    # a table (0-40 s), two shards beside each other (40-100, 40-70), then a benchmark that waited on both (100-110)
+    _job(tmp_path, "table", "all", 40, 1000)
+    _job(tmp_path, "gap_diagnose", "0", 60, 1060, rss=300)
+    _job(tmp_path, "gap_diagnose", "1", 30, 1030)
+    _job(tmp_path, "gap_benchmark", "all", 10, 1070.5)
+    jobs = read_benchmarks(tmp_path)
+    assert [j.name for j in jobs] == ["table", "gap_diagnose (1)", "gap_diagnose (0)", "gap_benchmark"]
+    rules = {r.rule: r for r in by_rule(jobs)}
+    assert (
+        rules["gap_diagnose"].jobs == 2 and rules["gap_diagnose"].seconds == 90 and rules["gap_diagnose"].longest == 60
+    )
+    assert rules["gap_diagnose"].max_rss_mb == 300
+    assert [j.name for j in critical_path(jobs)] == ["table", "gap_diagnose (0)", "gap_benchmark"]
+    text = "\n".join(markdown(jobs))
+    assert "span 1.8 min" in text and "| gap_diagnose | 2 | 90.0 | 60.0 | 90.0 | 300 |" in text
+    assert "Critical path" in text and "| gap_diagnose (0) | 60.0 |" in text
+
+
+def test_no_benchmarks_says_so(tmp_path):
+    assert read_benchmarks(tmp_path / "none") == []
+    assert "No per-rule benchmarks were found" in markdown([])[2]
