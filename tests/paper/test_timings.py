@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from imply.paper.timings import by_rule, critical_path, markdown, read_benchmarks
+from imply.paper.timings import alone, by_rule, markdown, read_benchmarks
 
 HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
 
@@ -16,7 +16,7 @@ def _job(folder, rule, wildcards, seconds, end, cpu=None, rss=100.0):
     os.utime(path, (end, end))
 
 
-def test_time_per_rule_and_the_chain_the_run_waited_on(tmp_path):
+def test_time_per_rule_and_the_jobs_the_run_waited_on(tmp_path):
     # a table (0-40 s), two shards beside each other (40-100, 40-70), then a benchmark that waited on both (100-110)
     _job(tmp_path, "table", "all", 40, 1000)
     _job(tmp_path, "gap_diagnose", "0", 60, 1060, rss=300)
@@ -29,10 +29,13 @@ def test_time_per_rule_and_the_chain_the_run_waited_on(tmp_path):
         rules["gap_diagnose"].jobs == 2 and rules["gap_diagnose"].seconds == 90 and rules["gap_diagnose"].longest == 60
     )
     assert rules["gap_diagnose"].max_rss_mb == 300
-    assert [j.name for j in critical_path(jobs)] == ["table", "gap_diagnose (0)", "gap_benchmark"]
+    # the table ran alone (40 s), shard 0 alone after shard 1 ended (30 s), the benchmark alone (10 s)
+    idle, solo = alone(jobs)
+    assert abs(idle - 81.0) < 1e-6  # the 0.5 s with nothing running counts both cores
+    assert solo == {"table": 40.0, "gap_diagnose (0)": 30.0, "gap_benchmark": 10.0}
     text = "\n".join(markdown(jobs))
     assert "span 1.8 min" in text and "| gap_diagnose | 2 | 90.0 | 60.0 | 90.0 | 300 |" in text
-    assert "Critical path" in text and "| gap_diagnose (0) | 60.0 |" in text
+    assert "A core stood idle for 1.4 core-min" in text and "| table | 40.0 |" in text
 
 
 def test_no_benchmarks_says_so(tmp_path):

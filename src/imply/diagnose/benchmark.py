@@ -16,8 +16,8 @@ model holds it to describe a rest the verdict leaves open or names it beside the
 discrepancy):
 
 - false alarms: null logs (Gaussian and heavy-tailed) with any effect accepted;
-- top-1: one-effect logs with a big identifiable effect whose first accepted effect is it;
-- both named: two-effect logs with both effects big whose accepted effects name both;
+- top-1: one-effect logs with a big identifiable effect whose first stated cause is it;
+- both named: two-effect logs with both effects big whose stated causes name both;
 - none recall: logs with an effect outside the library answered "none of the candidates"
   (all of them, and those whose effect is big);
 - magnitude error: median relative error of the magnitude of every big effect named (by

@@ -169,7 +169,7 @@ def write_benchmark_markdown(result: dict, path: str | os.PathLike) -> None:
     for c in claims:
         lines.append(f"- {'HOLDS' if c.holds else 'FAILS'}: {c.statement} ({c.detail})")
     cols = sorted({c for row in r["confusion"].values() for c in row}, key=lambda c: (c == "none", c))
-    lines += ["", "## Confusion matrix (rows: what the log carries; columns: first effect accepted, or none)", "",
+    lines += ["", "## Confusion matrix (rows: what the log carries; columns: the first cause stated, or none)", "",
               "| true \\ predicted | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]  # fmt: skip
     for t, row in r["confusion"].items():
         lines.append(f"| {t} | " + " | ".join(str(row.get(c, 0)) for c in cols) + " |")

@@ -1,7 +1,8 @@
 """What the diagnosis reports of a fitted candidate: its magnitude (and azimuth) with 95% intervals.
 
-Every accepted effect (:class:`AcceptedEffect`) and every candidate tried at a step of
-the forward selection (:class:`RankedCandidate`) is reported with its magnitude, and for
+Every effect of the leading hypothesis (:class:`AcceptedEffect`), of every hypothesis
+(:class:`EffectEstimate`) and every candidate fitted alone (:class:`RankedCandidate`) is
+reported with its magnitude, and for
 a tilt or an anisotropy its azimuth, each with a 95% interval from the joint fit's
 curvature (delta method).
 """
@@ -46,7 +47,7 @@ class AcceptedEffect(EffectEstimate):
 
 @dataclass(frozen=True, kw_only=True)
 class RankedCandidate(EffectEstimate):
-    """A candidate tried at one step of the forward selection, with its tests."""
+    """A candidate fitted alone on top of the baseline (the screening pass), with its tests."""
 
     cls: str = json_field(key="class")
     identifiable: bool

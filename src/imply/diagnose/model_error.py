@@ -6,7 +6,8 @@ error where the model reads it (|cubic - linear| at each push as the model sees 
 for a model with effects, the size of any extrapolation beyond the table's range and each
 tabulated effect's measured relative error times the effect it carries. The baseline is
 fitted under the baseline's error (:func:`model_error` with no effects); every effect
-that forward selection accepts brings its own (:mod:`imply.diagnose.selection`).
+that a model adds brings its own; the hypotheses are all weighed under the baseline's
+(:mod:`imply.diagnose.hypotheses`), so that their chi-squares compare.
 """
 
 from __future__ import annotations

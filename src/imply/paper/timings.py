@@ -3,11 +3,10 @@
 Every rule of the workflow writes ``results/benchmarks/<rule>/<wildcards>.tsv`` (Snakemake's
 ``benchmark:`` directive: wall seconds ``s``, ``cpu_time``, ``max_rss`` in MB, ...). A
 job's end is its file's modification time, its start that less its wall time.
-:func:`read_benchmarks` reads them; :func:`by_rule` sums them per rule; :func:`critical_path`
-walks back from the job that ended last, each time to the job that ended last before the
-current one started: the chain of jobs the run waited on (a timeline's reading of the
-critical path, which needs no copy of the DAG and is exact where every job waits on its
-inputs alone).
+:func:`read_benchmarks` reads them; :func:`by_rule` sums them per rule; :func:`alone` reads
+the timeline for the time a core stood idle and the jobs that ran alone meanwhile: the
+jobs the run waited on (what a critical path names, read off the timeline, with no copy
+of the DAG).
 """
 
 from __future__ import annotations
@@ -83,18 +82,18 @@ def by_rule(jobs: list[Job]) -> list[RuleTime]:
     return sorted(out, key=lambda r: -r.seconds)
 
 
-def critical_path(jobs: list[Job], slack: float = 2.0) -> list[Job]:
-    """The chain the run waited on, first job first: back from the job that ended last, each time the job that ended
-    last before the current one started (within ``slack`` seconds: files are written a moment apart)."""
-    if not jobs:
-        return []
-    chain = [max(jobs, key=lambda j: j.end)]
-    while True:
-        before = [j for j in jobs if j.end <= chain[-1].start + slack and j is not chain[-1] and j not in chain]
-        if not before:
-            break
-        chain.append(max(before, key=lambda j: j.end))
-    return chain[::-1]
+def alone(jobs: list[Job], cores: int = 2) -> tuple[float, dict[str, float]]:
+    """Seconds of the run during which fewer jobs ran than there are ``cores`` (a core idle), and how much of it each
+    job ran alone (the jobs the run waited on): (idle core-seconds, {job name: seconds it ran alone})."""
+    events = sorted({t for j in jobs for t in (j.start, j.end)})
+    idle, by_job = 0.0, {}
+    for a, b in zip(events, events[1:], strict=False):
+        running = [j for j in jobs if j.start < b and j.end > a]
+        if len(running) < cores:
+            idle += (cores - len(running)) * (b - a)
+        if len(running) == 1:
+            by_job[running[0].name] = by_job.get(running[0].name, 0.0) + (b - a)
+    return idle, dict(sorted(by_job.items(), key=lambda kv: -kv[1]))
 
 
 def markdown(jobs: list[Job]) -> list[str]:
@@ -111,9 +110,8 @@ def markdown(jobs: list[Job]) -> list[str]:
     for r in by_rule(jobs):
         lines.append(f"| {r.rule} | {r.jobs} | {r.seconds:.1f} | {r.longest:.1f} | {r.cpu_seconds:.1f} | "
                      f"{r.max_rss_mb:.0f} |")  # fmt: skip
-    chain = critical_path(jobs)
-    total = sum(j.seconds for j in chain)
-    lines += ["", f"Critical path (back from the last job, each time the job that ended last before it started): "
-              f"{total / 60:.1f} min of the run's {span / 60:.1f}.", "", "| job | wall s |", "|---|---|"]  # fmt: skip
-    lines += [f"| {j.name} | {j.seconds:.1f} |" for j in chain]
+    idle, solo = alone(jobs)
+    lines += ["", f"A core stood idle for {idle / 60:.1f} core-min of the run (fewer jobs running than the 2 cores); "
+              "the jobs that ran alone longest, what the run waited on:", "", "| job | s alone |", "|---|---|"]  # fmt: skip
+    lines += [f"| {name} | {sec:.1f} |" for name, sec in list(solo.items())[:8]]
     return lines + [""]
