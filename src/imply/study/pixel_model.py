@@ -7,7 +7,7 @@ suite as a ``frames`` model, read by the frame-difference readout fitted on real
 with ``evaluate.samples`` sample sets per object. :func:`pixel_metrics` turns the two
 reports (and the training histories) into one result document; :func:`pixel_claims`
 checks the targets below on it. The targets were fixed before the first run of the
-workflow on held-out objects (issue 23); the recipe was chosen on the validation split
+workflow on held-out objects; the recipe was chosen on the validation split
 (``benchmarks/pixel_video_validation.py``).
 """
 

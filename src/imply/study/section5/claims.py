@@ -24,7 +24,7 @@ ALPHA = 0.05
 SELF_ERROR_CORR = 0.4
 # The second seed's replication: anchored prefers own on more than this share (%).
 ANCHORED_SHARE = 60.0
-# The study's targets on the held-out objects, per data-order seed (issue 22): own-calibration
+# The study's targets on the held-out objects, per data-order seed: own-calibration
 # tracking r at least TARGET_OWN_TRACK, another object's |r| at most TARGET_SWAP_TRACK, anchored
 # prefers own on at least TARGET_ANCHORED_SHARE % of objects, error with own calibration below
 # the no-calibration model's, self's preference consistent with chance (two-sided p >= ALPHA).
