@@ -46,7 +46,7 @@ from imply.diagnose.noise import Noise, ObservableNoise, estimate_noise
 from imply.diagnose.pushlog import PushLog
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.render import verdict_text
-from imply.diagnose.screening import folds, screen_result
+from imply.diagnose.screening import folds, screened
 from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
 from imply.diagnose.verdict import Verdict, judge
 from imply.options import Config, option
@@ -265,10 +265,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     design = design_pushes(problem, [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
                            n=opts.next_pushes, speeds=opts.next_speeds, directions=opts.next_directions,
                            opts=opts)  # 7. the pushes that would tell the contenders apart  # fmt: skip
-    fold_of = folds(problem.n_obj, opts.folds)
-    screened = [screen_result(problem, base, f, f.model.candidates[-1], n_tried=len(hyps.singles), alpha=opts.alpha,
-                              fold_of=fold_of) for f in hyps.singles]  # fmt: skip
-    screened.sort(key=lambda r: (-r.heldout_gain, r.candidate.name))
+    singles = screened(problem, base, hyps.singles, alpha=opts.alpha, fold_of=folds(problem.n_obj, opts.folds))
 
     # 8. the report's summary and residuals
     observables, note = _observables(problem)
@@ -284,7 +281,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),
         localisation=where, aliasing=alias,
-        ranking=ranked(screened, alias, model_before=Model(), n=problem.n_rows), hypotheses=hyps.table,
+        ranking=ranked(singles, alias, model_before=Model(), n=problem.n_rows), hypotheses=hyps.table,
         inclusion=inclusion_weights(hyps.table), dispersion=hyps.dispersion, effects=effects, verdict=verdict,
         sentence="", shrinkage=shrink, options=opts,
         model_floor=problem.etables.meta.get("model_floor") if problem.etables is not None else None,

@@ -305,6 +305,17 @@ def restricted_truth(e: dict, hit) -> float:
     return float(abs(e["magnitude"]) * np.cos(mult * (e["azimuth"] - az)))
 
 
+def stated_error(e: dict, summary: Summary) -> float | None:
+    """The relative error of the magnitude the verdict states for the true effect ``e`` (a label's effect): against
+    its projection on the identified direction where the estimate is restricted to one (None: not stated)."""
+    hit = next((h for h in stated(summary) if h.effect == e["name"]), None)
+    if hit is None:
+        return None
+    restricted = any(k.endswith("_along") for k in hit.components)
+    t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
+    return abs(hit.magnitude - t) / abs(t) if t else None
+
+
 def named_classes(summary: Summary) -> list[set[str]]:
     """The alias class (a set of candidate names) of every library effect the verdict names: the causes, then the
     contenders' other effects."""
@@ -348,13 +359,8 @@ def score_contact_cases(
         if group in CONTACT_SINGLE:
             e = lab["effects"][0]
             size = effect_size_on_contact(lab, e["name"])
-            hit = next((h for h in stated(s) if h.effect == e["name"]), None)
             named_cls = any(e["name"] in c for c in classes)
-            rel = None
-            if hit is not None:
-                restricted = any(k.endswith("_along") for k in hit.components)
-                t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
-                rel = abs(hit.magnitude - t) / abs(t) if t else None
+            rel = stated_error(e, s)
             named = bool(named_cls and rel is not None and rel <= within)
             row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
                        relative_error=rel, named=named, among_named=any(e["name"] in c for c in named_classes(s)),

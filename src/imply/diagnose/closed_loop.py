@@ -24,7 +24,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, restricted_truth, true_theta
+from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, stated_error
 from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
 from imply.diagnose.verdict import Identification
 from imply.io import write_csv, write_json
@@ -51,9 +51,10 @@ def run_closed_loop(
     *, design: ContactBenchmarkConfig, scene: SceneConfig, logs: Path, reports: Path, session: Session, out: Path,
     nthread: int = 0, progress: bool = True,
 ) -> list[dict]:  # fmt: skip
-    """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the appended logs
-    in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
+    """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the
+    appended logs in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
     cases = {c["id"]: c for c in draw_cases(design)}
+    index = {name: i for i, name in enumerate(object_names(design.n_objects))}
     folders = sorted(p for p in reports.iterdir() if (p / "summary.json").is_file())
     chosen = [f for f in folders if len(_summary(f).verdict.contenders) > 1]
     log.info("%d of %d logs with several explanations in contention: running their next pushes and as many random "
@@ -64,7 +65,6 @@ def run_closed_loop(
         case = cases[cid]
         frame = pd.read_csv(logs / f"{cid}.csv")
         nxt = pd.read_csv(folder / "next_pushes.csv")
-        index = {name: i for i, name in enumerate(object_names(design.n_objects))}
         picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, len(rows)]))}
         for arm, pushes in picks.items():
             new = extra_pushes(case, design, scene, pushes["object_id"].map(index).to_numpy(),
@@ -84,13 +84,8 @@ def _one_cause_right(label: dict, s: Summary, within: float) -> bool:
     """The log's one effect stated as the one cause, alone, with its magnitude within ``within``."""
     if s.verdict.identification != Identification.ONE_CAUSE or len(s.verdict.effects) != 1:
         return False
-    e = label["effects"][0]
-    hit = next((h for h in s.effects if h.effect == e["name"] and h.effect in s.verdict.effects), None)
-    if hit is None:
-        return False
-    restricted = any(k.endswith("_along") for k in hit.components)
-    t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
-    return bool(t and abs(hit.magnitude - t) / abs(t) <= within)
+    rel = stated_error(label["effects"][0], s)
+    return rel is not None and rel <= within
 
 
 def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: float, min_size_sd: float,
@@ -118,28 +113,22 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                         bool(s.verdict.effects) and s.verdict.identification == Identification.ONE_CAUSE
                     )
                 rows.append(row)
-    frame = pd.DataFrame(rows)
+    columns = ["arm", "group", "big", "one_cause_right", "no_library", "wrong_single", "n_contenders", "pushes_added"]
+    frame = pd.DataFrame(rows).reindex(columns=columns)  # every column, so that an empty loop scores as nan
+
+    def mean(values: pd.Series) -> float:
+        return float(values.astype(float).mean()) if len(values) else float("nan")
+
     out: dict = {"rows": rows}
     for arm in ARMS:
-        sub = frame[frame["arm"] == arm] if len(frame) else frame
-        single = (
-            sub[
-                sub["group"].isin(CONTACT_SINGLE)
-                & sub.get("big", pd.Series(False, index=sub.index)).fillna(False).astype(bool)
-            ]
-            if len(sub)
-            else sub
-        )
-        null = sub[sub["group"].isin(CONTACT_NULL)] if len(sub) else sub
-        outside = sub[sub["group"].isin(CONTACT_OUTSIDE)] if len(sub) else sub
+        sub = frame[frame["arm"] == arm]
+        single = sub[sub["group"].isin(CONTACT_SINGLE) & sub["big"].eq(True)]
+        null = sub[sub["group"].isin(CONTACT_NULL)]
+        outside = sub[sub["group"].isin(CONTACT_OUTSIDE)]
         out[arm] = {
-            "one_cause_right": float(single["one_cause_right"].astype(float).mean()) if len(single) else float("nan"),
-            "n_single": int(len(single)),
-            "null_no_library": float(null["no_library"].astype(float).mean()) if len(null) else float("nan"),
-            "n_null": int(len(null)),
-            "wrong_single": float(outside["wrong_single"].astype(float).mean()) if len(outside) else float("nan"),
-            "n_outside": int(len(outside)),
-            "contenders_mean": float(sub["n_contenders"].mean()) if len(sub) else float("nan"),
-            "pushes_added_mean": float(sub["pushes_added"].mean()) if len(sub) else float("nan"),
+            "one_cause_right": mean(single["one_cause_right"]), "n_single": int(len(single)),
+            "null_no_library": mean(null["no_library"]), "n_null": int(len(null)),
+            "wrong_single": mean(outside["wrong_single"]), "n_outside": int(len(outside)),
+            "contenders_mean": mean(sub["n_contenders"]), "pushes_added_mean": mean(sub["pushes_added"]),
         }  # fmt: skip
     return out

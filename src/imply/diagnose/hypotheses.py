@@ -175,14 +175,6 @@ def degenerate(fit: JointFit) -> bool:
     return any(at_zero(c, fit.theta[sl]) for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True))
 
 
-def _combinations(classes: list[list[Candidate]], size: int) -> list[tuple[Candidate, ...]]:
-    """Every set of ``size`` effects with one member of each of ``size`` distinct classes."""
-    out = []
-    for group in itertools.combinations(classes, size):
-        out.extend(itertools.product(*group))
-    return out
-
-
 def enumerate_hypotheses(
     problem: Problem, base: JointFit, pool: list[Candidate], *, alias: Aliasing, max_effects: int, screen: int,
     scan: int, n_folds: int, scales: int = 1,
@@ -221,11 +213,11 @@ def enumerate_hypotheses(
         by_class.setdefault(alias.effects[c.name].cls, c)
     top = list(by_class.values())[: max(screen, 0)]
     for size in range(2, max_effects + 1):
-        for combo in _combinations([[c] for c in top], size):
+        for combo in itertools.combinations(top, size):
             names = sorted(c.name for c in combo)
-            # grown from the best-scoring subset one smaller, the new member added
+            # grown from the best-fitting subset one smaller, the new member added
             parents = [tuple(n for n in names if n != c.name) for c in combo]
-            parent = max((p for p in parents if p in fits), key=lambda p: -fits[p].sse)
+            parent = min((p for p in parents if p in fits), key=lambda p: fits[p].sse)
             newcomer = next(c for c in combo if c.name not in parent)
             add(parent, newcomer)
             if disc is not None:

@@ -81,11 +81,12 @@ def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, di
                    stop_time=ones if log.stop_time is not None else None)  # fmt: skip
 
 
-def predictions(cand: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
-    """log d and log T (None without stop times) of every candidate push (rows of ``cand``) under ``fit``."""
-    lm, lu = fit.objects.lm[cand.c_obj], fit.objects.lu[cand.c_obj]
-    pred = cand.predict(fit.model, fit.theta, lm, lu)
-    return pred.log_d[cand.cond], (pred.log_t[cand.cond] if pred.log_t is not None else None)
+def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
+    """log d and log T (None without stop times) of every row of ``problem`` (a log's pushes, or the candidate
+    pushes) under ``fit``, each object at its fitted mass and friction."""
+    lm, lu = fit.objects.lm[problem.c_obj], fit.objects.lu[problem.c_obj]
+    pred = problem.predict(fit.model, fit.theta, lm, lu)
+    return pred.log_d[problem.cond], (pred.log_t[problem.cond] if pred.log_t is not None else None)
 
 
 def _greedy(sep: np.ndarray, pair_w: np.ndarray, n: int, groups: np.ndarray) -> list[int]:
@@ -136,17 +137,13 @@ def design_pushes(
     labels = [c[0] for c in contenders]
     # the log's own design, as many pushes drawn at random: what repeating it would add
     rng = np.random.default_rng(seed)
-    own = Problem.of(problem.log, problem.table, problem.etables, grid=problem.grid, use_stop_time=problem.use_t)
-    own_preds = [predictions(own, f) for _, f, _ in contenders]
-    own_sd_d = np.sqrt(problem.noise_d**2 + problem.model_err_d**2)
-    rows = rng.choice(own.y.size, size=min(len(picks), own.y.size), replace=False)
+    own_preds = [predictions(problem, f) for _, f, _ in contenders]  # the log's own pushes
+    rows = rng.choice(problem.y.size, size=min(len(picks), problem.y.size), replace=False)
     log_sep = {}
     for a, b in pairs:
-        chi = ((own_preds[a][0] - own_preds[b][0]) / own_sd_d) ** 2
+        chi = ((own_preds[a][0] - own_preds[b][0]) / problem.sd_d) ** 2
         if problem.use_t and own_preds[a][1] is not None:
-            chi = (
-                chi + ((own_preds[a][1] - own_preds[b][1]) / np.sqrt(problem.noise_t**2 + problem.model_err_t**2)) ** 2
-            )
+            chi = chi + ((own_preds[a][1] - own_preds[b][1]) / problem.sd_t) ** 2
         log_sep[f"{labels[a]} | {labels[b]}"] = float(np.sqrt(chi[rows].sum()))
     pushes = []
     for k in picks:

@@ -214,7 +214,8 @@ def verdict_text(summary: Summary) -> str:
                      "table and the pushes.")  # fmt: skip
     if v.at_bound and v.identification != Identification.OUTSIDE_LIBRARY:
         one = len(v.at_bound) == 1
-        parts.append(f"{phrases(v.at_bound)[0].upper()}{phrases(v.at_bound)[1:]} would go past the library's largest "
+        named = phrases(v.at_bound)
+        parts.append(f"{named[0].upper()}{named[1:]} would go past the library's largest "
                      f"magnitude, so {'it is' if one else 'they are'} not stated.")  # fmt: skip
     lead = next((h for h in summary.hypotheses if h.label == v.leading), None)
     if summary.discrepancy is not None and lead is not None and lead.discrepancy:

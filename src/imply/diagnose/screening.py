@@ -5,7 +5,7 @@ report's ranking.
 model's parameters and every object's mass and friction;
 :meth:`imply.diagnose.fit.Problem.fit`, started from the best point of a scan of the new
 candidate's range); :mod:`imply.diagnose.hypotheses` grows every hypothesis with it.
-:func:`screen_result` says, for the ranking, what a candidate fitted alone does: its
+:func:`screened` says, for the ranking, what a candidate fitted alone does: its
 likelihood-ratio statistic against the chi-square quantile at ``alpha`` / (candidates
 tried) for its number of components, the leave-one-object-out (``folds``) held-out sum
 of squares it removes, and whether it explains more than the model's own accuracy (its
@@ -91,22 +91,27 @@ def model_error_ms(problem: Problem) -> float:
     return out
 
 
-def screen_result(problem: Problem, base: JointFit, jf: JointFit, c: Candidate, *, n_tried: int, alpha: float,
-                  fold_of: np.ndarray) -> StepResult:  # fmt: skip
-    """Candidate ``c`` fitted alone on top of ``base`` (``jf``), described by the ranking's three tests."""
+def screened(problem: Problem, base: JointFit, singles: list[JointFit], *, alpha: float,
+             fold_of: np.ndarray) -> list[StepResult]:  # fmt: skip
+    """Each candidate fitted alone on top of ``base`` (``singles``, the candidate last in each model), described by
+    the ranking's three tests, largest held-out gain first."""
     n = max(problem.n_rows, 1)
     floor_ms = model_error_ms(problem)
     cv0 = float(base.heldout_sse_quadratic(fold_of).sum())
-    lr = max(base.sse - jf.sse, 0.0)
-    crit = float(stats.chi2.ppf(1 - alpha / max(n_tried, 1), c.dim))
-    gain = float(cv0 - jf.heldout_sse_quadratic(fold_of).sum())
-    explained = lr / n
-    reasons = []
-    if lr <= crit:
-        reasons.append(f"likelihood ratio {lr:.1f} <= {crit:.1f}")
-    if gain <= 0:
-        reasons.append("does not lower the held-out sum of squares")
-    if explained <= floor_ms:
-        reasons.append("explains less than the model's own accuracy")
-    return StepResult(c, jf, lr, c.dim, crit, gain, gain / cv0 if cv0 > 0 else 0.0, explained, floor_ms, not reasons,
-                      reasons)  # fmt: skip
+    out = []
+    for jf in singles:
+        c = jf.model.candidates[-1]
+        lr = max(base.sse - jf.sse, 0.0)
+        crit = float(stats.chi2.ppf(1 - alpha / max(len(singles), 1), c.dim))
+        gain = float(cv0 - jf.heldout_sse_quadratic(fold_of).sum())
+        explained = lr / n
+        reasons = []
+        if lr <= crit:
+            reasons.append(f"likelihood ratio {lr:.1f} <= {crit:.1f}")
+        if gain <= 0:
+            reasons.append("does not lower the held-out sum of squares")
+        if explained <= floor_ms:
+            reasons.append("explains less than the model's own accuracy")
+        out.append(StepResult(c, jf, lr, c.dim, crit, gain, gain / cv0 if cv0 > 0 else 0.0, explained, floor_ms,
+                              not reasons, reasons))  # fmt: skip
+    return sorted(out, key=lambda r: (-r.heldout_gain, r.candidate.name))

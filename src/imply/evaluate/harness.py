@@ -54,6 +54,7 @@ class Source:
     n_samples: int
     batch_size: int
     cache_key: str | None = None
+    encoding: dict | None = None  # videos read from lossy files: how they were encoded (codec, size, fps, bit rate)
 
     def encodings(self, suite: Suite) -> tuple[np.ndarray | None, np.ndarray | None]:
         """(train, check) encodings of the suite's real rest frames (latents only)."""
@@ -95,6 +96,7 @@ class FileSource(Source):
 
     def __init__(self, data: RolloutsFile) -> None:
         self.data = data
+        self.encoding = data.encoding
         self.name = data.model
         self.kind = data.kind
         self.n_samples = data.n_samples
@@ -227,9 +229,8 @@ def evaluate_source(
         raise ModelError(f"{source.name}: unknown output kind {source.kind!r}")
     train, check = source.encodings(suite)
     readout = fit_readout(source.kind, suite=suite, truth=truth, train_tokens=train, check_tokens=check)
-    encoding = getattr(getattr(source, "data", None), "encoding", None)
-    if source.kind == "frames" and encoding:  # lossy videos: the readout checked through the same encoding
-        readout = codec_checked(readout, suite=suite, truth=truth, encoding=encoding)
+    if source.kind == "frames" and source.encoding:  # lossy videos: the readout checked through the same encoding
+        readout = codec_checked(readout, suite=suite, truth=truth, encoding=source.encoding)
     log.info("%s: %s readout, R^2 %.3f on %d real check clips", source.name, readout.info.name,
              readout.info.r2_check, readout.info.n_check)  # fmt: skip
     readings = read_source(

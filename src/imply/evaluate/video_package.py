@@ -108,16 +108,21 @@ def _write_png(path: Path, frame: np.ndarray) -> None:
     Image.fromarray(frame).save(path, format="PNG")
 
 
-def write_mp4(path: Path, frames: np.ndarray, fps: float) -> None:
-    """Frames (F, H, W, 3) uint8 as an H.264 MP4 (yuv420p; H and W must be even)."""
+def write_mp4(path: Path, frames: np.ndarray, fps: float, *, codec: str = "libx264", crf: int | None = 18,
+              bit_rate: int | None = None) -> None:  # fmt: skip
+    """Frames (F, H, W, 3) uint8 as an MP4 (yuv420p; H and W must be even): H.264 at constant quality ``crf`` by
+    default, or ``codec`` at ``bit_rate`` (bits/s) as another file was encoded."""
     import av
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with av.open(str(path), mode="w") as out:
-        stream = out.add_stream("libx264", rate=round(fps))
+        stream = out.add_stream(codec, rate=max(round(fps), 1))
         stream.height, stream.width = frames.shape[1:3]
         stream.pix_fmt = "yuv420p"
-        stream.options = {"crf": "18"}
+        if crf is not None:
+            stream.options = {"crf": str(crf)}
+        if bit_rate:
+            stream.bit_rate = int(bit_rate)
         for f in frames:
             for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="rgb24")):
                 out.mux(packet)
@@ -153,24 +158,14 @@ def through_codec(clips: np.ndarray, encoding: dict, shape: tuple[int, int]) -> 
     to the camera's ``shape``: what a submission's encoding does to real frames."""
     import tempfile
 
-    import av
-
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         for m, clip in enumerate(clips):
-            frames = np.stack([to_camera(f, (encoding["height"], encoding["width"])) for f in clip])
             path = Path(tmp) / f"clip{m}.mp4"
-            with av.open(str(path), mode="w") as dst:
-                stream = dst.add_stream(encoding["codec"], rate=max(round(encoding["fps"]), 1))
-                stream.height, stream.width = frames.shape[1:3]
-                stream.pix_fmt = "yuv420p"
-                if encoding.get("bit_rate"):
-                    stream.bit_rate = int(encoding["bit_rate"])
-                for f in frames:
-                    dst.mux(stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="rgb24")))
-                dst.mux(stream.encode())
+            write_mp4(path, _resized(clip, (encoding["height"], encoding["width"])), encoding["fps"],
+                      codec=encoding["codec"], crf=None, bit_rate=encoding.get("bit_rate"))  # fmt: skip
             back, _, _ = read_video(path)
-            out.append(np.stack([to_camera(f, shape) for f in back]))
+            out.append(_resized(back, shape))
     return np.stack(out)
 
 

@@ -332,13 +332,36 @@ def push_layout(case: dict, design: BenchmarkConfig) -> tuple[np.ndarray, np.nda
 
 def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effects: list[dict]) -> WorldPushes:
     obj, v = push_layout(case, design)
-    p = WorldPushes.nominal(v, np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
-                            np.asarray(case["direction"]), scene)  # fmt: skip
+    return _pushes_in_world(case, obj, v, np.asarray(case["direction"]), scene, effects)
+
+
+def _pushes_in_world(case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray, scene: SceneConfig,
+                     effects: list[dict]) -> WorldPushes:  # fmt: skip
+    """Pushes of ``case``'s objects ``obj`` at speeds ``v`` and directions ``phi``, in its world: its contact model
+    and the ``effects`` given."""
+    p = WorldPushes.nominal(v, np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj], phi, scene)
     if "contact" in case:
         apply_contact(p, case["contact"])
     for e in effects:
         apply_effect(p, e["name"], e["magnitude"], e["azimuth"] or 0.0, e)
     return p
+
+
+def _log_columns(case: dict, scene: SceneConfig, obj: np.ndarray, v: np.ndarray, phi: np.ndarray,
+                 displacement: np.ndarray, stop_time: np.ndarray | None) -> dict:  # fmt: skip
+    """One noise draw of pushes as the columns a lab's push log holds (stop times and weighed masses where the
+    case records them)."""
+    names = object_names(len(case["mass"]))
+    he = scene.box_half_extents
+    cols = {"object_id": [names[i] for i in obj], "speed": v, "direction": np.round(phi, 9),
+            "displacement": displacement}  # fmt: skip
+    if case["stop_time"]:
+        cols["stop_time"] = stop_time
+    size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
+    cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
+    if case["measured_mass"]:
+        cols["mass"] = np.round(np.asarray(case["mass"])[obj], 3)
+    return cols
 
 
 def object_names(n: int) -> list[str]:
@@ -420,18 +443,10 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
                 e_t[r, j] += rng.uniform(*nm.outlier_size) * rng.choice([-1.0, 1.0])
             outliers.append([r, j])
     names = object_names(n_obj)
-    he = scene.box_half_extents
-    size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
     rows = []
     for r in range(reps):
-        cols = {"object_id": [names[i] for i in obj], "speed": v, "direction": np.round(phi, 9),
-                "displacement": res["displacement"] * np.exp(e_d[r])}  # fmt: skip
-        if case["stop_time"]:
-            cols["stop_time"] = res["stop_time"] * np.exp(e_t[r])
-        cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
-        if case["measured_mass"]:
-            cols["mass"] = np.round(np.asarray(case["mass"])[obj], 3)
-        frame = pd.DataFrame(cols)
+        frame = pd.DataFrame(_log_columns(case, scene, obj, v, phi, res["displacement"] * np.exp(e_d[r]),
+                                          res["stop_time"] * np.exp(e_t[r])))  # fmt: skip
         frame["_push"] = np.arange(v.size)
         frame["_rep"] = r
         rows.append(frame[ok])
@@ -471,33 +486,17 @@ def extra_pushes(
     contact model, engine and effects) with the same protocol and noise as its log: ``design.replicates`` noise
     draws per push (fresh ones, from ``seed``), the log's columns, pushes whose box failed the world's checks left
     out."""
-    obj = np.asarray(obj, int)
-    p = WorldPushes.nominal(np.asarray(speed, float), np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj],
-                            np.asarray(direction, float), scene)  # fmt: skip
-    if "contact" in case:
-        apply_contact(p, case["contact"])
-    for e in case["effects"]:
-        apply_effect(p, e["name"], e["magnitude"], e["azimuth"] or 0.0, e)
+    obj, v, phi = np.asarray(obj, int), np.asarray(speed, float), np.asarray(direction, float)
+    p = _pushes_in_world(case, obj, v, phi, scene, case["effects"])
     res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
     rng = np.random.default_rng([case["noise_seed"], seed])
     nm = design.noise
-    he = scene.box_half_extents
-    size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
     frames = []
     for _ in range(design.replicates):
-        shape = speed.shape
-        names = object_names(len(case["mass"]))
-        cols = {"object_id": [names[i] for i in obj], "speed": np.asarray(speed, float),
-                "direction": np.round(np.asarray(direction, float), 9),
-                "displacement": res.displacement * np.exp(_noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df,
-                                                                 shape))}  # fmt: skip
-        if case["stop_time"]:
-            cols["stop_time"] = res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd,
-                                                              nm.heavy_df, shape))  # fmt: skip
-        cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
-        if case["measured_mass"]:
-            cols["mass"] = np.round(np.asarray(case["mass"])[obj], 3)
-        frames.append(pd.DataFrame(cols)[np.asarray(res.ok, bool)])
+        d = res.displacement * np.exp(_noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df, v.shape))
+        t = (res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd, nm.heavy_df, v.shape))
+             if case["stop_time"] else None)  # fmt: skip
+        frames.append(pd.DataFrame(_log_columns(case, scene, obj, v, phi, d, t))[np.asarray(res.ok, bool)])
     return pd.concat(frames, ignore_index=True)
 
 
