@@ -273,7 +273,7 @@ def markdown(s: Summary) -> str:
     )
     lines += [
         "",
-        f"Explanations in contention (weight at least {v.contender_ratio:g} of the leading one's; "
+        f"Explanations in contention (weight at least {s.options.contender_ratio:g} of the leading one's; "
         f"hypotheses weighed by their evidence under a dispersion of {s.dispersion:.3g}):",
         "",
         "| explanation | weight | of which with the discrepancy | effects at their bound |",

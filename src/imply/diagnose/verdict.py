@@ -88,8 +88,6 @@ class Verdict(Record):
     at_bound: list[str]  # effects of contenders at their library bound, never stated
     share_closed: float | None  # of the held-out gap above the noise floor, by the leading hypothesis
     leading: str  # the label of the hypothesis of largest weight
-    min_share: float
-    contender_ratio: float
 
     @property
     def is_none(self) -> bool:
@@ -168,6 +166,5 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
     return Verdict(
         adequacy=share_adequacy, identification=ident, effects=causes, contenders=contenders,
         core=contenders.index(stands) if stands is not None else -1, not_separable=not_separable,
-        not_ruled_out=open_, at_bound=bound, share_closed=share, leading=leading.label, min_share=min_share,
-        contender_ratio=contender_ratio,
+        not_ruled_out=open_, at_bound=bound, share_closed=share, leading=leading.label,
     )  # fmt: skip
