@@ -103,3 +103,29 @@ def test_steps_converge(scene):
     assert np.abs(a.stop_time - b.stop_time).max() < 0.002
     with pytest.raises(ValueError, match="slide_step"):
         dataclasses.replace(st, slide_step=-1.0)
+
+
+def _rigid_stroke_time(u: float, m: float, mu: float, scene, g: float = 9.81) -> float:
+    """Time the rigid-pusher model takes over the stroke (servo law, fine Euler)."""
+    x = v = t = 0.0
+    h = 1e-6
+    while x < scene.stroke:
+        v += h * (scene.pusher_kv * (u - v) - mu * m * g) / (m + scene.pusher_mass)
+        x += h * v
+        t += h
+    return t
+
+
+def test_records_the_stroke_time_and_the_track(scene):
+    """The pusher's stroke time follows the rigid-pusher model; the camera frames start at the push and end where
+    the box stopped, and never run ahead of it."""
+    cases = [(0.9, 0.2, 0.6), (0.3, 1.5, 0.2)]
+    v, m, mu = (np.array(c) for c in zip(*cases, strict=True))
+    times = np.arange(0.0, 1.5, 0.01)
+    res = simulate_bullet(_pushes(scene, v, m, mu), scene, track_times=times)
+    rigid = np.array([_rigid_stroke_time(*c, scene) for c in cases])
+    assert np.abs(np.log(res.stroke_time / rigid)).max() < 0.03
+    assert res.track.shape == (2, times.size, 3)
+    assert np.abs(res.track[:, 0, :2]).max() < 1e-6
+    assert np.allclose(res.track[:, -1, 0], res.displacement)
+    assert (res.track[:, :, 0] <= res.displacement[:, None] + 1e-5).all()  # Bullet settles back by microns

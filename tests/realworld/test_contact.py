@@ -136,7 +136,7 @@ def test_four_directions_are_90_degrees_apart_for_every_object_and_speed():
 def test_an_engine_case_runs_in_the_bullet_world(scene, monkeypatch):
     calls = []
 
-    def simulate_bullet(pushes, scene_, stepping=None, *, progress=False):
+    def simulate_bullet(pushes, scene_, stepping=None, *, progress=False, track_times=None):
         calls.append(pushes)
         n = pushes.n
         # a world that slides the box as far as it is pushed fast: distinguishable from MuJoCo's

@@ -54,6 +54,7 @@ from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
+from imply.sim.track import crossing_times, pusher_speed
 from imply.table import PushTable, config_digest
 
 log = logging.getLogger("imply.diagnose")
@@ -122,11 +123,15 @@ def _spec_model(scene: SceneConfig, key: str, value: float) -> mujoco.MjModel:
 
 @dataclass(frozen=True)
 class PushObservables:
-    """log displacement and log stop time of n pushes (NaN where the push failed)."""
+    """log displacement and log stop time of n pushes (NaN where the push failed); beside them what a robot
+    records: log of the pusher's mean speed over the stroke (n,) and log of the times the box takes to cover
+    :data:`imply.sim.track.FRACTIONS` of its displacement (n, Q)."""
 
     log_d: np.ndarray
     log_t: np.ndarray
     ok: np.ndarray
+    log_p: np.ndarray | None = None
+    log_tq: np.ndarray | None = None
 
 
 def stop_times(frames_xy: np.ndarray, frames_time: np.ndarray, threshold: float = STOP_SPEED) -> np.ndarray:
@@ -184,7 +189,13 @@ def simulate_observables(
     ok = res.ok & np.isfinite(t) & (res.displacement > 0)
     log_d = np.where(ok, np.log(np.maximum(res.displacement, 1e-9)), np.nan)
     log_t = np.where(ok, np.log(np.where(np.isfinite(t) & (t > 0), t, 1.0)), np.nan)
-    return PushObservables(log_d, log_t, ok)
+    stroke = float(np.asarray(model.numeric("stroke").data)[0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        log_p = np.where(ok, np.log(pusher_speed(stroke, res.stroke_time)), np.nan)
+        travel = run.frames_box_qpos[:, :, 0] - run.frames_box_qpos[:, :1, 0]
+        tq = crossing_times(run.frames_time, travel, res.displacement)
+        log_tq = np.where(ok[:, None] & (tq > 0), np.log(tq), np.nan)
+    return PushObservables(log_d, log_t, ok, log_p, log_tq)
 
 
 def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:

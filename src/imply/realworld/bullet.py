@@ -55,7 +55,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from imply.options import Config, option
-from imply.realworld.world import WorldPushes, WorldResult
+from imply.realworld.world import WorldPushes, WorldResult, check_track_times, yaw_of
 from imply.sim.scene import SceneConfig
 
 # the parameters this engine implements (any value); every other one must be nominal
@@ -174,22 +174,25 @@ def simulate_bullet(
     stepping: BulletStepping | None = None,
     *,
     progress: bool = False,
+    track_times: np.ndarray | None = None,
 ) -> WorldResult:
     """Simulate every push of ``pushes`` in Bullet (one push after another on one physics client).
 
     Returns a :class:`WorldResult` of (n,) arrays: travel along and across the push (m),
-    stop time (s), ok (finite, stopped before ``max_time``, not tipped, moved forward) and
-    the number of steps taken.
+    stop time (s), ok (finite, stopped before ``max_time``, not tipped, moved forward), the
+    number of steps taken, the stroke time (s) and, at ``track_times``, the box's track.
     """
+    track_times = check_track_times(track_times)
     stepping = stepping or BulletStepping()
     check_supported(pushes, scene)
     nominal = nominal_parameters(scene)
     n = pushes.n
     params = {k: np.broadcast_to(np.asarray(pushes.params.get(k, v), float), (n,)) for k, v in nominal.items()
               if k in SUPPORTED}  # fmt: skip
-    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time")}
+    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time", "stroke_time")}
     ok = np.zeros(n, bool)
     steps = np.zeros(n, np.int64)
+    track = None if track_times is None else np.zeros((n, track_times.size, 3))
     pybullet = _pybullet()
     client = pybullet.connect(pybullet.DIRECT)
     try:
@@ -203,13 +206,27 @@ def simulate_bullet(
                 friction=float(pushes.friction[i]),
                 direction=float(pushes.direction[i]),
                 prm={k: float(v[i]) for k, v in params.items()},
+                track_times=track_times,
             )
-            for j, f in enumerate(("displacement", "lateral", "stop_time")):
-                out[f][i] = one[j]
-            ok[i], steps[i] = one[3], one[4]
+            for f in ("displacement", "lateral", "stop_time", "stroke_time"):
+                out[f][i] = getattr(one, f)
+            ok[i], steps[i] = one.ok, one.steps
+            if track is not None:
+                track[i] = one.track
     finally:
         pybullet.disconnect(client)
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps)
+    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track)
+
+
+@dataclass(frozen=True)
+class _Push:
+    displacement: float
+    lateral: float
+    stop_time: float
+    ok: bool
+    steps: int
+    stroke_time: float
+    track: np.ndarray | None  # (T, 3)
 
 
 def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float]) -> tuple[int, int]:
@@ -270,8 +287,9 @@ def _push(
     friction: float,
     direction: float,
     prm: dict[str, float],
-) -> tuple[float, float, float, bool, int]:
-    """One push: (displacement, lateral, stop time, ok, steps)."""
+    track_times: np.ndarray | None = None,
+) -> _Push:
+    """One push, and the box's track at ``track_times`` where given."""
     pybullet = _pybullet()
     box, pusher = _build(client, scene, mass=mass, prm=prm)
     # gravity of a table tilted by `tilt` downhill toward table azimuth psi, in the push frame
@@ -304,7 +322,22 @@ def _push(
     window_left = 0
     h = engine_step = st.push_step
     stop_time = st.max_time
+    stroke_time = math.nan
     speed_before = 0.0
+    track = None if track_times is None else np.zeros((track_times.size, 3))
+    frame = 0
+
+    def record() -> None:
+        # a camera frame is taken at the first step that reaches its time (within half a step)
+        nonlocal frame
+        if track is None:
+            return
+        while frame < track_times.size and now >= track_times[frame] - h / 2:
+            p, q = pybullet.getBasePositionAndOrientation(box, physicsClientId=client)
+            track[frame] = (p[0] - start[0], p[1] - start[1], float(yaw_of(np.array([q[3], q[0], q[1], q[2]]))))
+            frame += 1
+
+    record()
     while True:
         q, qd = pybullet.getJointState(pusher, 0, physicsClientId=client)[:2]
         pos, quat = pybullet.getBasePositionAndOrientation(box, physicsClientId=client)
@@ -318,6 +351,7 @@ def _push(
             left = (stroke - q) / max(qd * st.push_step, 1e-12)
             h = st.push_step
             if left <= 0.0:
+                stroke_time = now
                 command, phase = 0.0, 1  # already at the stroke: the servo brakes now
                 window_left = round(st.release_window / st.push_step)
             elif left < 1.0 or now + st.push_step >= st.max_time:
@@ -348,6 +382,7 @@ def _push(
         pybullet.stepSimulation(physicsClientId=client)
         now += h
         n_steps += 1
+        record()
         vel = pybullet.getBaseVelocity(box, physicsClientId=client)[0]
         after = math.hypot(vel[0], vel[1])
         if phase >= 1:
@@ -359,6 +394,7 @@ def _push(
                 break
         speed_before = after
         if ending:
+            stroke_time = now
             command, phase, h = 0.0, 1, st.push_step  # the servo brakes
             window_left = round(st.release_window / st.push_step)
         elif phase == 1:
@@ -373,4 +409,7 @@ def _push(
     x, y = quat[0], quat[1]
     tipped = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0)) >= 0.1
     ok = math.isfinite(disp) and now < st.max_time and stop_time < st.max_time and not tipped and disp > 0
-    return disp, lateral, stop_time, ok, n_steps
+    if track is not None and frame < track_times.size:
+        # frames due after the box came to rest see it where it stopped
+        track[frame:] = (disp, lateral, float(yaw_of(np.array([quat[3], quat[0], quat[1], quat[2]]))))
+    return _Push(disp, lateral, stop_time, ok, n_steps, stroke_time, track)

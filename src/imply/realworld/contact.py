@@ -132,13 +132,15 @@ def simulate_engine(
     engine: str = "mujoco",
     nthread: int = 0,
     progress: bool = False,
+    track_times=None,
 ) -> WorldResult:
-    """Simulate ``pushes`` in the world of ``engine`` (``stepping`` is MuJoCo's; another engine steps its own way)."""
+    """Simulate ``pushes`` in the world of ``engine`` (``stepping`` is MuJoCo's; another engine steps its own way),
+    recording the box at ``track_times`` where given."""
     if engine == "mujoco":
-        return simulate_world(pushes, scene, stepping, nthread=nthread, progress=progress)
+        return simulate_world(pushes, scene, stepping, nthread=nthread, progress=progress, track_times=track_times)
     if engine == "bullet":
         # imported here: the bullet world needs pybullet, which only its logs do
         from imply.realworld.bullet import simulate_bullet
 
-        return simulate_bullet(pushes, scene, progress=progress)
+        return simulate_bullet(pushes, scene, progress=progress, track_times=track_times)
     raise ValueError(f"unknown engine {engine!r} (known: {', '.join(ENGINES)})")

@@ -180,13 +180,29 @@ class WorldPushes:
 
 @dataclass(frozen=True)
 class WorldResult:
-    """Outcome of n pushes, (n,) each: travel along and across the push (m), stop time (s), ok, steps."""
+    """Outcome of n pushes, (n,) each: travel along and across the push (m), stop time (s), ok, steps.
+
+    stroke_time: (n,) s from the start of the push until the pusher reached the end of its
+      stroke (the pusher's mean speed over the stroke, what its encoders give, is the
+      stroke length over it); None where the engine did not record it.
+    track: (n, T, 3) the box's travel along and across the push (m) and its yaw (rad) at
+      the ``track_times`` asked for (a frame due after the box stopped holds where it
+      stopped); None without track times.
+    """
 
     displacement: np.ndarray
     lateral: np.ndarray
     stop_time: np.ndarray
     ok: np.ndarray
     steps: np.ndarray
+    stroke_time: np.ndarray | None = None
+    track: np.ndarray | None = None
+
+
+def yaw_of(quat: np.ndarray) -> np.ndarray:
+    """Yaw (rad) of unit quaternions (..., 4), w first: the rotation about the vertical."""
+    w, x, y, z = (quat[..., i] for i in range(4))
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def _structure_key(p: dict[str, np.ndarray], i: int) -> tuple[float, float, float]:
@@ -223,23 +239,39 @@ def simulate_world(
     *,
     nthread: int = 0,
     progress: bool = False,
+    track_times: np.ndarray | None = None,
 ) -> WorldResult:
-    """Simulate every push of ``pushes`` in the world (batched; one batch per model structure)."""
+    """Simulate every push of ``pushes`` in the world (batched; one batch per model structure).
+
+    ``track_times``: increasing times (s from the start of the push) at which to record the
+    box (:attr:`WorldResult.track`)."""
     stepping = stepping or WorldStepping()
     n = pushes.n
     keys = [_structure_key(pushes.params, i) for i in range(n)]
-    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time")}
+    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time", "stroke_time")}
     ok = np.zeros(n, bool)
     steps = np.zeros(n, np.int64)
+    track = None if track_times is None else np.zeros((n, np.asarray(track_times).size, 3))
     for key in sorted(set(keys)):
         idx = np.array([i for i in range(n) if keys[i] == key])
         model = world_model(scene, stepping, *key)
-        res = _run(model, pushes.subset(idx), stepping, nthread=nthread, progress=progress)
+        res = _run(model, pushes.subset(idx), stepping, nthread=nthread, progress=progress, track_times=track_times)
         for f in out:
             out[f][idx] = getattr(res, f)
         ok[idx] = res.ok
         steps[idx] = res.steps
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps)
+        if track is not None:
+            track[idx] = res.track
+    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track)
+
+
+def check_track_times(track_times) -> np.ndarray | None:
+    if track_times is None:
+        return None
+    tt = np.asarray(track_times, float)
+    if tt.ndim != 1 or tt.size < 2 or np.any(np.diff(tt) <= 0) or tt[0] < 0:
+        raise ValueError("track_times must be increasing, non-negative and at least two")
+    return tt
 
 
 def _quat_rotate(q: np.ndarray, v: np.ndarray, inverse: bool = False) -> np.ndarray:
@@ -251,8 +283,11 @@ def _quat_rotate(q: np.ndarray, v: np.ndarray, inverse: bool = False) -> np.ndar
     return v + w * t + np.cross(u, t)
 
 
-def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: int, progress: bool) -> WorldResult:
+def _run(
+    model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: int, progress: bool, track_times=None
+) -> WorldResult:
     n = p.n
+    track_times = check_track_times(track_times)
     prm = p.params
     b = mjbatch.Batch(model, n, nthread=nthread)
     box_body, pusher_body = model.body("box").id, model.body("pusher").id
@@ -324,8 +359,27 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
     phase = np.zeros(n, np.int8)  # 0 pushing, 1 release window, 2 sliding, 3 stopped
     window_left = np.zeros(n, np.int64)
     stop_time = np.full(n, st.max_time)
+    stroke_time = np.full(n, np.nan)
     steps = np.zeros(n, np.int64)
     speed_before = np.zeros(n)
+    track = None if track_times is None else np.zeros((n, track_times.size, 3))
+    next_frame = np.zeros(n, np.int64)
+
+    def record(ids: np.ndarray) -> None:
+        # a camera frame is taken at the first step that reaches its time (within half a step)
+        while ids.size and track is not None:
+            k = np.minimum(next_frame[ids], track_times.size - 1)
+            due = ids[(next_frame[ids] < track_times.size) & (now[ids] >= track_times[k] - timestep[ids] / 2)]
+            if not due.size:
+                return
+            q = qpos[due, bq : bq + 7]
+            track[due, next_frame[due]] = np.stack(
+                [q[:, 0] - start[due, 0], q[:, 1] - start[due, 1], yaw_of(q[:, 3:])], 1
+            )
+            next_frame[due] += 1
+            ids = due
+
+    record(np.arange(n))
     bar = tqdm(total=n, desc="world pushes stopped", unit="push", disable=not progress, leave=False)
     active = np.arange(n)
     while active.size:
@@ -379,8 +433,10 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
             speed_before[released] = np.hypot(qvel[released, bv], qvel[released, bv + 1])
         b.step(ids=active, nstep=1)
         steps[active] += 1
+        record(active)
         # -- phase changes
         if ending.size:
+            stroke_time[ending] = now[ending]
             timestep[ending] = fine[ending]
             ctrl[ending, servo] = 0.0  # the servo brakes
             phase[ending] = 1
@@ -415,4 +471,9 @@ def _run(model: mujoco.MjModel, p: WorldPushes, st: WorldStepping, *, nthread: i
     x, y = qpos[:, bq + 4], qpos[:, bq + 5]
     tipped = np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0)) >= 0.1
     ok = np.isfinite(disp) & (now < st.max_time) & (stop_time < st.max_time) & ~tipped & (disp > 0)
-    return WorldResult(disp, lateral, stop_time, ok, steps)
+    if track is not None:
+        # frames due after the box came to rest see it where it stopped
+        final = np.stack([disp, lateral, yaw_of(qpos[:, bq + 3 : bq + 7])], 1)
+        late = np.arange(track_times.size)[None, :] >= next_frame[:, None]
+        track = np.where(late[:, :, None], final[:, None, :], track)
+    return WorldResult(disp, lateral, stop_time, ok, steps, stroke_time, track)

@@ -60,6 +60,8 @@ class PushResult:
     displacement: box travel along the push axis (+x), metres.
     lateral: box travel across the push axis (y), metres.
     stop_time: time at which the box was seen settled, seconds (max_time if never).
+    stroke_time: time at which the pusher reached the end of its stroke, seconds (its mean
+      speed over the stroke, what a robot's encoders give, is the stroke length over it).
     tilt: final angle between the box's up axis and the world's, radians.
     ok: finite, settled, and neither tipped (tilt < 0.1 rad) nor deflected sideways.
     substeps: MuJoCo steps each push took (for benchmarks).
@@ -71,6 +73,7 @@ class PushResult:
     tilt: np.ndarray
     ok: np.ndarray
     substeps: np.ndarray | None = None
+    stroke_time: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -411,6 +414,7 @@ def run_pushes(
     # 1. pushing: full fine substeps while the stroke is far, then one shortened to end on it
     ctrl[:, :] = 0.0
     ctrl[:, joints.servo] = speeds
+    stroke_time = np.full(n, np.nan)
     pushing = np.arange(n)
     while pushing.size:
         gap = stepping.stroke - qpos[pushing, pq]
@@ -436,6 +440,7 @@ def run_pushes(
             if ending.size:
                 change_step(ending, fine[ending])
                 ctrl[ending, joints.servo] = 0.0  # the servo brakes
+                stroke_time[ending] = now[ending]
             record(near)
             pushing = np.setdiff1d(pushing, ending, assume_unique=True)
 
@@ -476,7 +481,15 @@ def run_pushes(
     disp = final[:, 0] - start[:, 0]
     lateral = final[:, 1] - start[:, 1]
     tilt, ok = push_checks(final, disp, lateral, stop_time, stepping.max_time)
-    result = PushResult(displacement=disp, lateral=lateral, stop_time=stop_time, tilt=tilt, ok=ok, substeps=substeps)
+    result = PushResult(
+        displacement=disp,
+        lateral=lateral,
+        stop_time=stop_time,
+        tilt=tilt,
+        ok=ok,
+        substeps=substeps,
+        stroke_time=stroke_time,
+    )
     final_pusher = qpos[:, pq] - pusher0
     if frames is None:
         return PushRun(result, None, None, None, final, final_pusher)

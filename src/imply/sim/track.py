@@ -1,0 +1,69 @@
+"""What a robot records beside the displacement: the pusher's mean speed and summaries of the box's track.
+
+A push's track is the box's travel along the push over time, x(t), from the start of the
+push (t = 0, the pusher at rest against the box) until the box stops at the displacement
+d. The diagnostic compares three kinds of summary with the simulator's:
+
+- the pusher's mean speed over the stroke (stroke length over stroke time), which the
+  servo's encoders give; a velocity servo does not reach its command within a short
+  stroke, and a heavy box slows it, so it is compared with the simulator's prediction for
+  the same command, box and friction, never with the command;
+- the times at which the box has covered given fractions of its final displacement
+  (:data:`FRACTIONS`), read off the track by interpolation. Beside the stop time they
+  give the track's shape: a Coulomb slide decelerates uniformly, a viscous one
+  exponentially, quadratic drag most while fast, and a speed error changes how fast the
+  box leaves the pusher but not how it slows.
+
+Times are taken from the track's running maximum, so camera noise around a stopped box
+does not move a crossing backward; the crossing is interpolated between frames.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# fractions of the final displacement whose crossing times summarise a track
+FRACTIONS = (0.25, 0.5, 0.75)
+
+
+def crossing_times(times: np.ndarray, travel: np.ndarray, displacement: np.ndarray,
+                   fractions=FRACTIONS) -> np.ndarray:  # fmt: skip
+    """When each track first covers each fraction of its displacement.
+
+    Args:
+      times: (n, T) or (T,) frame times (s), increasing along each row.
+      travel: (n, T) the box's travel along the push at those times (m).
+      displacement: (n,) the final displacement the fractions are of (m).
+      fractions: (Q,) in (0, 1).
+
+    Returns (n, Q) times (s); NaN where a track never covers the fraction.
+    """
+    travel = np.atleast_2d(np.asarray(travel, float))
+    times = np.broadcast_to(np.asarray(times, float), travel.shape)
+    n, _ = travel.shape
+    reach = np.maximum.accumulate(travel, axis=1)
+    d = np.asarray(displacement, float).reshape(n)
+    out = np.full((n, len(fractions)), np.nan)
+    rows = np.arange(n)
+    for j, q in enumerate(fractions):
+        level = q * d
+        above = reach >= level[:, None]
+        k = np.argmax(above, axis=1)
+        has = above[rows, k] & (k > 0)
+        i = rows[has]
+        k = k[has]
+        x0, x1 = reach[i, k - 1], reach[i, k]
+        t0, t1 = times[i, k - 1], times[i, k]
+        w = np.where(x1 > x0, (level[i] - x0) / np.where(x1 > x0, x1 - x0, 1.0), 1.0)
+        out[i, j] = t0 + w * (t1 - t0)
+        # a track already past the fraction at its first frame crossed it at that frame
+        first = above[:, 0]
+        out[first, j] = times[first, 0]
+    return out
+
+
+def pusher_speed(stroke: float, stroke_time: np.ndarray) -> np.ndarray:
+    """The pusher's mean speed over the stroke (m/s): stroke length (m) over stroke time (s), (n,)."""
+    st = np.asarray(stroke_time, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(st > 0, stroke / st, np.nan)
