@@ -25,6 +25,7 @@ from imply.diagnose.analysis import DiagnosisConfig
 from imply.diagnose.effect_tables import CoarseGrid
 from imply.evaluate.config import EvaluateConfig
 from imply.evaluate.suite import SuiteConfig
+from imply.kernels import KernelsConfig
 from imply.models.config import ModelConfig
 from imply.models.encoder import EncoderConfig
 from imply.options import Config, json_schema, option
@@ -78,6 +79,7 @@ class StudyConfig(Config):
     config_key: ClassVar[str] = "config"
 
     threads: int = option(2, doc="threads of the multi-threaded rules", minimum=1, required=True)
+    kernels: KernelsConfig = option(KernelsConfig(), doc="the numerical kernels every job computes with")
     scene: SceneConfig = option(SceneConfig(), doc="the push scene", required=True)
     table: TableConfig = option(TableConfig(), doc="the push table's grid", required=True)
     table_check: TableCheckConfig = option(TableCheckConfig(), doc="the table's numerical error check")

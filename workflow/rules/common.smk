@@ -1,12 +1,14 @@
 # Shared wiring: the config check, and the getters that tell the rules their inputs,
 # parameters and the DAG's final outputs (rules files hold rules only).
 import json
+import os
 import shlex
 from pathlib import Path
 
 from snakemake.utils import min_version
 
 from imply.config_check import PAPER_STAGES, validate_workflow_config
+from imply.kernels import environment as kernel_environment
 from imply.models.weights import encoder_weight_files
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig, case_ids
 
@@ -17,6 +19,10 @@ validate_workflow_config(config, Path(workflow.current_basedir).parent / "schema
 
 # the software environment of every rule under `snakemake --use-conda` (pinned versions)
 IMPLY_ENV = "../../envs/imply.yaml"
+
+# every job computes with the same numerical kernels on any x86-64 machine (imply.kernels):
+# jobs inherit this process's environment, here and on a cluster (each job reads the Snakefile)
+os.environ.update(kernel_environment(config.get("kernels", {}).get("pin", "avx2")))
 
 CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain", "validation"]
 FEATURE_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "validation"]
