@@ -25,6 +25,7 @@ LEFT_TO_THE_DEFAULT = {
     "gap.contact_benchmark.stribeck_speed",
     "gap.diagnose.model_floor",
     "gap.diagnose.noise_sd",
+    "gap.diagnose.pusher_speed_noise_sd",
     "gap.diagnose.scan",
     "gap.diagnose.stop_time_floor",
     "gap.diagnose.stop_time_noise_sd",

@@ -89,8 +89,10 @@ def test_extra_pushes_run_in_the_same_world_with_the_logs_columns():
             "direction": [0.0] * 6, "measured_mass": True, "stop_time": True, "noise": "gaussian", "noise_seed": 3}  # fmt: skip
     scene = SceneConfig()
     new = C.extra_pushes(case, design, scene, np.array([0, 2]), np.array([0.4, 0.8]), np.array([0.0, 1.0]), seed=1)
-    assert list(new.columns) == ["object_id", "speed", "direction", "displacement", "stop_time", "size_x", "size_y",
-                                 "size_z", "mass"]  # fmt: skip
+    assert list(new.columns) == ["object_id", "speed", "direction", "displacement", "stop_time", "pusher_speed",
+                                 "size_x", "size_y", "size_z", "mass"]  # fmt: skip
+    # the pusher's measured speed: below its command within the stroke, noise of the configured size
+    assert (new["pusher_speed"] < new["speed"]).all() and (new["pusher_speed"] > 0.2 * new["speed"]).all()
     assert list(new["object_id"]) == ["obj00", "obj02", "obj00", "obj02"]  # two noise draws of each push
     ratio = new["displacement"].to_numpy()[:2] / new["displacement"].to_numpy()[2:]
     assert np.all(np.abs(np.log(ratio)) < 0.2) and not np.allclose(ratio, 1.0)  # the same push, fresh noise

@@ -91,3 +91,25 @@ def test_measured_mass_must_be_constant_per_object_and_in_range(tmp_path):
     far = "\n".join([lines[0]] + [f"{ln},{m}" for ln, m in zip(lines[1:], masses, strict=True)]) + "\n"
     with pytest.raises(InputError, match="row 4 .*column mass: 3 is outside the table's range"):
         read_pushlog(_write(tmp_path, far), (0.15, 1.05), mass_range=(0.2, 2.0))
+
+
+def _with_pusher_speed(text: str, values: list[str]) -> str:
+    lines = text.strip().split("\n")
+    out = [lines[0] + ",pusher_speed"] + [f"{row},{v}" for row, v in zip(lines[1:], values, strict=True)]
+    return "\n".join(out) + "\n"
+
+
+def test_pusher_speed_is_read_and_its_bad_cells_named(tmp_path):
+    good = _with_pusher_speed(GOOD, ["0.2", "0.3", "0.4", "0.2", "0.3", "0.4"])
+    log = read_pushlog(_write(tmp_path, good), (0.15, 1.05))
+    assert log.pusher_speed.tolist() == [0.2, 0.3, 0.4, 0.2, 0.3, 0.4]
+    assert log.aux("pusher_speed") is not None and read_pushlog(_write(tmp_path, GOOD), (0.15, 1.05)).aux(
+        "pusher_speed") is None  # fmt: skip
+    for values, expected in (
+        (["0.2", "0.3", "-0.4", "0.2", "0.3", "0.4"], "row 3 (line 4), column pusher_speed: -0.4 must be positive"),
+        (["0.2", "0.3", "0.4", "0.2", "300", "0.4"], "row 5 (line 6), column pusher_speed: 300 m/s is more than"),
+        (["0.2", "0.3", "0.4", "fast", "0.3", "0.4"], "row 4 (line 5), column pusher_speed"),
+    ):
+        with pytest.raises(InputError) as err:
+            read_pushlog(_write(tmp_path, _with_pusher_speed(GOOD, values)), (0.15, 1.05))
+        assert expected in str(err.value)

@@ -140,7 +140,8 @@ def test_an_engine_case_runs_in_the_bullet_world(scene, monkeypatch):
         calls.append(pushes)
         n = pushes.n
         # a world that slides the box as far as it is pushed fast: distinguishable from MuJoCo's
-        return WorldResult(0.05 * pushes.speed, np.zeros(n), np.full(n, 0.3), np.ones(n, bool), np.ones(n, np.int64))
+        return WorldResult(0.05 * pushes.speed, np.zeros(n), np.full(n, 0.3), np.ones(n, bool), np.ones(n, np.int64),
+                           0.01 / pushes.speed)  # fmt: skip
 
     monkeypatch.setitem(sys.modules, "imply.realworld.bullet", types.SimpleNamespace(simulate_bullet=simulate_bullet))
     design = C.ContactBenchmarkConfig.from_dict(DESIGN)

@@ -155,14 +155,17 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
         raw2 = float((S**2).sum())
         vis2 = float((P**2).sum())
 
-        def rms_part(M: np.ndarray, part: slice, sd) -> float:
-            x = M[part] * np.broadcast_to(sd, (n_d,))[:, None]  # back to log units
+        def rms_part(M: np.ndarray, part: slice | np.ndarray, sd) -> float:
+            x = M[part] * np.broadcast_to(sd, (M[part].shape[0],))[:, None]  # back to log units
             return float(np.sqrt(np.mean((x**2).sum(1)) if x.size else 0.0))
 
         dpart = slice(0, n_d)
-        tpart = slice(n_d, 2 * n_d)
         vis_d = rms_part(P, dpart, problem.sd_d) * ext
-        vis_t = rms_part(P, tpart, problem.sd_t) * ext if problem.use_t else 0.0
+        vis_t = 0.0
+        if problem.use_t:
+            # the stop time's rows where the log has them, else the first observable beside the displacement
+            rows_t = problem.aux_rows("stop_time") if "stop_time" in problem.aux else problem.aux_rows(problem.aux[0])
+            vis_t = rms_part(P, n_d + rows_t, problem.sd_t[rows_t]) * ext
         absorbed = 1.0 - vis2 / raw2 if raw2 > 0 else 0.0
         by_mass = by_fric = 0.0
         if raw2 > 0:
@@ -234,7 +237,7 @@ def _restriction(c: Candidate, P: np.ndarray, problem: Problem, opts: Config) ->
         return None
     sd = np.broadcast_to(problem.sd_d, (problem.y.size,))
     if problem.use_t:
-        sd = np.concatenate([sd, np.broadcast_to(problem.sd_t, (problem.y.size,))])
+        sd = np.concatenate([sd, np.broadcast_to(problem.sd_t, (problem.t_row.size,))])
     M = P * sd[: P.shape[0], None]  # back to log units
     _, sv, vt = np.linalg.svd(M, full_matrices=False)
     # the RMS change along each right singular vector at the effect's largest magnitude

@@ -79,6 +79,9 @@ class DiagnosisConfig(Config):
     stop_time_noise_sd: float | None = option(
         None, doc="log stop time noise sd (null: estimated from the log)", exclusive_minimum=0
     )
+    pusher_speed_noise_sd: float | None = option(
+        None, doc="log pusher speed noise sd (null: estimated from the log)", exclusive_minimum=0
+    )
     model_floor: float | None = option(None, doc="the model's own log d error (null: measured)", minimum=0)
     stop_time_floor: float | None = option(None, doc="the model's own stop time error (null: measured)", minimum=0)
     min_share: float = option(
@@ -91,6 +94,10 @@ class DiagnosisConfig(Config):
     )  # fmt: skip
     use_measured: bool = option(True, doc="use weighed masses where the log has them")
     use_stop_time: bool = option(True, doc="use stop_time where the log has it")
+    use_pusher_speed: bool = option(
+        False, doc="use pusher_speed (the pusher's measured mean speed) where the log has it (off: chosen on the "
+        "development sets, where it made null logs of other contact models state a speed error)",
+    )  # fmt: skip
     max_effects: int = option(3, doc="library effects in one hypothesis at most", minimum=0, maximum=3)
     screen: int = option(4, doc="alias classes, best alone first, whose combinations are fitted", minimum=0)
     outlier_sd: float = option(
@@ -118,8 +125,10 @@ class NoiseReport(Record):
 
     displacement: ObservableNoise
     stop_time: ObservableNoise | None = json_field(omit_none=True, default=None)
+    pusher_speed: ObservableNoise | None = json_field(omit_none=True, default=None)
     sd: float
     stop_time_sd: float | None
+    pusher_speed_sd: float | None = json_field(omit_none=True, default=None)
     source: str
 
 
@@ -185,6 +194,8 @@ class Residuals:
     flagged: np.ndarray  # gross outliers and their replicates, left out
     stop_resid_before: np.ndarray | None
     stop_resid_after: np.ndarray | None
+    pusher_resid_before: np.ndarray | None = None
+    pusher_resid_after: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -201,20 +212,32 @@ def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, Join
     return problem, problem.fit(Model(), np.zeros(0), problem.initial_fit())
 
 
+WORDS = {"stop_time": "stop time", "pusher_speed": "the pusher's measured speed"}
+
+
 def _observables(problem: Problem) -> tuple[list[str], str]:
-    if problem.log.stop_time is not None and not problem.use_t:
-        note = "displacement only (the log's stop times were not used)"
-    elif problem.use_t:
-        note = "displacement and stop time: every candidate had to explain both"
+    used = ["displacement", *problem.aux]
+    unused = [a for a in WORDS if a not in problem.aux and problem.log.aux(a) is not None]
+    if problem.aux:
+        names = ["displacement"] + [WORDS[a] for a in problem.aux]
+        note = ", ".join(names[:-1]) + " and " + names[-1]
+        note += ": every hypothesis had to explain " + ("both" if len(names) == 2 else "them all")
     else:
-        note = "displacement only (the log has no stop_time)"
-    return ["displacement"] + (["stop_time"] if problem.use_t else []), note
+        note = "displacement only"
+    if unused:
+        note += " (the log's " + " and ".join(WORDS[a] for a in unused) + " not used)"
+    return used, note
+
+
+def _aux_part(problem: Problem, rt: np.ndarray | None, name: str) -> np.ndarray | None:
+    """The residuals of observable ``name`` (n,) out of the aux rows ``rt`` (None where unused)."""
+    if rt is None or name not in problem.aux:
+        return None
+    return rt[problem.aux_rows(name)]
 
 
 def _outliers(problem: Problem, noise: Noise) -> dict[str, list[Outlier]]:
-    out = {"displacement": noise.displacement}
-    if noise.stop_time is not None:
-        out["stop_time"] = noise.stop_time
+    out = {"displacement": noise.displacement, **noise.aux}
     return {
         name: [
             Outlier(
@@ -244,7 +267,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     where = localise(problem, base.objects, resid_d, alpha=opts.alpha)  # 2. where
     pool = list(candidates)
     if opts.discrepancy:
-        pool.append(discrepancy_candidate(stop_time=problem.use_t, prior_sd=opts.discrepancy_sd,
+        pool.append(discrepancy_candidate(aux=problem.aux, prior_sd=opts.discrepancy_sd,
                                           bound=opts.discrepancy_bound))  # fmt: skip
     alias = aliasing(problem, pool, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
     # a two-component effect of which these directions show one combination is fitted along it alone
@@ -275,8 +298,10 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         has_direction=problem.log.has_direction,
         measured={"mass": problem.fixed_lm is not None, "friction": problem.fixed_lu is not None},
         observables=observables, observables_note=note,
-        noise=NoiseReport(displacement=noise.displacement, stop_time=noise.stop_time, sd=problem.noise_d,
-                          stop_time_sd=problem.noise_t if problem.use_t else None,
+        noise=NoiseReport(displacement=noise.displacement, stop_time=noise.stop_time,
+                          pusher_speed=noise.aux.get("pusher_speed"), sd=problem.noise_d,
+                          stop_time_sd=noise.aux["stop_time"].sd if "stop_time" in noise.aux else None,
+                          pusher_speed_sd=noise.aux["pusher_speed"].sd if "pusher_speed" in noise.aux else None,
                           source=noise.displacement.source),
         outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),
@@ -291,7 +316,10 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     with_effects = bool(final.model.dim)
     residuals = Residuals(
         speed=problem.v, direction=problem.phi, log_d=problem.y, resid_before=resid_d,
-        resid_after=held.resid_d if with_effects else None, flagged=problem.w_d == 0, stop_resid_before=resid_t,
-        stop_resid_after=held.resid_t if with_effects else None,
+        resid_after=held.resid_d if with_effects else None, flagged=problem.w_d == 0,
+        stop_resid_before=_aux_part(problem, resid_t, "stop_time"),
+        stop_resid_after=_aux_part(problem, held.resid_t, "stop_time") if with_effects else None,
+        pusher_resid_before=_aux_part(problem, resid_t, "pusher_speed"),
+        pusher_resid_after=_aux_part(problem, held.resid_t, "pusher_speed") if with_effects else None,
     )  # fmt: skip
     return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log)

@@ -315,12 +315,15 @@ class Model:
 # fit cannot absorb in both observables at once.
 DISCREPANCY_D = ("d_v", "d_vv", "d_vu", "d_vm", "d_vvv", "d_vvu", "d_vvm")
 DISCREPANCY_T = ("t_1", "t_v", "t_vv", "t_vu", "t_vm")
+# each observable beside the displacement has its own coefficients, named with its prefix
+AUX_PREFIX = {"stop_time": "t", "pusher_speed": "p"}
 
 
-def discrepancy_candidate(*, stop_time: bool, prior_sd: float, bound: float) -> Candidate:
-    """The discrepancy term: coefficients of :func:`discrepancy_basis` on log d (and log T with ``stop_time``),
-    each with a N(0, ``prior_sd``^2) prior and within +-``bound``."""
-    comps = DISCREPANCY_D + (DISCREPANCY_T if stop_time else ())
+def discrepancy_candidate(*, aux: tuple[str, ...] = (), prior_sd: float, bound: float) -> Candidate:
+    """The discrepancy term: coefficients of :func:`discrepancy_basis` on log d and on each observable of ``aux``
+    (in that order, :data:`DISCREPANCY_T` each, renamed with the observable's prefix), each with a
+    N(0, ``prior_sd``^2) prior and within +-``bound``."""
+    comps = DISCREPANCY_D + tuple(f"{AUX_PREFIX[a]}{name[1:]}" for a in aux for name in DISCREPANCY_T)
     return Candidate(
         DISCREPANCY, "model discrepancy: a smooth function of speed, mass and friction", "log units",
         "a smooth discrepancy between the table and these pushes", lambda m, az: "a smooth discrepancy", DISCREPANCY,

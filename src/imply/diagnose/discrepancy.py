@@ -64,7 +64,8 @@ def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> Discrepan
         rms_log_d=float(np.sqrt(np.mean(rows**2))) if rows.size else 0.0,
         speed_trend=trend, speed_trend_rough_minus_smooth=float(4.0 * beta[k["d_vu"]]),
         speed_trend_heavy_minus_light=float(4.0 * beta[k["d_vm"]]),
-        stop_time_offset=float(np.mean(dt[problem.cond][keep])) if problem.use_t else None,
+        stop_time_offset=(float(np.mean(dt[problem.cond][keep, problem.aux.index('stop_time')]))
+                          if 'stop_time' in problem.aux else None),
         implied_mass_ratio=implied_mass_ratio(problem, fit), mimics=list(mimics),
     )  # fmt: skip
 

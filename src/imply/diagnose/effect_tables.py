@@ -13,9 +13,11 @@ Besides the library's keys, the diagnostic tabulates ``slope_across``: the table
 across the push (gravity tilted toward the scene's +y), which a tilt in any direction
 other than along the push brings (the diagnostic's ``tilt`` candidate uses both).
 
-Stop time. The push table holds displacements only, so the stop time's baseline,
-f_T(v, m, mu) = log stop time, is tabulated here too, on its own grid
-(:class:`CoarseGrid` ``stop_*``). A push's stop time is when the box's speed in the table
+Observables beside the displacement (:data:`AUX`): log stop time and log of the pusher's
+mean speed over its stroke (what a robot's encoders give, :mod:`imply.sim.track`). The push
+table holds displacements only, so their baselines, f_a(v, m, mu), are tabulated here too,
+on their own grid (:class:`CoarseGrid` ``stop_*``), and every effect table carries each
+effect's change of them beside its change of log d. A push's stop time is when the box's speed in the table
 plane falls below :data:`STOP_SPEED` (measured from the start of the push), read from
 the box's positions recorded every millisecond (speeds from successive positions,
 the crossing interpolated). MuJoCo's soft contacts end a slide in an exponential tail
@@ -29,7 +31,8 @@ measures the model's own accuracy (:func:`model_floor`: for displacement, the ba
 table's interpolation error combined with the simulator's numerical error that the table
 file records; for stop time, the stop-time table's interpolation error combined with the
 simulator's own convergence, measured against a run at a quarter of the scene's
-timestep), which the diagnostic uses as the smallest gap it will attribute to an effect.
+timestep; the same for the pusher's speed), which the diagnostic uses as the smallest gap it will
+attribute to an effect.
 """
 
 from __future__ import annotations
@@ -64,7 +67,11 @@ STOP_SPEED = 0.01
 # positions are recorded this often (s) to find the stop time
 FRAME_STEP = 0.001
 # bump when the files' content changes meaning
-FORMAT = 3
+FORMAT = 4
+
+# the observables beside log d that the tables hold, in the order of their last axis: log stop
+# time, and log of the pusher's mean speed over the stroke (imply.sim.track)
+AUX = ("stop_time", "pusher_speed")
 
 # tabulated keys the diagnostic adds to the library's scene edits
 ACROSS = "slope_across"
@@ -198,8 +205,15 @@ def simulate_observables(
     return PushObservables(log_d, log_t, ok, log_p, log_tq)
 
 
+def aux_values(obs: PushObservables) -> np.ndarray:
+    """(n, K) the observables of :data:`AUX` of simulated pushes."""
+    return np.stack([obs.log_t, obs.log_p], -1)
+
+
 def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     """Reshape to the grid, filling failed cells (NaN) from their nearest finite neighbour along speed."""
+    if values.ndim == 2:  # (n, K): each observable on its own
+        return np.stack([_fill(values[:, a], shape) for a in range(values.shape[1])], -1)
     grid = values.reshape(shape).copy()
     bad = ~np.isfinite(grid)
     if bad.any():
@@ -212,96 +226,108 @@ def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     return grid
 
 
+def _points(axes, v, m, mu) -> tuple[np.ndarray, tuple[int, ...]]:
+    """(n, 3) interpolation points (v, log m, log mu) clipped to ``axes``, and the broadcast shape."""
+    v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
+    pts = np.stack([np.clip(v.ravel(), axes[0][0], axes[0][-1]),
+                    np.clip(np.log(m).ravel(), np.log(axes[1][0]), np.log(axes[1][-1])),
+                    np.clip(np.log(mu).ravel(), np.log(axes[2][0]), np.log(axes[2][-1]))], -1)  # fmt: skip
+    return pts, v.shape
+
+
 @dataclass(frozen=True)
 class EffectTables:
-    """Delta tables per key: ``levels[key]`` (L,), ``deltas[key]`` / ``deltas_t[key]`` (L, nv, nm, nu);
-    the stop-time baseline ``stop_log_t`` on ``stop_axes``."""
+    """Delta tables per key: ``levels[key]`` (L,), ``deltas[key]`` (L, nv, nm, nu) on log d and
+    ``deltas_t[key]`` (L, nv, nm, nu, K) on the K observables :data:`AUX` beside it; their baseline
+    ``aux_base`` (nv', nm', nu', K) on ``aux_axes`` (None: the tables hold log d alone)."""
 
     axes: tuple[np.ndarray, np.ndarray, np.ndarray]
     levels: dict[str, np.ndarray]
     deltas: dict[str, np.ndarray]
     meta: dict
     deltas_t: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    stop_axes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-    stop_log_t: np.ndarray | None = None
+    aux_axes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    aux_base: np.ndarray | None = None
+
+    @property
+    def aux(self) -> tuple[str, ...]:
+        """The observables beside log d these tables hold (a prefix-free subset of :data:`AUX`, in its order)."""
+        return AUX if self.aux_base is not None else ()
+
+    def aux_index(self, name: str) -> int:
+        return self.aux.index(name)
 
     @cached_property
     def _interp(self) -> dict[str, RegularGridInterpolator]:
-        """One interpolator per key over every level of both observables (values (nv, nm, nu, 2 L))."""
+        """One interpolator per key over every level of every observable (values (nv, nm, nu, (1 + K) L))."""
         v, m, u = self.axes
         pts = (v, np.log(m), np.log(u))
         out = {}
         for k, d in self.deltas.items():
-            dt = self.deltas_t.get(k, np.zeros_like(d))
-            stacked = np.moveaxis(np.concatenate([d, dt]), 0, -1)
+            parts = [d]
+            dt = self.deltas_t.get(k)
+            if dt is not None and self.aux:
+                parts += [dt[..., a] for a in range(dt.shape[-1])]
+            stacked = np.moveaxis(np.concatenate(parts), 0, -1)
             out[k] = RegularGridInterpolator(pts, stacked, method="cubic")
         return out
 
     @cached_property
-    def _stop_interp(self) -> RegularGridInterpolator | None:
-        if self.stop_log_t is None or self.stop_axes is None:
+    def _aux_interp(self) -> RegularGridInterpolator | None:
+        if self.aux_base is None or self.aux_axes is None:
             return None
-        v, m, u = self.stop_axes
-        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.stop_log_t, method="cubic",
+        v, m, u = self.aux_axes
+        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.aux_base, method="cubic",
                                        solver_args={"atol": 1e-12, "rtol": 1e-12})  # fmt: skip
 
     @cached_property
-    def _stop_linear(self) -> RegularGridInterpolator | None:
-        if self.stop_log_t is None or self.stop_axes is None:
+    def _aux_linear(self) -> RegularGridInterpolator | None:
+        if self.aux_base is None or self.aux_axes is None:
             return None
-        v, m, u = self.stop_axes
-        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.stop_log_t, method="linear")
+        v, m, u = self.aux_axes
+        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.aux_base, method="linear")
 
-    def stop_interpolation_indicator(self, v, m, mu) -> np.ndarray:
-        """|cubic - linear| interpolation of the stop-time table: where its interpolation is unsure."""
-        v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
-        ax = self.stop_axes
-        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
-                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
-        return np.abs(self._stop_interp(pts) - self._stop_linear(pts)).reshape(v.shape)
+    def aux_interpolation_indicator(self, v, m, mu) -> np.ndarray:
+        """(..., K) |cubic - linear| interpolation of the observables' baseline: where it is unsure."""
+        pts, shape = _points(self.aux_axes, v, m, mu)
+        return np.abs(self._aux_interp(pts) - self._aux_linear(pts)).reshape(*shape, -1)
 
     def relative_error(self, key: str, which: str = "d") -> float:
-        """The key's table error relative to the effect's size, as measured when it was built (0 if not)."""
+        """The key's table error relative to the effect's size on log d (``'d'``) or on an observable of
+        :attr:`aux`, as measured when it was built (0 if not)."""
         acc = (self.meta.get("keys", {}).get(key) or {}).get("accuracy") or {}
-        return float((acc.get("log_d" if which == "d" else "log_t") or {}).get("relative", 0.0))
+        return float((acc.get("log_d" if which == "d" else which) or {}).get("relative", 0.0))
 
-    @property
-    def has_stop_time(self) -> bool:
-        return self.stop_log_t is not None
-
-    def stop_log_time(self, v, m, mu) -> np.ndarray:
-        """Baseline log stop time at points (v, m, mu), clipped to the grid."""
-        interp = self._stop_interp
+    def aux_log(self, v, m, mu) -> np.ndarray:
+        """(..., K) the observables' baseline (log stop time, log pusher speed) at points (v, m, mu), clipped."""
+        interp = self._aux_interp
         if interp is None:
-            raise ValueError("these effect tables hold no stop-time table")
-        v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
-        ax = self.stop_axes
-        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
-                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
-        return interp(pts).reshape(v.shape)
+            raise ValueError("these effect tables hold no observables beside log d")
+        pts, shape = _points(self.aux_axes, v, m, mu)
+        return interp(pts).reshape(*shape, -1)
 
     def delta_both(self, key: str, v, m, mu, s) -> tuple[np.ndarray, np.ndarray]:
-        """Delta log d and Delta log stop time at points (v, m, mu) with per-point level s (clipped to
-        the tabulated range; linear between the two bracketing levels)."""
+        """Delta log d (...) and Delta of every observable of :attr:`aux` (..., K) at points (v, m, mu)
+        with per-point level s (clipped to the tabulated range; linear between the two bracketing levels)."""
         levels = self.levels[key]
         v, m, mu, s = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu, s)))
         s = np.clip(s, levels[0], levels[-1]).ravel()
         j = np.clip(np.searchsorted(levels, s, side="right") - 1, 0, levels.size - 2)
         w = (s - levels[j]) / (levels[j + 1] - levels[j])
-        ax = self.axes
-        pts = np.stack([np.clip(v.ravel(), ax[0][0], ax[0][-1]), np.clip(np.log(m).ravel(), np.log(ax[1][0]),
-                        np.log(ax[1][-1])), np.clip(np.log(mu).ravel(), np.log(ax[2][0]), np.log(ax[2][-1]))], -1)  # fmt: skip
-        vals = self._interp[key](pts)  # (n, 2 L)
+        pts, shape = _points(self.axes, v, m, mu)
+        vals = self._interp[key](pts)  # (n, (1 + K) L)
         L = levels.size
         rows = np.arange(s.size)
+        k_aux = vals.shape[1] // L - 1
         d = (1.0 - w) * vals[rows, j] + w * vals[rows, j + 1]
-        t = (1.0 - w) * vals[rows, L + j] + w * vals[rows, L + j + 1]
-        return d.reshape(v.shape), t.reshape(v.shape)
+        t = np.stack([(1.0 - w) * vals[rows, (1 + a) * L + j] + w * vals[rows, (1 + a) * L + j + 1]
+                      for a in range(k_aux)], -1) if k_aux else np.zeros((s.size, 0))  # fmt: skip
+        return d.reshape(shape), t.reshape(*shape, k_aux)
 
     def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
-        """Delta log d (``which='d'``) or log stop time (``'t'``), see :meth:`delta_both`."""
+        """Delta log d (``which='d'``) or of the observable ``which`` of :attr:`aux`, see :meth:`delta_both`."""
         d, t = self.delta_both(key, v, m, mu, s)
-        return d if which == "d" else t
+        return d if which == "d" else t[..., self.aux_index(which)]
 
 
 CHECK_PUSHES = 24  # off-grid pushes per key for its table's accuracy
@@ -313,14 +339,15 @@ def _key_accuracy(scene, key, levels, axes, delta, delta_t, pushes, base: PushOb
     # midway between tabulated levels, where the interpolation in level is least sure
     mids = 0.5 * (levels[1:] + levels[:-1])
     s = mids[np.arange(v.size) % mids.size]
-    obs_d, obs_t = np.full(v.size, np.nan), np.full(v.size, np.nan)
+    obs_d, obs_t = np.full(v.size, np.nan), np.full((v.size, len(AUX)), np.nan)
     for lev in np.unique(np.round(s, 12)):
         sel = np.round(s, 12) == lev
         res = simulate_observables(_spec_model(scene, key, float(lev)), v[sel], m[sel], mu[sel], nthread=nthread)
-        obs_d[sel], obs_t[sel] = res.log_d - base.log_d[sel], res.log_t - base.log_t[sel]
-    tmp = EffectTables(axes=axes, levels={key: levels}, deltas={key: delta}, meta={}, deltas_t={key: delta_t})
+        obs_d[sel], obs_t[sel] = res.log_d - base.log_d[sel], aux_values(res) - aux_values(base)[sel]
+    tmp = EffectTables(axes=axes, levels={key: levels}, deltas={key: delta}, meta={}, deltas_t={key: delta_t},
+                       aux_axes=axes, aux_base=np.zeros((*delta.shape[1:], len(AUX))))  # fmt: skip
     out = {}
-    for name, obs, which in (("log_d", obs_d, "d"), ("log_t", obs_t, "t")):
+    for name, obs, which in (("log_d", obs_d, "d"), *((a, obs_t[:, i], a) for i, a in enumerate(AUX))):
         pred = tmp.delta(key, v, m, mu, s, which)
         ok = np.isfinite(obs)
         size = float(np.sqrt(np.mean(obs[ok] ** 2))) if ok.any() else 0.0
@@ -354,8 +381,8 @@ def model_floor(
     rms: the two combined in quadrature. An effect that changes log d by less than this
       cannot be told from the table's error, so the diagnostic does not attribute gaps
       that small.
-    stop_time: the same for log stop time against the stop-time table, its numerical part
-      the change of 40 of those pushes' stop times at a quarter of the scene's timestep.
+    stop_time, pusher_speed: the same for each observable beside log d against its table, its
+      numerical part the change of 40 of those pushes' values at a quarter of the scene's timestep.
     """
     v, m, mu = _random_pushes(table, n, seed)
     model = build_model(scene)
@@ -369,16 +396,20 @@ def model_floor(
         log.warning("the table records no measured numerical error; the model floor counts interpolation only")
     combined = float(np.hypot(interpolation, numerical or 0.0))
     out = {"rms": combined, "interpolation_rms": interpolation, "numerical_rms": numerical}
-    if stop is not None and stop.has_stop_time:
-        err_t = obs.log_t[ok] - stop.stop_log_time(v[ok], m[ok], mu[ok])
-        interp_t = float(np.sqrt(np.mean(err_t**2)))
+    if stop is not None and stop.aux:
+        values = aux_values(obs)
+        err_t = values[ok] - stop.aux_log(v[ok], m[ok], mu[ok])
         k = min(40, n)
         finer = dataclasses.replace(scene, timestep=scene.timestep / 4)
         fine = simulate_observables(build_model(finer), v[:k], m[:k], mu[:k], nthread=nthread)
         both = ok[:k] & fine.ok
-        num_t = float(np.sqrt(np.mean((obs.log_t[:k][both] - fine.log_t[both]) ** 2))) if both.any() else 0.0
-        out["stop_time"] = {"rms": float(np.hypot(interp_t, num_t)), "interpolation_rms": interp_t,
-                            "numerical_rms": num_t, "stop_speed": STOP_SPEED}  # fmt: skip
+        fine_values = aux_values(fine)
+        for a, name in enumerate(stop.aux):
+            interp_t = float(np.sqrt(np.mean(err_t[:, a] ** 2)))
+            diff = values[:k][both, a] - fine_values[both, a]
+            num_t = float(np.sqrt(np.mean(diff**2))) if both.any() else 0.0
+            out[name] = {"rms": float(np.hypot(interp_t, num_t)), "interpolation_rms": interp_t, "numerical_rms": num_t}
+        out["stop_time"]["stop_speed"] = STOP_SPEED
     return out
 
 
@@ -405,7 +436,7 @@ def load_or_build(
     nthread: int = 0,
     progress: bool = False,
     across: bool = False,
-    stop_time: bool = True,
+    aux: bool = True,
 ) -> EffectTables:
     """The effect tables for ``effects`` against ``table``, from the cache or simulated.
 
@@ -440,7 +471,7 @@ def load_or_build(
             "building effect tables for %s (%d cells per level) in %s", ", ".join(k for k, *_ in todo), v.size, cache
         )
         base = simulate_observables(build_model(scene), v, m, mu, nthread=nthread)
-        base_d, base_t = _fill(base.log_d, shape), _fill(base.log_t, shape)
+        base_d, base_t = _fill(base.log_d, shape), _fill(aux_values(base), shape)
         # off-grid pushes at random levels, to measure each table's own accuracy
         cv, cm, cu = _random_pushes(table, CHECK_PUSHES, seed=1)
         check_base = simulate_observables(build_model(scene), cv, cm, cu, nthread=nthread)
@@ -449,12 +480,12 @@ def load_or_build(
             for s in lv:
                 if s == 0.0:
                     rows.append(np.zeros(shape))
-                    rows_t.append(np.zeros(shape))
+                    rows_t.append(np.zeros((*shape, len(AUX))))
                     continue
                 res = simulate_observables(_spec_model(scene, key, s), v, m, mu, nthread=nthread)
                 failed[f"{s:g}"] = int((~res.ok).sum())
                 rows.append(_fill(res.log_d, shape) - base_d)
-                rows_t.append(_fill(res.log_t, shape) - base_t)
+                rows_t.append(_fill(aux_values(res), shape) - base_t)
                 bar.update(1)
             deltas[key], deltas_t[key] = np.stack(rows), np.stack(rows_t)
             accuracy = _key_accuracy(scene, key, np.array(lv), axes, deltas[key], deltas_t[key], (cv, cm, cu),
@@ -463,35 +494,36 @@ def load_or_build(
             if path is not None:
                 write_npz(path, delta=deltas[key], delta_t=deltas_t[key],
                           meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)))  # fmt: skip
-    stop_axes = stop_log_t = None
-    if stop_time:
-        stop_axes = grid.axes(table, stop=True)
+    aux_axes = aux_base = None
+    if aux:
+        aux_axes = grid.axes(table, stop=True)
         sgrid = {k: getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")}
-        digest, smeta = _digest(table, grid, {"stop_grid": sgrid})
-        spath = cache / f"stoptime-{digest}.npz" if cache else None
+        digest, smeta = _digest(table, grid, {"stop_grid": sgrid, "aux": list(AUX)})
+        spath = cache / f"observables-{digest}.npz" if cache else None
         if spath is not None and spath.is_file():
             with np.load(spath, allow_pickle=False) as z:
-                stop_log_t = z["log_t"]
+                aux_base = z["aux"]
         else:
-            sv, sm, su = (x.ravel() for x in np.meshgrid(*stop_axes, indexing="ij"))
+            sv, sm, su = (x.ravel() for x in np.meshgrid(*aux_axes, indexing="ij"))
             obs = simulate_observables(build_model(scene), sv, sm, su, nthread=nthread)
-            stop_log_t = _fill(obs.log_t, tuple(a.size for a in stop_axes))
+            aux_base = _fill(aux_values(obs), tuple(a.size for a in aux_axes))
             if spath is not None:
-                write_npz(spath, log_t=stop_log_t, meta=np.array(json.dumps(smeta, sort_keys=True)))
+                write_npz(spath, aux=aux_base, meta=np.array(json.dumps(smeta, sort_keys=True)))
         bar.update(1)
     tables = EffectTables(axes=axes, levels={k: np.array(x) for k, x in levels.items()}, deltas=deltas, meta=meta,
-                          deltas_t=deltas_t, stop_axes=stop_axes, stop_log_t=stop_log_t)  # fmt: skip
+                          deltas_t=deltas_t, aux_axes=aux_axes, aux_base=aux_base)  # fmt: skip
     digest, fmeta = _digest(
         table, grid,
         {"model_floor": {"n": grid.floor_pushes, "seed": 0}, "numerical_error": table.meta.get("numerical_error"),
-         "stop_grid": [getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")] if stop_time else None},
+         "stop_grid": [getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")] if aux else None,
+         "aux": list(AUX) if aux else None},
     )  # fmt: skip
     fpath = cache / f"floor-{digest}.json" if cache else None
     if fpath is not None and fpath.is_file():
         with open(fpath) as fh:
             floor = json.load(fh)["model_floor"]
     else:
-        floor = model_floor(table, scene, tables if stop_time else None, n=grid.floor_pushes, nthread=nthread)
+        floor = model_floor(table, scene, tables if aux else None, n=grid.floor_pushes, nthread=nthread)
         if fpath is not None:
             write_json(fpath, {**fmeta, "model_floor": floor})
     bar.update(1)

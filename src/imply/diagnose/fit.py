@@ -4,11 +4,13 @@ The prediction for a push of object i at logged speed v in direction phi under a
 (:class:`imply.diagnose.candidates.Model`, parameters theta) is, for each observable,
 
     log d = f(v', m_i, mu') + sum_k Delta_k(v', m_i, mu'; s_k)
-    log T = f_T(v', m_i, mu') + sum_k Delta_T,k(v', m_i, mu'; s_k)     (where the log has stop times)
+    log a = f_a(v', m_i, mu') + sum_k Delta_a,k(v', m_i, mu'; s_k)     (each observable a the log has)
 
 with v' the pusher's actual speed and mu' the friction the push sees under the model's
-speed and friction terms, f the push table, f_T the stop-time table and Delta the effect
-tables (:mod:`imply.diagnose.effect_tables`). Replicate pushes (same object, speed and
+speed and friction terms, f the push table, f_a the table of the observable a beside the
+displacement (log stop time, log of the pusher's measured mean speed: the "aux" rows) and
+Delta the effect tables (:mod:`imply.diagnose.effect_tables`). The aux rows are stacked
+observable by observable: row r is push ``t_row[r]``'s observable ``aux[t_kind[r]]``. Replicate pushes (same object, speed and
 direction) share one prediction. Residuals are whitened by each observable's noise sd
 and weighted (0 for a flagged outlier), so the sum of squares is a chi-square at the
 noise.
@@ -121,7 +123,8 @@ class JointFit:
 
 @dataclass(frozen=True)
 class Prediction:
-    """Predicted log d and log T at some conditions, and what of them was extrapolated beyond the tables.
+    """Predicted log d (n,) and the aux observables (n, K) at some conditions, and what of them was
+    extrapolated beyond the tables.
 
     ``extrapolated_d`` / ``extrapolated_t`` are the linear extrapolation parts added (None where no
     condition left the table's range)."""
@@ -132,12 +135,11 @@ class Prediction:
     extrapolated_t: np.ndarray | None
 
     def extrapolation_sizes(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """|log d part| and |log T part| of the extrapolation per condition (zeros where there was none)."""
-        zeros = np.zeros(self.log_d.size)
-        size_d = np.abs(self.extrapolated_d) if self.extrapolated_d is not None else zeros
+        """|log d part| (n,) and |aux part| (n, K) of the extrapolation per condition (zeros where there was none)."""
+        size_d = np.abs(self.extrapolated_d) if self.extrapolated_d is not None else np.zeros(self.log_d.size)
         if self.log_t is None:
             return size_d, None
-        return size_d, np.abs(self.extrapolated_t) if self.extrapolated_t is not None else zeros
+        return size_d, np.abs(self.extrapolated_t) if self.extrapolated_t is not None else np.zeros(self.log_t.shape)
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,14 +170,15 @@ class Problem:
     v_range: tuple[float, float]
     fixed_lm: np.ndarray | None  # measured log mass, held fixed
     fixed_lu: np.ndarray | None  # measured log friction, held fixed
-    use_t: bool
-    y_t: np.ndarray | None  # log stop time per push, where used
+    use_t: bool  # the log has observables beside the displacement that the fits use
+    y_t: np.ndarray | None  # (n K,) their logs, stacked observable by observable (None without)
+    aux: tuple[str, ...] = ()  # the K observables (names of imply.diagnose.effect_tables.AUX)
     noise_d: float = 1.0
-    noise_t: float = 1.0
+    noise_t: np.ndarray | float = 1.0  # (K,) or one sd for all
     model_err_d: np.ndarray | None = None  # per row (None: zeros)
-    model_err_t: np.ndarray | None = None
+    model_err_t: np.ndarray | None = None  # per aux row
     w_d: np.ndarray | None = None  # per row, 0 for a flagged outlier (None: ones)
-    w_t: np.ndarray | None = None  # (None: ones where stop times are used)
+    w_t: np.ndarray | None = None  # per aux row (None: ones where aux observables are used)
 
     def __post_init__(self) -> None:
         # defaults that depend on the log's length
@@ -183,11 +186,35 @@ class Problem:
         if self.model_err_d is None:
             object.__setattr__(self, "model_err_d", np.zeros(n))
         if self.model_err_t is None:
-            object.__setattr__(self, "model_err_t", np.zeros(n))
+            object.__setattr__(self, "model_err_t", np.zeros(n * len(self.aux)))
         if self.w_d is None:
             object.__setattr__(self, "w_d", np.ones(n))
         if self.w_t is None and self.use_t:
-            object.__setattr__(self, "w_t", np.ones(n))
+            object.__setattr__(self, "w_t", np.ones(n * len(self.aux)))
+
+    @cached_property
+    def t_row(self) -> np.ndarray:
+        """(n K,) the push of each aux row."""
+        return np.tile(np.arange(self.y.size), len(self.aux))
+
+    @cached_property
+    def t_kind(self) -> np.ndarray:
+        """(n K,) the observable (index into :attr:`aux`) of each aux row."""
+        return np.repeat(np.arange(len(self.aux)), self.y.size)
+
+    @cached_property
+    def t_cond(self) -> np.ndarray:
+        """(n K,) the condition of each aux row's push."""
+        return self.cond[self.t_row]
+
+    @cached_property
+    def aux_cols(self) -> np.ndarray:
+        """(K,) where each observable of :attr:`aux` sits in the effect tables' observables."""
+        return np.array([self.etables.aux_index(a) for a in self.aux], int) if self.aux else np.zeros(0, int)
+
+    def aux_rows(self, name: str) -> np.ndarray:
+        """Indices of the aux rows of observable ``name`` (empty if unused)."""
+        return np.flatnonzero(self.t_kind == self.aux.index(name)) if name in self.aux else np.zeros(0, int)
 
     @classmethod
     def of(
@@ -199,8 +226,10 @@ class Problem:
         grid: int = 101,
         use_measured: bool = True,
         use_stop_time: bool = True,
+        use_pusher_speed: bool = True,
     ) -> Problem:
-        """The problem of a push log at unit noise, no model error and every push weighted 1."""
+        """The problem of a push log at unit noise, no model error and every push weighted 1; the observables
+        beside the displacement are those the log has, the tables hold and the flags allow."""
         obj = pushlog.obj
         v = pushlog.speed
         phi = pushlog.direction
@@ -208,8 +237,10 @@ class Problem:
         key = np.stack([obj.astype(float), np.round(v, 9), np.round(np.mod(phi, 2 * np.pi), 6)], 1)
         uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
         n_obj = len(pushlog.objects)
-        has_t = pushlog.stop_time is not None and etables is not None and etables.has_stop_time
-        use_t = bool(use_stop_time and has_t)
+        wanted = {"stop_time": use_stop_time, "pusher_speed": use_pusher_speed}
+        held = etables.aux if etables is not None else ()
+        aux = tuple(a for a in held if wanted.get(a) and pushlog.aux(a) is not None)
+        use_t = bool(aux)
         return cls(
             log=pushlog, table=table, etables=etables, grid=grid, obj=obj, n_obj=n_obj, v=v, phi=phi,
             y=pushlog.log_d, cond=cond.ravel(), n_cond=uniq.shape[0], c_obj=obj[first], c_v=v[first],
@@ -217,13 +248,17 @@ class Problem:
             lm_range=np.log(table.mass_range), lu_range=np.log(table.friction_range), v_range=table.speed_range,
             fixed_lm=np.log(pushlog.mass) if use_measured and pushlog.mass is not None else None,
             fixed_lu=np.log(pushlog.friction) if use_measured and pushlog.friction is not None else None,
-            use_t=use_t, y_t=np.log(pushlog.stop_time) if use_t else None,
+            use_t=use_t, y_t=np.concatenate([pushlog.aux(a) for a in aux]) if use_t else None, aux=aux,
         )  # fmt: skip
 
     # -- noise, weights and model error: each a new problem ---------------------------
-    def with_noise(self, sd_d: float, sd_t: float | None) -> Problem:
-        """Each observable's noise sd (the model's own error is added by :meth:`with_model_error`)."""
-        return replace(self, noise_d=float(sd_d), noise_t=float(sd_t if sd_t else sd_d) if self.use_t else self.noise_t)
+    def with_noise(self, sd_d: float, sd_t) -> Problem:
+        """Each observable's noise sd: log d's, and the aux observables' ((K,), or one for all; None: log d's)
+        (the model's own error is added by :meth:`with_model_error`)."""
+        if not self.use_t:
+            return replace(self, noise_d=float(sd_d))
+        t = np.broadcast_to(np.asarray(sd_d if sd_t is None else sd_t, float), (len(self.aux),)).copy()
+        return replace(self, noise_d=float(sd_d), noise_t=t)
 
     def with_model_error(self, err_d: np.ndarray, err_t: np.ndarray | None) -> Problem:
         """The model's own error per row (RMS, log units), counted as variance beside the noise."""
@@ -236,7 +271,7 @@ class Problem:
         if not self.use_t:
             return replace(self, w_d=np.asarray(w_d, float))
         return replace(self, w_d=np.asarray(w_d, float),
-                       w_t=np.asarray(w_t if w_t is not None else np.ones(self.y.size), float))  # fmt: skip
+                       w_t=np.asarray(w_t if w_t is not None else np.ones(self.t_row.size), float))  # fmt: skip
 
     @cached_property
     def k_free(self) -> int:
@@ -249,8 +284,14 @@ class Problem:
         return np.sqrt(self.noise_d**2 + self.model_err_d**2)
 
     @cached_property
+    def noise_t_rows(self) -> np.ndarray:
+        """(n K,) each aux row's noise sd."""
+        return np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[self.t_kind]
+
+    @cached_property
     def sd_t(self) -> np.ndarray:
-        return np.sqrt(self.noise_t**2 + self.model_err_t**2)
+        """Per aux row: noise and model error together."""
+        return np.sqrt(self.noise_t_rows**2 + self.model_err_t**2)
 
     @cached_property
     def _linear(self):
@@ -275,7 +316,8 @@ class Problem:
         ind_d = np.abs(cubic - self._linear(np.stack([v, lm, lu], 1)))[self.cond]
         ind_t = None
         if self.use_t:
-            ind_t = self.etables.stop_interpolation_indicator(v, np.exp(lm), np.exp(lu))[self.cond]
+            ind = self.etables.aux_interpolation_indicator(v, np.exp(lm), np.exp(lu))[:, self.aux_cols]
+            ind_t = ind[self.t_cond, self.t_kind]
         return ind_d, ind_t
 
     @property
@@ -303,7 +345,7 @@ class Problem:
         vc, luc = np.clip(v, *self.v_range), np.clip(lu, *self.lu_range)
         mu = np.exp(luc)
         pd = self.table.log_displacement(vc, m, mu)
-        pt = self.etables.stop_log_time(vc, m, mu) if self.use_t else None
+        pt = self.etables.aux_log(vc, m, mu)[:, self.aux_cols] if self.use_t else None
         ext_d = ext_t = None
         out = (vc != v) | (luc != lu)
         if out.any():
@@ -320,18 +362,19 @@ class Problem:
             ext_d[o] = sv * dv + su * dlu
             pd = pd + ext_d
             if self.use_t:
-                g0 = self.etables.stop_log_time(vc[o], mo, mu[o])
-                tv = (self.etables.stop_log_time(vc[o] + hv, mo, mu[o]) - g0) / hv
-                tu = (self.etables.stop_log_time(vc[o], mo, np.exp(luc[o] + hu)) - g0) / hu
-                ext_t = np.zeros(v.size)
-                ext_t[o] = tv * dv + tu * dlu
+                cols = self.aux_cols
+                g0 = self.etables.aux_log(vc[o], mo, mu[o])[:, cols]
+                tv = (self.etables.aux_log(vc[o] + hv, mo, mu[o])[:, cols] - g0) / hv[:, None]
+                tu = (self.etables.aux_log(vc[o], mo, np.exp(luc[o] + hu))[:, cols] - g0) / hu[:, None]
+                ext_t = np.zeros(pt.shape)
+                ext_t[o] = tv * dv[:, None] + tu * dlu[:, None]
                 pt = pt + ext_t
         if t is not None:
             for key, s in t.tables:
                 dd, dt = self.etables.delta_both(key, vc, m, mu, s)
                 pd = pd + dd
                 if self.use_t:
-                    pt = pt + dt
+                    pt = pt + dt[:, self.aux_cols]
         found = model.discrepancy if model.dim else None
         if found is not None:
             dd, dt = self.discrepancy_terms(found[0], np.asarray(theta, float)[..., found[1]], idx, lm_c, lu_c)
@@ -342,19 +385,23 @@ class Problem:
 
     def discrepancy_terms(self, c, beta: np.ndarray, idx: np.ndarray, lm_c, lu_c) -> tuple[np.ndarray, np.ndarray]:
         """The discrepancy ``c`` at coefficients ``beta`` ((q,) or per condition (n, q)) at conditions ``idx``:
-        its log d and log T parts (n,), at the logged speed and the objects' (log m, log mu)."""
+        its log d part (n,) and each aux observable's part (n, K, its own coefficients), at the logged speed
+        and the objects' (log m, log mu)."""
         sv = scaled(self.c_v[idx], *self.v_range)
         sm = scaled(lm_c, *self.lm_range)
         su = scaled(lu_c, *self.lu_range)
         bd, bt = discrepancy_basis(sv, np.broadcast_to(sm, sv.shape), np.broadcast_to(su, sv.shape))
         beta = np.broadcast_to(beta, (sv.size, c.dim))
-        k = bd.shape[1]
+        k, kt = bd.shape[1], bt.shape[1]
         dd = np.einsum("nk,nk->n", bd, beta[:, :k])
-        dt = np.einsum("nk,nk->n", bt, beta[:, k:]) if c.dim > k else np.zeros(sv.size)
+        n_aux = (c.dim - k) // kt
+        dt = np.zeros((sv.size, len(self.aux)))
+        for a in range(min(n_aux, len(self.aux))):
+            dt[:, a] = np.einsum("nk,nk->n", bt, beta[:, k + a * kt : k + (a + 1) * kt])
         return dd, dt
 
     def table_terms(self, model: Model, theta, lm_c, lu_c) -> list[tuple[str, np.ndarray, np.ndarray | None]]:
-        """Each tabulated term of the model at every condition: (key, Delta log d, Delta log T)."""
+        """Each tabulated term of the model at every condition: (key, Delta log d (C,), Delta aux (C, K))."""
         if not model.dim:
             return []
         v, phi = self.c_v, self.c_phi
@@ -365,17 +412,17 @@ class Problem:
         out = []
         for key, s in t.tables:
             dd, dt = self.etables.delta_both(key, v, m, mu, s)
-            out.append((key, dd, dt if self.use_t else None))
+            out.append((key, dd, dt[:, self.aux_cols] if self.use_t else None))
         return out
 
     def row_residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
-        """Raw (unwhitened, unweighted) residuals, observed minus predicted, per row: (log d, log T)."""
+        """Raw (unwhitened, unweighted) residuals, observed minus predicted: per push (log d) and per aux row."""
         rd = self.y - pred.log_d[self.cond]
-        rt = self.y_t - pred.log_t[self.cond] if self.use_t else None
+        rt = self.y_t - pred.log_t[self.t_cond, self.t_kind] if self.use_t else None
         return rd, rt
 
     def _row_obj(self) -> np.ndarray:
-        return np.concatenate([self.obj, self.obj]) if self.use_t else self.obj
+        return np.concatenate([self.obj, self.obj[self.t_row]]) if self.use_t else self.obj
 
     def object_sse(self, r: np.ndarray) -> np.ndarray:
         return np.bincount(self._row_obj(), r * r, minlength=self.n_obj)
@@ -391,11 +438,11 @@ class Problem:
         th = np.repeat(np.atleast_2d(thetas), C, axis=0) if model.dim else np.zeros(0)
         pred = self.predict(model, th, lm_c, lu_c, cond)
         pd = pred.log_d.reshape(k, C)
-        pt = None if pred.log_t is None else pred.log_t.reshape(k, C)
+        pt = None if pred.log_t is None else pred.log_t.reshape(k, C, len(self.aux))
         rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
         if not self.use_t:
             return rd
-        rt = self.w_t * (pt[:, self.cond] - self.y_t) / self.sd_t
+        rt = self.w_t * (pt[:, self.t_cond, self.t_kind] - self.y_t) / self.sd_t
         return np.concatenate([rd, rt], axis=1)
 
     def _eval_many(self, model: Model, thetas: list, lms: list, lus: list) -> list[np.ndarray]:

@@ -4,8 +4,11 @@ Candidates are pushes of the log's own objects at ``speeds`` speeds across the p
 table's range and, where the log has directions, ``directions`` directions around the
 table (otherwise the log's single direction). Under each contender (the hypothesis of
 largest weight of each explanation in contention, :mod:`imply.diagnose.verdict`), every
-candidate push has a predicted log displacement (and log stop time where the log has stop
-times), from that hypothesis's fitted effects and the object's fitted mass and friction.
+candidate push has a predicted log displacement (and log stop time and pusher speed where
+the log has them), from that hypothesis's fitted effects and the object's fitted mass and friction.
+
+:attr:`PushDesign.by_observable` says how far the log's own pushes already set each pair
+apart, observable by observable: which measurement told the leading hypotheses apart.
 
 For two hypotheses a and b, a push adds (pred_a - pred_b)^2 / sd^2 to their separation,
 with sd the noise and the model's own error at that push (:mod:`imply.diagnose.model_error`),
@@ -17,6 +20,11 @@ weighted sum over pairs), so that every pair gets separated, not only the easies
 closed form, unlike an expected information gain over the posterior, and it needs
 nothing but predictions the fits already make. It takes each object's fitted mass and
 friction as known: the log's own pushes of that object pin them down.
+
+Where the log lacks an observable the tables hold (the stop time, the pusher's speed),
+:attr:`PushDesign.measure` says how far measuring it on the log's own pushes would set the
+contenders apart, in units of an assumed noise sd of 0.02 in its log: "measure the
+pusher's speed" can separate what more displacements cannot.
 
 ``write_next_pushes`` writes them as push-log columns (``object_id,speed`` and
 ``direction``, ``size_x,size_y,size_z`` and ``mass`` where the log has them) with what
@@ -50,6 +58,7 @@ class NextPush(Record):
     direction: float | None
     expected_displacement: dict[str, float]  # by contender label (m)
     expected_stop_time: dict[str, float] | None  # by contender label (s), where the log has stop times
+    expected_pusher_speed: dict[str, float] | None = None  # by contender label (m/s), where the log has them
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -62,6 +71,14 @@ class PushDesign(Record):
     separation_sd: dict[str, float]
     # the same for as many pushes drawn from the log's own design, for comparison
     log_design_separation_sd: dict[str, float]
+    # per observable the log lacks: per pair, the separation its measurement on the log's own pushes would add
+    measure: dict[str, dict[str, float]] | None = None
+    # per pair, per observable the log has: how far the log's own pushes set the pair apart (noise sds)
+    by_observable: dict[str, dict[str, float]] | None = None
+
+
+# the noise sd (log units) assumed for an observable the log lacks, to say what measuring it would add
+ASSUMED_SD = 0.02
 
 
 def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, directions: int) -> PushLog:
@@ -78,15 +95,39 @@ def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, di
     frame = pd.DataFrame({"object_id": [log.objects[i] for i in obj], "speed": v, "direction": phi})
     return PushLog(path="<next pushes>", frame=frame, objects=list(log.objects), obj=obj, speed=v, displacement=ones,
                    direction=phi, has_direction=log.has_direction, mass=log.mass, friction=log.friction,
-                   stop_time=ones if log.stop_time is not None else None)  # fmt: skip
+                   stop_time=ones if log.stop_time is not None else None,
+                   pusher_speed=ones if log.pusher_speed is not None else None)  # fmt: skip
 
 
 def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
-    """log d and log T (None without stop times) of every row of ``problem`` (a log's pushes, or the candidate
-    pushes) under ``fit``, each object at its fitted mass and friction."""
+    """log d (n,) and the aux observables (K, n; None without) of every push of ``problem`` (a log's pushes, or
+    the candidate pushes) under ``fit``, each object at its fitted mass and friction."""
     lm, lu = fit.objects.lm[problem.c_obj], fit.objects.lu[problem.c_obj]
     pred = problem.predict(fit.model, fit.theta, lm, lu)
-    return pred.log_d[problem.cond], (pred.log_t[problem.cond] if pred.log_t is not None else None)
+    aux = pred.log_t[problem.cond].T if pred.log_t is not None else None
+    return pred.log_d[problem.cond], aux
+
+
+def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str, float]] | None:
+    """Per observable the tables hold and the log lacks: the separation its measurement on the log's pushes adds."""
+    missing = [a for a in (problem.etables.aux if problem.etables is not None else ()) if a not in problem.aux]
+    if not missing:
+        return None
+    log = problem.log
+    ones = np.ones(log.n)
+    with_all = PushLog(path=log.path, frame=log.frame, objects=log.objects, obj=log.obj, speed=log.speed,
+                       displacement=log.displacement, direction=log.direction, has_direction=log.has_direction,
+                       mass=log.mass, friction=log.friction,
+                       **{a: (getattr(log, a) if getattr(log, a) is not None else ones) for a in ("stop_time",
+                                                                                                   "pusher_speed")})  # fmt: skip
+    full = Problem.of(with_all, problem.table, problem.etables, grid=problem.grid)
+    preds = [predictions(full, f)[1] for _, f, _ in contenders]
+    out = {}
+    for name in missing:
+        a = full.aux.index(name)
+        out[name] = {f"{labels[i]} | {labels[j]}": float(np.sqrt(np.sum(((preds[i][a] - preds[j][a]) / ASSUMED_SD) ** 2)))
+                     for i, j in pairs}  # fmt: skip
+    return out
 
 
 def _greedy(sep: np.ndarray, pair_w: np.ndarray, n: int, groups: np.ndarray) -> list[int]:
@@ -118,19 +159,23 @@ def design_pushes(
     if len(contenders) < 2 or n < 1:
         return None
     cand = Problem.of(candidate_log(problem.log, problem.v_range, speeds=speeds, directions=directions), problem.table,
-                      problem.etables, grid=problem.grid, use_stop_time=problem.use_t)  # fmt: skip
+                      problem.etables, grid=problem.grid, use_stop_time="stop_time" in problem.aux,
+                      use_pusher_speed="pusher_speed" in problem.aux)  # fmt: skip
     num_d, num_t = numerical_floors(problem, opts)
     lead = contenders[0][1]
     ind_d, ind_t = cand.interpolation_indicator(lead.objects, lead.model, lead.theta)
     sd_d = np.sqrt(problem.noise_d**2 + num_d**2 + ind_d**2)
-    sd_t = np.sqrt(problem.noise_t**2 + num_t**2 + ind_t**2) if cand.use_t and ind_t is not None else None
+    sd_t = None
+    if cand.use_t and ind_t is not None:
+        noise_t = np.broadcast_to(np.asarray(problem.noise_t, float), (len(cand.aux),))
+        sd_t = np.sqrt(noise_t[cand.t_kind] ** 2 + num_t[cand.t_kind] ** 2 + ind_t**2).reshape(len(cand.aux), -1)
     preds = [predictions(cand, f) for _, f, _ in contenders]
     pairs = [(a, b) for a in range(len(contenders)) for b in range(a + 1, len(contenders))]
     sep = np.zeros((cand.y.size, len(pairs)))
     for j, (a, b) in enumerate(pairs):
         sep[:, j] = ((preds[a][0] - preds[b][0]) / sd_d) ** 2
         if sd_t is not None and preds[a][1] is not None:
-            sep[:, j] += ((preds[a][1] - preds[b][1]) / sd_t) ** 2
+            sep[:, j] += (((preds[a][1] - preds[b][1]) / sd_t) ** 2).sum(0)
     w = np.array([contenders[a][2] * contenders[b][2] for a, b in pairs])
     groups = np.unique(np.stack([cand.obj, np.round(cand.v, 9)], 1), axis=0, return_inverse=True)[1].ravel()
     picks = _greedy(sep, w / max(w.sum(), 1e-300), n, groups)
@@ -140,26 +185,42 @@ def design_pushes(
     own_preds = [predictions(problem, f) for _, f, _ in contenders]  # the log's own pushes
     rows = rng.choice(problem.y.size, size=min(len(picks), problem.y.size), replace=False)
     log_sep = {}
+    sd_aux = problem.sd_t.reshape(len(problem.aux), -1) if problem.use_t else None
+    keep = problem.w_d > 0
+    by_observable = {}
     for a, b in pairs:
-        chi = ((own_preds[a][0] - own_preds[b][0]) / problem.sd_d) ** 2
+        chi_d = ((own_preds[a][0] - own_preds[b][0]) / problem.sd_d) ** 2
+        parts = {"displacement": chi_d}
         if problem.use_t and own_preds[a][1] is not None:
-            chi = chi + ((own_preds[a][1] - own_preds[b][1]) / problem.sd_t) ** 2
-        log_sep[f"{labels[a]} | {labels[b]}"] = float(np.sqrt(chi[rows].sum()))
+            chi_t = ((own_preds[a][1] - own_preds[b][1]) / sd_aux) ** 2
+            parts.update({name: chi_t[i] for i, name in enumerate(problem.aux)})
+        chi = sum(parts.values())
+        pair = f"{labels[a]} | {labels[b]}"
+        log_sep[pair] = float(np.sqrt(chi[rows].sum()))
+        by_observable[pair] = {name: float(np.sqrt(x[keep].sum())) for name, x in parts.items()}
     pushes = []
     for k in picks:
         pushes.append(NextPush(
             object_id=cand.log.objects[cand.obj[k]], speed=float(cand.v[k]),
             direction=float(cand.phi[k]) if problem.log.has_direction else None,
             expected_displacement={lab: float(np.exp(p[0][k])) for lab, p in zip(labels, preds, strict=True)},
-            expected_stop_time=({lab: float(np.exp(p[1][k])) for lab, p in zip(labels, preds, strict=True)}
-                                if sd_t is not None else None),
+            expected_stop_time=_expected(cand, "stop_time", labels, preds, k),
+            expected_pusher_speed=_expected(cand, "pusher_speed", labels, preds, k),
         ))  # fmt: skip
     total = sep[picks].sum(0)
     return PushDesign(
         contenders=labels, pushes=pushes,
         separation_sd={f"{labels[a]} | {labels[b]}": float(np.sqrt(total[j])) for j, (a, b) in enumerate(pairs)},
-        log_design_separation_sd=log_sep,
+        log_design_separation_sd=log_sep, measure=_measure(problem, contenders, pairs, labels),
+        by_observable=by_observable,
     )  # fmt: skip
+
+
+def _expected(cand: Problem, name: str, labels: list[str], preds, k: int) -> dict[str, float] | None:
+    if name not in cand.aux:
+        return None
+    a = cand.aux.index(name)
+    return {lab: float(np.exp(p[1][a, k])) for lab, p in zip(labels, preds, strict=True)}
 
 
 PUSH_COLUMNS = ["object_id", "speed", "direction", *SIZE_COLUMNS, "mass"]
@@ -174,6 +235,8 @@ def next_pushes_frame(design: PushDesign | None, log: PushLog) -> pd.DataFrame:
     cols += [f"expected_displacement_if_{lab}" for lab in labels]
     if design is not None and design.pushes and design.pushes[0].expected_stop_time is not None:
         cols += [f"expected_stop_time_if_{lab}" for lab in labels]
+    if design is not None and design.pushes and design.pushes[0].expected_pusher_speed is not None:
+        cols += [f"expected_pusher_speed_if_{lab}" for lab in labels]
     rows = []
     for p in design.pushes if design is not None else []:
         i = log.objects.index(p.object_id)
@@ -188,6 +251,8 @@ def next_pushes_frame(design: PushDesign | None, log: PushLog) -> pd.DataFrame:
         row.update({f"expected_displacement_if_{k}": v for k, v in p.expected_displacement.items()})
         if p.expected_stop_time is not None:
             row.update({f"expected_stop_time_if_{k}": v for k, v in p.expected_stop_time.items()})
+        if p.expected_pusher_speed is not None:
+            row.update({f"expected_pusher_speed_if_{k}": v for k, v in p.expected_pusher_speed.items()})
         rows.append(row)
     return pd.DataFrame(rows, columns=cols)
 

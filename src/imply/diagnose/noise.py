@@ -40,16 +40,20 @@ class ObservableNoise(Record):
 
 @dataclass(frozen=True, kw_only=True)
 class Noise:
-    """Both observables' noise (stop time only where the log's stop times are used) and the row weights."""
+    """Every observable's noise (those beside the displacement where the log's are used) and the row weights."""
 
     displacement: ObservableNoise
-    stop_time: ObservableNoise | None
+    aux: dict[str, ObservableNoise]  # by observable, in the problem's order
     weights_d: np.ndarray  # per row: 0 where flagged or set aside, else 1
-    weights_t: np.ndarray | None
+    weights_t: np.ndarray | None  # per aux row
+
+    @property
+    def stop_time(self) -> ObservableNoise | None:
+        return self.aux.get("stop_time")
 
     def apply(self, problem: Problem) -> Problem:
         """``problem`` at this noise, with the flagged pushes and their replicates weighted 0."""
-        sd_t = self.stop_time.sd if self.stop_time is not None else None
+        sd_t = np.array([self.aux[a].sd for a in problem.aux]) if self.aux else None
         return problem.with_noise(self.displacement.sd, sd_t).with_weights(self.weights_d, self.weights_t)
 
 
@@ -156,15 +160,20 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
     """Each observable's noise sd and the rows flagged as gross outliers, from ``problem`` at unit noise.
 
     ``opts`` is the diagnosis' settings (:class:`imply.diagnose.analysis.DiagnosisConfig`:
-    ``noise_sd``, ``stop_time_noise_sd``, ``outlier_sd``)."""
+    ``noise_sd``, ``stop_time_noise_sd``, ``pusher_speed_noise_sd``, ``outlier_sd``)."""
     ones = np.ones(problem.y.size)
     groups = _groups(problem.cond, ones)
     # a first baseline fit, on everything, to tell which member of a pair is off
-    unit = problem.with_noise(1.0, 1.0).with_weights(ones, ones if problem.use_t else None)
+    unit = problem.with_noise(1.0, 1.0).with_weights(ones, np.ones(problem.t_row.size) if problem.use_t else None)
     fit0 = unit.initial_fit()
     rd, rt = unit.row_residuals(unit.predict(Model(), np.zeros(0), fit0.lm[unit.c_obj], fit0.lu[unit.c_obj]))
     disp, w_d = _observable(unit, unit.y, rd, groups=groups, option_sd=opts.noise_sd, k=opts.outlier_sd)
-    stop, w_t = None, None
+    aux, w_t = {}, None
     if unit.y_t is not None:
-        stop, w_t = _observable(unit, unit.y_t, rt, groups=groups, option_sd=opts.stop_time_noise_sd, k=opts.outlier_sd)
-    return Noise(displacement=disp, stop_time=stop, weights_d=w_d, weights_t=w_t)
+        w_t = np.ones(unit.y_t.size)
+        for name in unit.aux:
+            rows = unit.aux_rows(name)
+            option_sd = getattr(opts, f"{name}_noise_sd")
+            aux[name], w_t[rows] = _observable(unit, unit.y_t[rows], rt[rows], groups=groups, option_sd=option_sd,
+                                               k=opts.outlier_sd)  # fmt: skip
+    return Noise(displacement=disp, aux=aux, weights_d=w_d, weights_t=w_t)

@@ -3,7 +3,9 @@
 Columns (CSV or parquet): ``object_id,speed,displacement`` are required (speed in
 m/s, displacement in metres, both positive); optional ``direction`` (push direction
 in the table plane, radians, within [-2 pi, 2 pi]), ``stop_time`` (s, > 0: from the
-start of the push until the box's speed falls below 1 cm/s),
+start of the push until the box's speed falls below 1 cm/s), ``pusher_speed`` (m/s, > 0:
+the pusher's mean speed over its stroke, from its encoders: the stroke length over the
+time from the start of the push until the pusher reached the end of its stroke),
 ``size_x,size_y,size_z`` (box half-extents, m, > 0; all three or none), ``mass`` (kg,
 > 0) and ``friction`` (> 0) where measured, and ``ok`` (true/false, as written by
 ``imply sim pushes``). Other columns are kept and ignored.
@@ -30,7 +32,7 @@ from imply.input_files import InputError, read_table_lines, row_error
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
-OPTIONAL_NUMERIC = ["direction", "stop_time", *SIZE_COLUMNS, "mass", "friction"]
+OPTIONAL_NUMERIC = ["direction", "stop_time", "pusher_speed", *SIZE_COLUMNS, "mass", "friction"]
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,12 @@ class PushLog:
     mass: np.ndarray | None = None  # measured mass per object, where the log has it
     friction: np.ndarray | None = None  # measured friction per object, where the log has it
     stop_time: np.ndarray | None = None  # (n,) seconds from the start of the push to the stop, where logged
+    pusher_speed: np.ndarray | None = None  # (n,) the pusher's measured mean speed over the stroke (m/s), where logged
+
+    def aux(self, name: str) -> np.ndarray | None:
+        """(n,) the log of an observable beside the displacement (``stop_time``, ``pusher_speed``), or None."""
+        values = getattr(self, name)
+        return None if values is None else np.log(values)
 
     @property
     def n(self) -> int:
@@ -111,6 +119,12 @@ def read_pushlog(
             "stop_time",
             lambda x: "is 0; stop times must be positive (their log is fitted)",
         )
+    if "pusher_speed" in frame:
+        p = frame["pusher_speed"].to_numpy()
+        first_bad(p <= 0, "pusher_speed", lambda x: f"{x:g} must be positive (the pusher's mean speed, m/s)")
+        # a pusher cannot average more than it was commanded by much: a column of another unit or another push
+        first_bad(p > 2.0 * v, "pusher_speed",
+                  lambda x: f"{x:g} m/s is more than twice the commanded speed; is it in m/s and of this push?")  # fmt: skip
     for col in [*SIZE_COLUMNS, "mass", "friction"]:
         if col in frame:
             first_bad(frame[col].to_numpy() <= 0, col, lambda x: f"{x:g} must be positive")
@@ -166,4 +180,5 @@ def read_pushlog(
         direction=frame["direction"].to_numpy(float) if has_dir else np.zeros(v.size), has_direction=has_dir,
         mass=measured["mass"], friction=measured["friction"],
         stop_time=frame["stop_time"].to_numpy(float) if "stop_time" in frame else None,
+        pusher_speed=frame["pusher_speed"].to_numpy(float) if "pusher_speed" in frame else None,
     )  # fmt: skip

@@ -65,6 +65,10 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
         frame["stop_resid_before"] = r.stop_resid_before
         if r.stop_resid_after is not None:
             frame["stop_resid_after"] = r.stop_resid_after
+    if r.pusher_resid_before is not None:
+        frame["pusher_speed_resid_before"] = r.pusher_resid_before
+        if r.pusher_resid_after is not None:
+            frame["pusher_speed_resid_after"] = r.pusher_resid_after
     frame["outlier"] = np.asarray(r.flagged, bool)
     write_csv(out / "residuals.csv", frame)
     write_next_pushes(out / "next_pushes.csv", s.next_pushes, diag.pushlog)
@@ -246,7 +250,27 @@ def _next_push_lines(s: Summary) -> list[str]:
              "| pair | these pushes | the log's kind |", "|---|---|---|"]  # fmt: skip
     for pair, sd in d.separation_sd.items():
         lines.append(f"| {pair} | {sd:.1f} | {d.log_design_separation_sd.get(pair, float('nan')):.1f} |")
+    if d.by_observable:
+        names = list(next(iter(d.by_observable.values())))
+        lines += ["", "How far the log's own pushes set each pair apart, observable by observable (noise sds):", "",
+                  "| pair | " + " | ".join(OBSERVABLE_WORDS.get(n, n) for n in names) + " |",
+                  "|---" * (len(names) + 1) + "|"]  # fmt: skip
+        for pair, parts in d.by_observable.items():
+            lines.append(f"| {pair} | " + " | ".join(f"{parts[n]:.1f}" for n in names) + " |")
+    if d.measure:
+        names = list(d.measure)
+        lines += ["", "What measuring what this log lacks, on its own pushes, would add (noise sds, at an assumed "
+                  "noise of 0.02 in its log):", "",
+                  "| pair | " + " | ".join(f"measure {OBSERVABLE_WORDS.get(n, n)}" for n in names) + " |",
+                  "|---" * (len(names) + 1) + "|"]  # fmt: skip
+        for pair in d.separation_sd:
+            lines.append(
+                f"| {pair} | " + " | ".join(f"{d.measure[n].get(pair, float('nan')):.1f}" for n in names) + " |"
+            )
     return lines
+
+
+OBSERVABLE_WORDS = {"displacement": "displacement", "stop_time": "stop time", "pusher_speed": "the pusher's speed"}
 
 
 def markdown(s: Summary) -> str:
@@ -262,6 +286,7 @@ def markdown(s: Summary) -> str:
         f"Observables used: {s.observables_note}.",
         f"Noise: sd {_fmt(noise.sd)} in log d ({noise.source})"
         + (f", {_fmt(noise.stop_time_sd)} in log stop time" if noise.stop_time_sd else "")
+        + (f", {_fmt(noise.pusher_speed_sd)} in log pusher speed" if noise.pusher_speed_sd else "")
         + f". Table model floor: {_fmt(s.options.model_floor)} RMS log d{_floor_parts(s.model_floor)}.",
         "",
         "## Verdict",

@@ -76,7 +76,7 @@ def effect_tables(
     """The effect tables the candidates need (from the cache, or simulated into it)."""
     return load_or_build(
         table, library_effects(list(candidates)), grid, cache_dir, nthread=nthread, progress=progress,
-        across=needs_across(list(candidates)), stop_time=options.use_stop_time,
+        across=needs_across(list(candidates)), aux=options.use_stop_time or options.use_pusher_speed,
     )  # fmt: skip
 
 
@@ -108,7 +108,7 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
     opts = session.options
     problem = Problem.of(
         report.pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
-        use_stop_time=opts.use_stop_time,
+        use_stop_time=opts.use_stop_time, use_pusher_speed=opts.use_pusher_speed,
     )  # fmt: skip
     diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp), force=force)

@@ -86,7 +86,7 @@ def model_error_ms(problem: Problem) -> float:
     out = float(np.mean(md**2)) if keep.any() else 0.0
     if problem.use_t:
         keep_t = problem.w_t > 0
-        mt = np.broadcast_to(problem.model_err_t / problem.sd_t, problem.y.shape)[keep_t]
+        mt = np.broadcast_to(problem.model_err_t / problem.sd_t, problem.t_row.shape)[keep_t]
         out += float(np.mean(mt**2)) if keep_t.any() else 0.0
     return out
 

@@ -42,7 +42,7 @@ class ObservableFit(Record):
 
 @dataclass(frozen=True, kw_only=True)
 class LackOfFit(Record):
-    """The accepted model's held-out chi-square (both observables, whitened by noise and model error)."""
+    """The accepted model's held-out chi-square (every observable, whitened by noise and model error)."""
 
     heldout_chi2: float
     dof: int
@@ -51,6 +51,7 @@ class LackOfFit(Record):
     baseline_chi2: float
     displacement: ObservableFit
     stop_time: ObservableFit | None = json_field(omit_none=True, default=None)
+    pusher_speed: ObservableFit | None = json_field(omit_none=True, default=None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -132,12 +133,14 @@ def shrinkage(
            else held.resid_d / problem.sd_d)  # fmt: skip
     nw = int((ro_w > 0).sum())
     # whitened by noise and model error together: an adequate model leaves unit variance
-    floor_w = float(np.sqrt(max(nw - k * N * (2 if use_t else 1), 0) / nw)) if nw else None
+    floor_w = float(np.sqrt(max(nw - k * N * (1 + len(problem.aux)), 0) / nw)) if nw else None
     both_share = share_closed(rms(rw0, ro_w), rms(rw1, ro_w), floor_w)
     stop_share = None
-    if use_t:
-        floor_t = problem.noise_t * np.sqrt(max(n - k * N, 0) / n)
-        stop_share = share_closed(rms(rt0, problem.w_t), rms(held.resid_t, problem.w_t), floor_t)
+    stop_rows = problem.aux_rows("stop_time")
+    if stop_rows.size:
+        floor_t = problem.noise_t_rows[stop_rows[0]] * np.sqrt(max(n - k * N, 0) / n)
+        w_s = problem.w_t[stop_rows]
+        stop_share = share_closed(rms(rt0[stop_rows], w_s), rms(held.resid_t[stop_rows], w_s), floor_t)
 
     # lack of fit of the accepted model, held out: at the noise and the model's own error an
     # adequate model leaves a chi-square; overdispersion also widens the effects' intervals
@@ -154,7 +157,8 @@ def shrinkage(
         heldout_chi2=lof_ss, dof=lof_dof, p_value=float(stats.chi2.sf(lof_ss, lof_dof)), in_sample_chi2=final.sse,
         baseline_chi2=float(np.sum(rw0[keep_w] ** 2)),
         displacement=observable(rd0 / problem.sd_d, held.resid_d / problem.sd_d, problem.w_d),
-        stop_time=observable(rt0 / problem.sd_t, held.resid_t / problem.sd_t, problem.w_t) if use_t else None,
+        **{name: observable((rt0 / problem.sd_t)[rows], (held.resid_t / problem.sd_t)[rows], problem.w_t[rows])
+           for name in problem.aux for rows in [problem.aux_rows(name)]},
     )  # fmt: skip
     dispersion = max(final.sse / max(nw - k * N - final.model.dim, 1), 1.0)
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1

@@ -54,6 +54,7 @@ from imply.realworld.contact import (
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
 from imply.realworld.world import WorldPushes, WorldStepping
 from imply.sim.scene import SceneConfig
+from imply.sim.track import pusher_speed
 
 log = logging.getLogger("imply.realworld")
 
@@ -77,6 +78,11 @@ class NoiseModel(Config):
 
     sd: float = option(0.02, doc="Gaussian noise of log d (sd)", exclusive_minimum=0)
     stop_time_sd: float = option(0.02, doc="Gaussian noise of log stop time (sd)", exclusive_minimum=0)
+    pusher_speed_sd: float = option(
+        0.01,
+        doc="Gaussian noise of the log of the pusher's measured mean speed (sd; encoders: no heavy tails)",
+        exclusive_minimum=0,
+    )
     heavy_sd: float = option(0.03, doc="scale of the heavy-tailed noise", exclusive_minimum=0)
     heavy_df: float = option(3.0, doc="degrees of freedom of the heavy-tailed (Student t) noise", exclusive_minimum=2)
     outliers: tuple[int, int] = option(
@@ -348,15 +354,16 @@ def _pushes_in_world(case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray
 
 
 def _log_columns(case: dict, scene: SceneConfig, obj: np.ndarray, v: np.ndarray, phi: np.ndarray,
-                 displacement: np.ndarray, stop_time: np.ndarray | None) -> dict:  # fmt: skip
+                 displacement: np.ndarray, stop_time: np.ndarray | None, pusher_speed: np.ndarray) -> dict:  # fmt: skip
     """One noise draw of pushes as the columns a lab's push log holds (stop times and weighed masses where the
-    case records them)."""
+    case records them; the pusher's measured mean speed always: a robot's encoders give it)."""
     names = object_names(len(case["mass"]))
     he = scene.box_half_extents
     cols = {"object_id": [names[i] for i in obj], "speed": v, "direction": np.round(phi, 9),
             "displacement": displacement}  # fmt: skip
     if case["stop_time"]:
         cols["stop_time"] = stop_time
+    cols["pusher_speed"] = pusher_speed
     size_z = he[2] * (1.0 + next((e["magnitude"] for e in case["effects"] if e["name"] == "height"), 0.0))
     cols.update(size_x=he[0], size_y=he[1], size_z=size_z)
     if case["measured_mass"]:
@@ -400,15 +407,17 @@ def simulate_cases(
         mine = [r for r in runs if r[2] == engine]
         allp = WorldPushes.concat([r[3] for r in mine])
         bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
-        disp, stop, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
+        disp, stop, stroke, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
         starts = range(0, allp.n, chunk)
         for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
             idx = np.arange(a, min(a + chunk, allp.n))
             res = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread)
-            disp[idx], stop[idx], ok[idx] = res.displacement, res.stop_time, res.ok
+            disp[idx], stop[idx], stroke[idx], ok[idx] = res.displacement, res.stop_time, res.stroke_time, res.ok
+        ok &= np.isfinite(stroke) & (stroke > 0)
         for k, (cid, what, _, _) in enumerate(mine):
             sl = slice(bounds[k], bounds[k + 1])
-            out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl]}
+            out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl],
+                                             "pusher_speed": pusher_speed(scene.stroke, stroke[sl])}  # fmt: skip
     return {case["id"]: out[case["id"]] for case in cases}
 
 
@@ -442,11 +451,14 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
             if rng.random() < 0.5:
                 e_t[r, j] += rng.uniform(*nm.outlier_size) * rng.choice([-1.0, 1.0])
             outliers.append([r, j])
+    # the encoders' noise from a generator of its own: the other columns are the same draws with or without it
+    e_p = np.random.default_rng([case["noise_seed"], 1]).normal(0.0, nm.pusher_speed_sd, shape)
     names = object_names(n_obj)
     rows = []
     for r in range(reps):
         frame = pd.DataFrame(_log_columns(case, scene, obj, v, phi, res["displacement"] * np.exp(e_d[r]),
-                                          res["stop_time"] * np.exp(e_t[r])))  # fmt: skip
+                                          res["stop_time"] * np.exp(e_t[r]),
+                                          res["pusher_speed"] * np.exp(e_p[r])))  # fmt: skip
         frame["_push"] = np.arange(v.size)
         frame["_rep"] = r
         rows.append(frame[ok])
@@ -456,12 +468,14 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
 
     def observables(r: dict) -> dict:
         return {"log_d": np.log(np.maximum(r["displacement"], 1e-9)).tolist(),
-                "log_t": np.log(np.maximum(r["stop_time"], 1e-9)).tolist(), "ok": r["ok"].tolist()}  # fmt: skip
+                "log_t": np.log(np.maximum(r["stop_time"], 1e-9)).tolist(),
+                "log_p": np.log(np.where(r["ok"], r["pusher_speed"], 1.0)).tolist(), "ok": r["ok"].tolist()}  # fmt: skip
 
     label = {
         "id": case["id"], "group": case["group"], "effects": case["effects"],
         "noise": {"kind": case["noise"], "sd": nm.heavy_sd if case["noise"] == "heavy" else nm.sd,
                   "stop_time_sd": nm.heavy_sd if case["noise"] == "heavy" else nm.stop_time_sd,
+                  "pusher_speed_sd": nm.pusher_speed_sd,
                   "df": nm.heavy_df if case["noise"] == "heavy" else None},
         "measured_mass": case["measured_mass"], "stop_time": case["stop_time"],
         "objects": {names[i]: {"mass": case["mass"][i], "friction": case["friction"][i]} for i in range(n_obj)},
@@ -490,13 +504,16 @@ def extra_pushes(
     p = _pushes_in_world(case, obj, v, phi, scene, case["effects"])
     res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
     rng = np.random.default_rng([case["noise_seed"], seed])
+    rng_p = np.random.default_rng([case["noise_seed"], seed, 1])
     nm = design.noise
     frames = []
+    ok = np.asarray(res.ok, bool) & np.isfinite(res.stroke_time)
     for _ in range(design.replicates):
         d = res.displacement * np.exp(_noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df, v.shape))
         t = (res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd, nm.heavy_df, v.shape))
              if case["stop_time"] else None)  # fmt: skip
-        frames.append(pd.DataFrame(_log_columns(case, scene, obj, v, phi, d, t))[np.asarray(res.ok, bool)])
+        p = pusher_speed(scene.stroke, res.stroke_time) * np.exp(rng_p.normal(0.0, nm.pusher_speed_sd, v.shape))
+        frames.append(pd.DataFrame(_log_columns(case, scene, obj, v, phi, d, t, p))[ok])
     return pd.concat(frames, ignore_index=True)
 
 

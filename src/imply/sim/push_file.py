@@ -2,7 +2,8 @@
 
 The pushes file lists ``object_id,speed`` and, on the built-in scene, optional
 ``mass,friction,size_x,size_y,size_z``; the push log adds ``displacement``,
-``stop_time`` and ``ok`` (the simulator's checks). A user MJCF must keep the names the
+``stop_time``, ``pusher_speed`` (the pusher's mean speed over its stroke, as a robot's
+encoders give it) and ``ok`` (the simulator's checks). A user MJCF must keep the names the
 simulator relies on (:func:`imply.sim.pushes.simulate_pushes`).
 """
 
@@ -16,8 +17,9 @@ import numpy as np
 import pandas as pd
 
 from imply.input_files import InputError, read_table_lines, row_error
-from imply.sim.pushes import simulate_pushes
-from imply.sim.scene import SceneConfig
+from imply.sim.pushes import PushStepping, simulate_pushes
+from imply.sim.scene import SceneConfig, build_model
+from imply.sim.track import pusher_speed
 
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
 
@@ -68,5 +70,7 @@ def simulate_push_table(
     out = pushes.copy()
     out["displacement"] = result.displacement
     out["stop_time"] = result.stop_time
+    stroke = PushStepping.of(model if model is not None else build_model(scene or SceneConfig())).stroke
+    out["pusher_speed"] = pusher_speed(stroke, result.stroke_time)
     out["ok"] = result.ok
     return out
