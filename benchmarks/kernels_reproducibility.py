@@ -60,7 +60,9 @@ def weights_digest(path: Path) -> str:
     return h.hexdigest()[:16]
 
 
-def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path) -> dict:
+def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path, train: dict | None = None) -> dict:
+    """The study's training rule for ``epochs`` (seed ``seed``) under kernel pin ``pin`` with ``outside`` set in the
+    environment (and ``train`` overriding config ``model.train``), in a work folder of its own."""
     work = out / name.replace(" ", "_").replace(",", "")
     shutil.rmtree(work, ignore_errors=True)
     for rel in INPUTS:
@@ -72,6 +74,7 @@ def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path
     config["kernels"] = {"pin": pin}
     config["model"]["seeds"] = [seed]
     config["model"]["train"]["epochs"] = epochs
+    config["model"]["train"].update(train or {})
     (work / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     target = f"results/model/calib/seed{seed}/training.json"
     env = {k: v for k, v in os.environ.items() if k not in AVX2_MACHINE and k not in ("MKL_CBWR",)}

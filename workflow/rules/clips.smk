@@ -21,6 +21,8 @@ rule clips_render:
         score=score_subset("calibration_speeds", "query_speeds"),
         scene=as_json(config["scene"]),
     threads: config["threads"]
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=4000,
         runtime=30,
@@ -44,6 +46,8 @@ rule encoder_pretrain:
     params:
         encoder=as_json({k: config["encoder"][k] for k in ("cpu_arch", "pretrain")}),
     threads: config["threads"]
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=4000,
         runtime=30,
@@ -68,6 +72,8 @@ rule encoder_encode:
         encoder=as_json(config["encoder"]),
         weights=encode_weights_option,
     threads: config["model"]["resources"]["encode_threads"]
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=config["model"]["resources"]["encode_mem_mb"],
         runtime=config["model"]["resources"]["encode_runtime"],
@@ -100,6 +106,8 @@ rule readout_fit:
         readout=as_json(config["readout"]),
         pretrain_episodes=config["clips"]["n_pretrain_episodes"],
     threads: 1
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=6000,
         runtime=20,

@@ -18,7 +18,8 @@ rule gap_tables:
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(config["gap"]["diagnose"]),
         effects=gap_effects_option(),
-    threads: config["threads"]
+    # one thread: a job asking for both cores waits for the training chain to leave both idle
+    threads: 1
     resources:
         mem_mb=2000,
         runtime=15,
@@ -43,7 +44,8 @@ rule gap_generate:
     params:
         bench=as_json(config["gap"]["benchmark"]),
         folder=lambda wildcards, output: folder_of(output.logs),
-    threads: config["threads"]
+    # one thread: a job asking for both cores waits for the training chain to leave both idle
+    threads: 1
     resources:
         mem_mb=3000,
         runtime=20,
@@ -79,7 +81,7 @@ rule gap_diagnose:
         "results/benchmarks/gap_diagnose/{shard}.tsv"
     shell:
         "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
 rule gap_contact_generate:
@@ -94,7 +96,8 @@ rule gap_contact_generate:
     params:
         bench=as_json(config["gap"]["contact_benchmark"]),
         folder=lambda wildcards, output: folder_of(output.logs),
-    threads: config["threads"]
+    # one thread: a job asking for both cores waits for the training chain to leave both idle
+    threads: 1
     resources:
         mem_mb=3000,
         runtime=20,
@@ -130,7 +133,7 @@ rule gap_contact_diagnose:
         "results/benchmarks/gap_contact_diagnose/{shard}.tsv"
     shell:
         "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
 rule gap_contact_closed_loop:
@@ -160,7 +163,7 @@ rule gap_contact_closed_loop:
     shell:
         "imply gap closed-loop --contact-bench-json {params.bench} --logs {params.folder} --reports {input.reports}"
         " --table {input.table} --effect-grid-json {params.grid} {params.effects} --options-json {params.options}"
-        " --cache-dir {input.tables} --threads 1 -o {output} > {log} 2>&1"
+        " --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
 rule gap_benchmark:

@@ -23,6 +23,8 @@ rule model_readout:
     params:
         token_grid=token_grid_option,
     threads: 1
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=6000,
         runtime=20,
@@ -57,6 +59,8 @@ rule model_train:
         score=score_subset("grid", "readout_floor"),
         derangement_seed=config["model"]["derangement_seed"],
     threads: config["model"]["resources"]["train_threads"]
+    # the training chain is the study's longest: it starts first, the rest fills the other core
+    priority: 10
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
         runtime=config["model"]["resources"]["train_runtime"],

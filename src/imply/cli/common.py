@@ -228,6 +228,8 @@ def add_diagnose_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ignore-measured", action="store_true",
                    help="fit mass and friction even where the log has measured values")  # fmt: skip
     p.add_argument("--threads", type=int_range(0), default=0, help="simulation threads for building effect tables")
+    p.add_argument("--no-plots", action="store_true",
+                   help="write no figures (report.md without them): for many logs read as data")  # fmt: skip
 
 
 def cache_dir(arg: str | None) -> Path:
@@ -287,6 +289,6 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) 
                                    ignore_measured=args.ignore_measured)  # fmt: skip
     return DiagnoseRequest(
         table=table, candidates=tuple(candidate_effects(args.effects)), options=opts, grid=grid,
-        cache_dir=cache_dir(args.cache_dir), threads=args.threads, force=args.force,
+        cache_dir=cache_dir(args.cache_dir), threads=args.threads, force=args.force, plots=not args.no_plots,
         reports=tuple(Report(pushlog=log, folder=out) for log, out in zip(logs, folders, strict=True)),
     )  # fmt: skip

@@ -50,8 +50,9 @@ def _fmt(x, spec: str = ".4g") -> str:
     return format(x, spec)
 
 
-def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
-    """Write the summary, the residuals, the plots and the Markdown report into ``outdir``."""
+def write_report(diag: Diagnosis, outdir: str | os.PathLike, *, plots: bool = True) -> None:
+    """Write the summary, the residuals, the plots (unless ``plots`` is false: a benchmark's hundreds of reports
+    are read as data) and the Markdown report into ``outdir``."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     s = diag.summary
@@ -72,8 +73,12 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike) -> None:
     frame["outlier"] = np.asarray(r.flagged, bool)
     write_csv(out / "residuals.csv", frame)
     write_next_pushes(out / "next_pushes.csv", s.next_pushes, diag.pushlog)
-    _plots(diag, out)
-    write_text(out / "report.md", markdown(s))
+    if plots:
+        _plots(diag, out)
+    text = markdown(s)
+    if not plots:
+        text = "\n".join(line for line in text.split("\n") if not line.startswith("!["))
+    write_text(out / "report.md", text)
 
 
 def _plots(diag: Diagnosis, out: Path) -> None:

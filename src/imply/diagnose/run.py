@@ -50,6 +50,7 @@ class DiagnoseRequest:
     cache_dir: Path | None
     threads: int = 0
     force: bool = False  # replace the files an earlier report wrote in a report folder
+    plots: bool = True  # the reports' figures (a benchmark's reports are read as data)
     reports: tuple[Report, ...] = ()
 
 
@@ -61,6 +62,7 @@ class Session:
     candidates: tuple[Candidate, ...]
     options: DiagnosisConfig
     effect_tables: EffectTables
+    plots: bool = True
 
 
 def effect_tables(
@@ -90,7 +92,7 @@ def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
         options = options.replace(model_floor=floor.get("rms"))
     if options.stop_time_floor is None and floor.get("stop_time"):
         options = options.replace(stop_time_floor=floor["stop_time"]["rms"])
-    return Session(request.table, request.candidates, options, etables)
+    return Session(request.table, request.candidates, options, etables, plots=request.plots)
 
 
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable) -> PushLog:
@@ -111,7 +113,7 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
         use_stop_time=opts.use_stop_time, use_pusher_speed=opts.use_pusher_speed,
     )  # fmt: skip
     diag = diagnose(problem, list(session.candidates), opts)
-    write_folder(report.folder, lambda tmp: write_report(diag, tmp), force=force)
+    write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)
     v = diag.summary.verdict
     log.info("%s: %s, %s -> %s", report.pushlog.path, v.adequacy, v.identification, report.folder)
     return diag.summary

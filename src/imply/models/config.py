@@ -198,6 +198,10 @@ class TrainConfig(Config):
     )
     every_push_as_query: bool = option(False, doc="also train on the calibration pushes as queries")
     init_seed: int = option(0, doc="seed of the predictor's initial weights", minimum=0)
+    validate_every: int = option(
+        5, doc="epochs between validations (the first and the last are always validated; validation changes no "
+        "weight, only what the history records)", minimum=1,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)

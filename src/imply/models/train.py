@@ -19,8 +19,8 @@ With ``every_push_as_query`` each training object gives three examples, each of 
 pushes predicted with the other two in context (calibration pushes are ordinary pushes
 at fixed speeds), which triples the examples of inferring an object from two pushes.
 
-Validation: a ``validate`` function of the model, when given, runs after every epoch and
-its numbers join the epoch's history (the study passes Section 5's validation on the
+Validation: a ``validate`` function of the model, when given, runs after the first epoch,
+every ``validate_every`` epochs and the last, and its numbers join the epoch's history (the study passes Section 5's validation on the
 validation objects, :mod:`imply.study.section5.validation`; a model does not know what
 validates it).
 
@@ -183,8 +183,8 @@ def train(
 
     ``checkpoint`` is rewritten after every epoch. ``stop_after_epoch`` ends the run
     after that epoch without writing ``out`` and returns None (how tests simulate a
-    killed run). ``validate``, when given, is run on the model after every epoch and its
-    metrics join the epoch's history; ``extra`` entries are stored in the payload.
+    killed run). ``validate``, when given, is run on the model after the first epoch, every
+    ``config.validate_every`` epochs and the last, and its metrics join the epoch's history; ``extra`` entries are stored in the payload.
     """
     checkpoint = Path(checkpoint)
     digest = run_digest(predictor=predictor, config=config, layout=layout, data_seed=data_seed, data_key=data_key)
@@ -236,7 +236,8 @@ def train(
             sums += [tf.item(), ar.item()]
             bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}", refresh=False)
         entry = {"epoch": epoch + 1, "teacher_forcing": sums[0] / per_epoch, "rollout": sums[1] / per_epoch}
-        if validate is not None:
+        due = epoch == 0 or (epoch + 1) % config.validate_every == 0 or epoch + 1 == config.epochs
+        if validate is not None and due:
             model.eval()
             entry.update(validate(model))
             model.train()
@@ -285,8 +286,8 @@ def train_variant(
 
     The features are pooled to ``token_grid`` (:meth:`imply.models.features.FeatureSplit.pooled`;
     None keeps the encoder's grid). The predictor's width comes from ``preset``, its
-    token width and patch grid from the pooled features. ``validate`` runs after every
-    epoch (see :func:`train`). Returns the saved payload (see :func:`train`).
+    token width and patch grid from the pooled features. ``validate`` runs after the epochs
+    :func:`train` says. Returns the saved payload (see :func:`train`).
     """
     split = split.pooled(token_grid)
     objects = training_objects(split)

@@ -157,7 +157,8 @@ def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> No
     seeds = sorted({int(doc["seed"]) for doc in histories})
     blind_drawn = False
     for doc in histories:
-        hist = doc["history"]
+        # the epochs that were validated (every validate_every epochs, the first and the last)
+        hist = [h for h in doc["history"] if "own_error" in h or "none_error" in h] or doc["history"]
         epochs = [h["epoch"] for h in hist]
         variant = "calib" if doc["layout"].get("calib") else "nocalib"
         ls = styles[seeds.index(int(doc["seed"])) % len(styles)]
