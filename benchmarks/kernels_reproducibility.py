@@ -60,9 +60,21 @@ def weights_digest(path: Path) -> str:
     return h.hexdigest()[:16]
 
 
-def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path, train: dict | None = None) -> dict:
-    """The study's training rule for ``epochs`` (seed ``seed``) under kernel pin ``pin`` with ``outside`` set in the
-    environment (and ``train`` overriding config ``model.train``), in a work folder of its own."""
+def run(
+    name: str,
+    pin: str,
+    outside: dict,
+    *,
+    epochs: int,
+    seed: int,
+    out: Path,
+    train: dict | None = None,
+    variant: str = "calib",
+    keys: tuple[str, ...] = ("own_error", "own_corr_anchored", "rollout"),
+) -> dict:
+    """The study's training rule for ``epochs`` (``variant``, seed ``seed``) under kernel pin ``pin`` with ``outside``
+    set in the environment (and ``train`` overriding config ``model.train``), in a work folder of its own; the last
+    epoch's validation ``keys``."""
     work = out / name.replace(" ", "_").replace(",", "")
     shutil.rmtree(work, ignore_errors=True)
     for rel in INPUTS:
@@ -76,7 +88,7 @@ def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path
     config["model"]["train"]["epochs"] = epochs
     config["model"]["train"].update(train or {})
     (work / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
-    target = f"results/model/calib/seed{seed}/training.json"
+    target = f"results/model/{variant}/seed{seed}/training.json"
     env = {k: v for k, v in os.environ.items() if k not in AVX2_MACHINE and k not in ("MKL_CBWR",)}
     env.update(outside)
     cmd = ["snakemake", "-s", str(ROOT / "Snakefile"), "-d", str(work), "--cores", "2", "--quiet", "all",
@@ -86,8 +98,8 @@ def run(name: str, pin: str, outside: dict, *, epochs: int, seed: int, out: Path
     wall = time.perf_counter() - t0
     last = json.loads((work / target).read_text())["history"][-1]
     return {"name": name, "pin": pin, "wall_s": round(wall, 1),
-            "weights": weights_digest(work / f"results/model/calib/seed{seed}/model.pt"),
-            "validation": {k: last[k] for k in ("own_error", "own_corr_anchored", "rollout") if k in last}}  # fmt: skip
+            "weights": weights_digest(work / f"results/model/{variant}/seed{seed}/model.pt"),
+            "validation": {k: last[k] for k in keys if k in last}}  # fmt: skip
 
 
 def main(argv=None) -> int:
