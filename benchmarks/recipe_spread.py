@@ -68,9 +68,9 @@ def main(argv=None) -> int:
                 if x is None or y is None:
                     continue
                 print(f"| {variant} seed {seed} | {k} | {x:.3f} | {y:.3f} | {abs(x - y):.3f} |")
-                if k in ("own_track", "none_track"):
+                if k == ("own_track" if variant == "calib" else "none_track"):
                     worst[f"{variant} seed {seed}"] = abs(x - y)
-    print("\nlargest move of a seed's tracking r (own calibration; none for the uncalibrated): "
+    print("\nhow far each seed's tracking r moved (own calibration; none for the uncalibrated): "
           + ", ".join(f"{k} {v:.3f}" for k, v in worst.items()))  # fmt: skip
     return 0
 

@@ -251,7 +251,7 @@ class EffectTables:
 
     @property
     def aux(self) -> tuple[str, ...]:
-        """The observables beside log d these tables hold (a prefix-free subset of :data:`AUX`, in its order)."""
+        """The observables beside log d these tables hold (:data:`AUX`, or none)."""
         return AUX if self.aux_base is not None else ()
 
     def aux_index(self, name: str) -> int:
