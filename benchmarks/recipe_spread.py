@@ -11,7 +11,10 @@ rounding.
 
 Needs the training inputs (see ``benchmarks/kernels_reproducibility.py``).
 
-Usage: ``python benchmarks/recipe_spread.py [--out /tmp/spread] [--epochs 40]``
+``--set KEY=VALUE`` changes one key of config ``model.train`` (a candidate recipe, judged here on
+the validation objects only); ``--variants calib`` trains the calibrated models alone.
+
+Usage: ``python benchmarks/recipe_spread.py [--out /tmp/spread] [--epochs 40] [--set lr=5e-4] [--variants calib]``
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("/tmp/spread"))
     ap.add_argument("--epochs", type=int, default=None, help="default: the study's (config model.train.epochs)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a config model.train key")
+    ap.add_argument("--variants", default="calib,nocalib", help="comma-separated: calib, nocalib")
     args = ap.parse_args(argv)
     missing = [p for p in INPUTS if not (ROOT / p).exists()]
     if missing:
@@ -41,26 +46,37 @@ def main(argv=None) -> int:
         return 2
     import yaml
 
-    epochs = args.epochs or int(yaml.safe_load((ROOT / "config.yaml").read_text())["model"]["train"]["epochs"])
-    jobs = [(variant, seed, pin) for variant in ("calib", "nocalib") for seed in (0, 1) for pin in ("native", "avx2")]
+    train = yaml.safe_load((ROOT / "config.yaml").read_text())["model"]["train"]
+    overrides = {}
+    for item in args.set:
+        key, sep, text = item.partition("=")
+        if not sep or key not in train:
+            ap.error(f"--set {item!r}: expected KEY=VALUE with KEY one of {', '.join(sorted(train))}")
+        overrides[key] = yaml.safe_load(text)
+    epochs = args.epochs or int(overrides.get("epochs", train["epochs"]))
+    variants = [v for v in args.variants.split(",") if v]
+    bad = [v for v in variants if v not in KEYS]
+    if bad:
+        ap.error(f"--variants: unknown {', '.join(bad)} (known: calib, nocalib)")
+    jobs = [(variant, seed, pin) for variant in variants for seed in (0, 1) for pin in ("native", "avx2")]
 
     def one(job):
         variant, seed, pin = job
         return run(f"{variant} seed{seed} {pin}", pin, {}, epochs=epochs, seed=seed, out=args.out, variant=variant,
-                   keys=KEYS[variant])  # fmt: skip
+                   keys=KEYS[variant], train=overrides)  # fmt: skip
 
     # two jobs at a time: the study's training runs one thread each, two side by side
     with ThreadPoolExecutor(2) as pool:
         rows = list(pool.map(one, jobs))
     (args.out / "spread.json").write_text(json.dumps(rows, indent=1))
     by = {r["name"]: r for r in rows}
-    print(
-        f"Section 5 models, last epoch ({epochs}) on the validation objects: AVX-512 (native) against AVX2 (pinned)\n"
-    )
+    recipe = ", ".join(f"{k}={v}" for k, v in overrides.items()) or "the study's recipe"
+    print(f"Section 5 models ({recipe}), last epoch ({epochs}) on the validation objects: AVX-512 (native) against "
+          "AVX2 (pinned)\n")  # fmt: skip
     print("| model | quantity | AVX-512 | AVX2 | moved |")
     print("|---|---|---|---|---|")
     worst = {}
-    for variant in ("calib", "nocalib"):
+    for variant in variants:
         for seed in (0, 1):
             a, b = by[f"{variant} seed{seed} native"], by[f"{variant} seed{seed} avx2"]
             for k in KEYS[variant]:

@@ -40,8 +40,9 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     for name in logs:
         header = (tmp_path / "results/gap/logs" / name).read_text().splitlines()[0].split(",")
         assert header[:4] == ["object_id", "speed", "direction", "displacement"]
-        assert set(header) <= {"object_id", "speed", "direction", "displacement", "stop_time", "size_x", "size_y",
-                               "size_z", "mass"}  # fmt: skip
+        assert set(header) <= {"object_id", "speed", "direction", "displacement", "stop_time", "pusher_speed",
+                               "size_x", "size_y", "size_z", "mass"}  # fmt: skip
+        assert "pusher_speed" in header  # a robot's encoders give it on every push
     md = (tmp_path / "results/gap/benchmark.md").read_text()
     assert md.startswith("# Gap diagnostic benchmark") and "## Confusion matrix" in md
     # the other-contact benchmark: MuJoCo contact models and Bullet, scored into the same result
