@@ -17,10 +17,10 @@ Observables beside the displacement (:data:`AUX`): log stop time and log of the 
 mean speed over its stroke (what a robot's encoders give, :mod:`imply.sim.track`). The push
 table holds displacements only, so their baselines, f_a(v, m, mu), are tabulated here too,
 on their own grid (:class:`CoarseGrid` ``stop_*``), and every effect table carries each
-effect's change of them beside its change of log d. A push's stop time is when the box's speed in the table
-plane falls below :data:`STOP_SPEED` (measured from the start of the push), read from
-the box's positions recorded every millisecond (speeds from successive positions,
-the crossing interpolated). MuJoCo's soft contacts end a slide in an exponential tail
+effect's change of them beside its change of log d. A push's stop time is when the box's
+speed in the table plane falls below :data:`STOP_SPEED` (measured from the start of the
+push), read from the box's positions recorded every millisecond (speeds from successive
+positions, the crossing interpolated). MuJoCo's soft contacts end a slide in an exponential tail
 of a few milliseconds, in which a lower threshold's crossing would move with every
 numerical detail.
 

@@ -10,8 +10,8 @@ with v' the pusher's actual speed and mu' the friction the push sees under the m
 speed and friction terms, f the push table, f_a the table of the observable a beside the
 displacement (log stop time, log of the pusher's measured mean speed: the "aux" rows) and
 Delta the effect tables (:mod:`imply.diagnose.effect_tables`). The aux rows are stacked
-observable by observable: row r is push ``t_row[r]``'s observable ``aux[t_kind[r]]``. Replicate pushes (same object, speed and
-direction) share one prediction. Residuals are whitened by each observable's noise sd
+observable by observable: row r is push ``t_row[r]``'s observable ``aux[t_kind[r]]``.
+Replicate pushes (same object, speed and direction) share one prediction. Residuals are whitened by each observable's noise sd
 and weighted (0 for a flagged outlier), so the sum of squares is a chi-square at the
 noise.
 

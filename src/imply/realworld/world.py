@@ -266,6 +266,7 @@ def simulate_world(
 
 
 def check_track_times(track_times) -> np.ndarray | None:
+    """``track_times`` as a float array (None stays None); ValueError unless increasing, non-negative, two or more."""
     if track_times is None:
         return None
     tt = np.asarray(track_times, float)
