@@ -52,7 +52,13 @@ def main(argv=None) -> int:
         key, sep, text = item.partition("=")
         if not sep or key not in train:
             ap.error(f"--set {item!r}: expected KEY=VALUE with KEY one of {', '.join(sorted(train))}")
-        overrides[key] = yaml.safe_load(text)
+        value = yaml.safe_load(text)
+        if isinstance(value, str):  # YAML 1.1 reads 5e-4 as text
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        overrides[key] = value
     epochs = args.epochs or int(overrides.get("epochs", train["epochs"]))
     variants = [v for v in args.variants.split(",") if v]
     bad = [v for v in variants if v not in KEYS]
