@@ -180,7 +180,10 @@ class TrainConfig(Config):
 
     config_key: ClassVar[str] = "model.train"
 
-    epochs: int = option(40, doc="passes over the training sequences", minimum=1)
+    epochs: int = option(
+        60, doc="passes over the training sequences (60: at 40 the calibrated models learned to use their calibration "
+        "or not depending on floating-point rounding)", minimum=1,
+    )  # fmt: skip
     batch_size: int = option(16, doc="sequences per step", minimum=1)
     lr: float = option(1.0e-3, doc="peak learning rate", exclusive_minimum=0)
     start_lr: float = option(1.0e-4, doc="learning rate at the first warmup step", minimum=0)
