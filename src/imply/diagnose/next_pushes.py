@@ -110,7 +110,8 @@ def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray
 
 def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str, float]] | None:
     """Per observable the tables hold and the log lacks: the separation its measurement on the log's pushes adds."""
-    missing = [a for a in (problem.etables.aux if problem.etables is not None else ()) if a not in problem.aux]
+    held = problem.etables.aux if problem.etables is not None else ()
+    missing = [a for a in held if problem.log.aux(a) is None]
     if not missing:
         return None
     log = problem.log
