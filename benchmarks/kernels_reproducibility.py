@@ -27,16 +27,13 @@ import sys
 import time
 from pathlib import Path
 
+from imply.kernels import environment
+
 ROOT = Path(__file__).resolve().parents[1]
 INPUTS = ["results/features/train.npz", "results/clips/train.csv", "results/model/readout_ln.npz",
           "results/features/validation.npz", "results/clips/validation.csv", "results/table/table.npz"]  # fmt: skip
-AVX2_MACHINE = {
-    "ATEN_CPU_CAPABILITY": "avx2",
-    "MKL_ENABLE_INSTRUCTIONS": "AVX2",
-    "ONEDNN_MAX_CPU_ISA": "AVX2",
-    "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL AVX512_SPR",
-    "OPENBLAS_CORETYPE": "Haswell",
-}
+# an AVX2 machine: every library on its AVX2 code path, as the pin sets it, less MKL's reproducibility mode
+AVX2_MACHINE = {k: v for k, v in environment("avx2").items() if k != "MKL_CBWR"}
 CONDITIONS = [  # (name, kernels.pin, the machine's own choice)
     ("native, this machine", "native", {}),
     ("native, AVX2 machine", "native", AVX2_MACHINE),
@@ -89,7 +86,7 @@ def run(
     config["model"]["train"].update(train or {})
     (work / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     target = f"results/model/{variant}/seed{seed}/training.json"
-    env = {k: v for k, v in os.environ.items() if k not in AVX2_MACHINE and k not in ("MKL_CBWR",)}
+    env = {k: v for k, v in os.environ.items() if k not in environment("avx2")}
     env.update(outside)
     cmd = ["snakemake", "-s", str(ROOT / "Snakefile"), "-d", str(work), "--cores", "2", "--quiet", "all",
            "--allowed-rules", "model_train", "--", target]  # fmt: skip

@@ -22,10 +22,10 @@ import sys
 
 import numpy as np
 
-from imply.diagnose.effect_tables import simulate_observables
+from imply.diagnose.effect_tables import simulate_observables, stop_times
 from imply.realworld.world import WorldPushes, simulate_world
 from imply.sim.effects import EFFECTS, MODEL, effect_spec
-from imply.sim.scene import SceneConfig
+from imply.sim.scene import SceneConfig, build_model
 from imply.sim.track import FRACTIONS, crossing_times, pusher_speed
 
 SPEEDS = np.array([0.25, 0.4, 0.55, 0.7, 0.85])
@@ -50,7 +50,7 @@ H = 0.02  # log step for the mass and friction derivatives
 MASS_MEASURED = False  # set by --mass-measured: only the friction is refitted
 
 
-def _design(scene_masses=None):
+def _design():
     v = np.tile(SPEEDS, len(OBJECTS))
     m = np.repeat([o[0] for o in OBJECTS], SPEEDS.size)
     u = np.repeat([o[1] for o in OBJECTS], SPEEDS.size)
@@ -62,7 +62,8 @@ def _stack(log_d, log_t, log_p, log_tq) -> np.ndarray:
 
 
 def table_observables(scene: SceneConfig, key: str | None, value: float, v, m, u) -> np.ndarray:
-    model = effect_spec(scene, key or "viscous", value if key else 0.0).compile()
+    """(n, 6) the observables from the table's simulator: the scene with effect ``key`` at ``value`` (None: none)."""
+    model = effect_spec(scene, key, value).compile() if key else build_model(scene)
     o = simulate_observables(model, v, m, u, nthread=2)
     return _stack(o.log_d, o.log_t, o.log_p, o.log_tq)
 
@@ -74,8 +75,6 @@ def world_observables(scene: SceneConfig, params: dict, v, m, u) -> np.ndarray:
     times = np.arange(0.0, 2.5, 0.001)
     r = simulate_world(p, scene, nthread=2, track_times=times)
     tq = crossing_times(times, r.track[:, :, 0], r.displacement)
-    from imply.diagnose.effect_tables import stop_times
-
     t = stop_times(r.track[:, :, :2], np.broadcast_to(times, r.track.shape[:2]))
     return _stack(np.log(r.displacement), np.log(t), np.log(pusher_speed(scene.stroke, r.stroke_time)), np.log(tq))
 

@@ -65,7 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--report-csv", required=True, help="reproduction.csv to write")
     m.add_argument("--report-html", help="reproduction.html to write (the page the Snakemake report shows)")
     m.add_argument("--benchmarks", help="folder of the rules' benchmark files (results/benchmarks): the last run's "
-                   "time per rule and critical path join the report")  # fmt: skip
+                   "time per rule and the jobs it waited on join the report")  # fmt: skip
     m.set_defaults(func=cmd_merge)
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from imply.diagnose.aliasing import Aliasing, aliasing
 from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate
 from imply.diagnose.discrepancy import DiscrepancyReport, describe
+from imply.diagnose.effect_tables import AUX
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.hypotheses import Hypothesis, enumerate_hypotheses, inclusion_weights, posterior_precision
@@ -45,7 +46,7 @@ from imply.diagnose.next_pushes import PushDesign, design_pushes
 from imply.diagnose.noise import Noise, ObservableNoise, estimate_noise
 from imply.diagnose.pushlog import PushLog
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.render import verdict_text
+from imply.diagnose.render import OBSERVABLE_WORDS, verdict_text
 from imply.diagnose.screening import folds, screened
 from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
 from imply.diagnose.verdict import Verdict, judge
@@ -212,20 +213,17 @@ def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, Join
     return problem, problem.fit(Model(), np.zeros(0), problem.initial_fit())
 
 
-WORDS = {"stop_time": "stop time", "pusher_speed": "the pusher's measured speed"}
-
-
 def _observables(problem: Problem) -> tuple[list[str], str]:
     used = ["displacement", *problem.aux]
-    unused = [a for a in WORDS if a not in problem.aux and problem.log.aux(a) is not None]
+    unused = [a for a in AUX if a not in problem.aux and problem.log.aux(a) is not None]
     if problem.aux:
-        names = ["displacement"] + [WORDS[a] for a in problem.aux]
+        names = [OBSERVABLE_WORDS[a] for a in used]
         note = ", ".join(names[:-1]) + " and " + names[-1]
         note += ": every hypothesis had to explain " + ("both" if len(names) == 2 else "them all")
     else:
         note = "displacement only"
     if unused:
-        note += " (the log's " + " and ".join(WORDS[a] for a in unused) + " not used)"
+        note += " (the log's " + " and ".join(OBSERVABLE_WORDS[a] for a in unused) + " not used)"
     return used, note
 
 

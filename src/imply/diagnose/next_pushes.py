@@ -36,7 +36,7 @@ MJCF as it is; its extra columns pass through.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -114,13 +114,7 @@ def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str,
     missing = [a for a in held if problem.log.aux(a) is None]
     if not missing:
         return None
-    log = problem.log
-    ones = np.ones(log.n)
-    with_all = PushLog(path=log.path, frame=log.frame, objects=log.objects, obj=log.obj, speed=log.speed,
-                       displacement=log.displacement, direction=log.direction, has_direction=log.has_direction,
-                       mass=log.mass, friction=log.friction,
-                       **{a: (getattr(log, a) if getattr(log, a) is not None else ones) for a in ("stop_time",
-                                                                                                   "pusher_speed")})  # fmt: skip
+    with_all = replace(problem.log, **{a: np.ones(problem.log.n) for a in missing})
     full = Problem.of(with_all, problem.table, problem.etables, grid=problem.grid)
     preds = [predictions(full, f)[1] for _, f, _ in contenders]
     out = {}

@@ -22,6 +22,13 @@ from imply.diagnose.next_pushes import PushDesign
 from imply.diagnose.shrinkage import Shrinkage
 from imply.diagnose.verdict import Adequacy, Contender, Identification, Verdict
 
+# the observables, as the report and the observables note name them
+OBSERVABLE_WORDS = {
+    "displacement": "displacement",
+    "stop_time": "stop time",
+    "pusher_speed": "the pusher's measured speed",
+}
+
 
 class Summary(Protocol):
     """What the renderer reads of a diagnosis (:class:`imply.diagnose.analysis.Summary` has it all)."""

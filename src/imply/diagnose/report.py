@@ -34,6 +34,7 @@ from imply.diagnose.analysis import Diagnosis, Summary
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.localisation import FACTORS
 from imply.diagnose.next_pushes import write_next_pushes
+from imply.diagnose.render import OBSERVABLE_WORDS
 from imply.diagnose.verdict import explanations
 from imply.io import atomic_path, write_csv, write_json, write_text
 
@@ -273,9 +274,6 @@ def _next_push_lines(s: Summary) -> list[str]:
                 f"| {pair} | " + " | ".join(f"{d.measure[n].get(pair, float('nan')):.1f}" for n in names) + " |"
             )
     return lines
-
-
-OBSERVABLE_WORDS = {"displacement": "displacement", "stop_time": "stop time", "pusher_speed": "the pusher's speed"}
 
 
 def markdown(s: Summary) -> str:

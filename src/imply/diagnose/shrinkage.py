@@ -153,12 +153,15 @@ def shrinkage(
         return ObservableFit(baseline_chi2=float(np.sum(r0[kk] ** 2)), heldout_chi2=float(np.sum(r1[kk] ** 2)),
                              n=int(kk.sum()))  # fmt: skip
 
+    aux_fits = {}
+    for name in problem.aux:
+        rows = problem.aux_rows(name)
+        aux_fits[name] = observable((rt0 / problem.sd_t)[rows], (held.resid_t / problem.sd_t)[rows], problem.w_t[rows])
     lof = LackOfFit(
         heldout_chi2=lof_ss, dof=lof_dof, p_value=float(stats.chi2.sf(lof_ss, lof_dof)), in_sample_chi2=final.sse,
         baseline_chi2=float(np.sum(rw0[keep_w] ** 2)),
         displacement=observable(rd0 / problem.sd_d, held.resid_d / problem.sd_d, problem.w_d),
-        **{name: observable((rt0 / problem.sd_t)[rows], (held.resid_t / problem.sd_t)[rows], problem.w_t[rows])
-           for name in problem.aux for rows in [problem.aux_rows(name)]},
+        **aux_fits,
     )  # fmt: skip
     dispersion = max(final.sse / max(nw - k * N - final.model.dim, 1), 1.0)
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1

@@ -97,7 +97,7 @@ def alone(jobs: list[Job], cores: int = 2) -> tuple[float, dict[str, float]]:
 
 
 def markdown(jobs: list[Job]) -> list[str]:
-    """The report's section: the run's span, the time per rule, and the critical path."""
+    """The report's section: the run's span, the time per rule, and the jobs that ran alone while a core idled."""
     if not jobs:
         return ["## Time per rule", "", "No per-rule benchmarks were found (`results/benchmarks/`): the workflow's "
                 "rules write them when they run.", ""]  # fmt: skip
