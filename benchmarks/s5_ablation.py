@@ -14,7 +14,7 @@ by a readout fitted on the model's own rollouts of its training objects (an inst
 the model shaped, so it is never used to measure).
 
 Each recipe is the config's ``model`` section with ``--set`` overrides, so a line of the
-README's ablation table is one command::
+ablation table of docs/notes/section5-recipe.md is one command::
 
     python benchmarks/s5_ablation.py --name "final weight 1" --set train.final_weight=1.0
 

@@ -163,16 +163,16 @@ def test_export_and_evaluate_from_the_command_line(tiny_suite, tmp_path):
     assert results["models"][0]["model"] == "oracle" and results["models"][0]["kind"] == "frames"
 
 
-def test_the_readme_example_runs_as_written(tiny_suite, tmp_path, repo_root):
-    """The README's three commands, as written, in a folder whose results/suite is the tiny suite."""
+def test_the_file_door_example_runs_as_written(tiny_suite, tmp_path, repo_root):
+    """The file-door how-to's three commands, as written, in a folder whose results/suite is the tiny suite."""
     import re
     import shlex
     import subprocess
     import sys
 
-    text = (repo_root / "README.md").read_text()
+    text = (repo_root / "docs" / "how-to" / "rollouts-elsewhere.md").read_text()
     block = re.search(r"```bash\n(imply suite export .*?)```", text, re.S)
-    assert block, "README must hold the file-door example as a ```bash block starting 'imply suite export'"
+    assert block, "the file-door how-to must hold its example as a ```bash block starting 'imply suite export'"
     (tmp_path / "results").mkdir()
     (tmp_path / "results" / "suite").symlink_to(tiny_suite)
     (tmp_path / "examples").symlink_to(repo_root / "examples")

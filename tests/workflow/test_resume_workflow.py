@@ -3,7 +3,7 @@
 Through Snakemake, on planted synthetic features: Ctrl-C (SIGINT to the process group,
 as a terminal sends it) during `imply model train`, then a plain rerun that is killed
 hard (SIGKILL, as a crash or the OOM killer would), then `--unlock` and
-`--rerun-incomplete` as the README says. Each run picks up at the last finished epoch.
+`--rerun-incomplete` as docs/how-to/resume.md says. Each run picks up at the last finished epoch.
 """
 
 from __future__ import annotations

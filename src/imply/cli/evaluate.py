@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "object's, none), reads them with a readout fitted on the suite's real clips (never on the rollouts), and "
         "writes one report comparing the models: results.json, report.md, figures. A model is MODULE:FACTORY "
         "(an importable module or a .py file) whose factory returns an object with kind and rollout(request); "
-        "see the README's 'Evaluate your world model'.",
+        "see the tutorial docs/tutorials/evaluate.md.",
     )
     p.add_argument("--model", action="append", default=[], metavar="MODULE:FACTORY",
                    help="a model to run in process (repeatable)")  # fmt: skip

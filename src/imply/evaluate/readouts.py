@@ -107,7 +107,7 @@ class LatentReadout(Readout):
     their spread on real frames (a feature that barely varies on real frames, a background
     patch, would otherwise get a weight that turns a model's small error there into a huge
     slide: with per-feature scaling the study's predictor read mean log errors above 2,
-    centred only about 0.3, README "Evaluate your world model"); and a read log slide
+    centred only about 0.3: docs/notes/section5-recipe.md); and a read log slide
     is clipped to the training slides' range widened by ``MARGIN`` on each side, so one wild
     rollout cannot dominate a mean.
     """

@@ -12,7 +12,7 @@ down to a fixed camera and one moving object so that it trains on two CPU cores:
   log commanded speed whose three coefficients an MLP reads from the context frame's
   features and a latent ``z`` (and, in the calibrated variant, the two calibration
   pushes). Speed enters only there: an earlier design fed it to the MLP beside the
-  calibration, which leaned on the calibration and used the speed too little (README);
+  calibration, which leaned on the calibration and used the speed too little (docs/notes/pixel-model.md);
 - **keypoints, not labels**: the slide a training clip shows is the shift of the red box's
   centroid column between its first frame and each target frame (:func:`box_column`),
   read off the pixels; the metre labels of the clips are never used. The calibration

@@ -1,0 +1,696 @@
+"""The documentation site's generated pages, read from the code and from ``results/``, never typed.
+
+``mkdocs build`` calls this module through its hook (``docs/hooks/imply_pages.py``):
+
+* :func:`config_reference`: every config key, walked from :class:`imply.workflow_config.StudyConfig`
+  (the settings classes the schema is written from): type, default, bounds, doc;
+* :func:`cli_reference`: every command and option, walked from :func:`imply.cli.build_parser`;
+* :func:`formats_reference`: every file format, from the docstrings and column lists of the
+  modules that read or write it (:data:`FORMATS`);
+* :func:`status_page`: the reproduction status, from ``results/paper/reproduction.md`` and
+  ``results/paper/numbers.json`` when the study has run (and saying so when it has not).
+
+Hand-written pages may hold *placeholders*, ``{{ name argument }}``, replaced at build time by
+:func:`expand` (:data:`PLACEHOLDERS`): a config value, a figure from ``results/`` (copied into
+the site when present), the per-stage time of the last run, the stand-ins' known answers. An
+unknown placeholder is an error, so a typo never reaches the site.
+
+Nothing here is imported by the package; it sits at the top, beside :mod:`imply.cli`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import json
+import math
+import os
+import re
+import textwrap
+import types
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+FIGURES = "figures"  # the site folder that figures copied from results/ go to
+
+# -- small Markdown helpers ---------------------------------------------------------
+
+
+def cell(text: Any) -> str:
+    """Text for a Markdown table cell: one line, pipes and angle brackets escaped."""
+    s = " ".join(str(text).split())
+    return s.replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def code(text: Any) -> str:
+    """Text as an inline code span inside a table cell (pipes escaped)."""
+    s = " ".join(str(text).split()).replace("|", "\\|")
+    tick = "``" if "`" in s else "`"
+    return f"{tick}{s}{tick}" if s else ""
+
+
+_ROLE = re.compile(r":(?:[a-z]+:)+`~?([^`<]*?)(?:\s*<([^`>]*)>)?`")
+
+
+def rst_to_markdown(text: str) -> str:
+    """A docstring (the reStructuredText subset the package writes) as Markdown.
+
+    Roles (``:func:`x```) become code spans, double backticks single ones, ``::`` blocks
+    fenced code, definition lists (a term, then its indented text) Markdown's, bullets
+    Markdown's (nested by indent); paragraphs are joined into one line each.
+    """
+    text = _ROLE.sub(lambda m: f"`{(m.group(1) or m.group(2)).strip()}`", textwrap.dedent(text).strip("\n"))
+    text = re.sub(r"``([^`]+?)``", r"`\1`", text)
+    lines = text.splitlines()
+    out: list[str] = []
+
+    def indent_of(line: str) -> int:
+        return len(line) - len(line.lstrip())
+
+    def bullet(line: str) -> bool:
+        return line.lstrip().startswith(("* ", "- "))
+
+    def deeper(start: int, base: int) -> int:
+        """The index after the lines from ``start`` indented deeper than ``base`` (blank lines inside kept)."""
+        j = start
+        while j < len(lines) and (not lines[j].strip() or indent_of(lines[j]) > base):
+            j += 1
+        while j > start and not lines[j - 1].strip():
+            j -= 1
+        return j
+
+    def safe(paragraph: str) -> str:
+        return "\\" + paragraph if paragraph[:1] in (">", "#", "+") else paragraph
+
+    bullets: list[int] = []  # indents of the open bullet levels
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if not line.strip():
+            out.append("")
+            i += 1
+            continue
+        if bullet(line):
+            ind = indent_of(line)
+            while bullets and bullets[-1] > ind:
+                bullets.pop()
+            if not bullets or bullets[-1] < ind:
+                bullets.append(ind)
+            j = i + 1
+            while j < len(lines) and lines[j].strip() and indent_of(lines[j]) > ind and not bullet(lines[j]):
+                j += 1
+            item = " ".join(x.strip() for x in [line.lstrip()[2:], *lines[i + 1 : j]])
+            if len(bullets) == 1 and out and out[-1].strip() and not out[-1].lstrip().startswith("- "):
+                out.append("")
+            out.append("    " * (len(bullets) - 1) + "- " + item)
+            i = j
+            continue
+        bullets = []
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if nxt.strip() and indent_of(nxt) > indent_of(line) and not bullet(nxt):
+            end = deeper(i + 1, indent_of(line))
+            out += ["", line.strip(), ":   " + " ".join(" ".join(lines[i + 1 : end]).split()), ""]
+            i = end
+            continue
+        j = i
+        while j < len(lines) and lines[j].strip() and not bullet(lines[j]):
+            j += 1
+            if lines[j - 1].rstrip().endswith("::") or (
+                j < len(lines) and lines[j].strip() and indent_of(lines[j]) > indent_of(lines[i])
+            ):
+                break
+        if out and out[-1].strip():
+            out.append("")
+        paragraph = " ".join(x.strip() for x in lines[i:j])
+        if paragraph.endswith("::"):  # a literal block follows
+            paragraph = paragraph[:-2].rstrip()
+            if paragraph:
+                out.append(safe(paragraph) + ":")
+            k = j
+            while k < len(lines) and not lines[k].strip():
+                k += 1
+            end = deeper(k, indent_of(lines[j - 1]))
+            out += ["", "```text", *textwrap.dedent("\n".join(lines[k:end])).splitlines(), "```", ""]
+            j = end
+        else:
+            out.append(safe(paragraph))
+        i = j
+    return re.sub(r"\n{3,}", "\n\n", "\n".join(out)).strip() + "\n"
+
+
+# -- the config reference ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ConfigKey:
+    """One config key: its dotted name, type, default (as JSON text, or ``required``), bounds and doc."""
+
+    key: str
+    type: str
+    default: str
+    bounds: str
+    doc: str
+    depth: int
+
+
+def _is_settings(hint: Any) -> bool:
+    from imply.options import Config
+
+    return isinstance(hint, type) and issubclass(hint, Config)
+
+
+def _plural(word: str) -> str:
+    return {"number": "numbers", "integer": "integers", "text": "texts", "boolean": "booleans"}.get(word, word)
+
+
+def type_name(hint: Any) -> str:
+    """A type hint in words: ``number``, ``list of 3 numbers``, ``mapping of text to text``, ``X or null``."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(type_name(a) for a in args)
+    if hint is type(None):
+        return "null"
+    if _is_settings(hint):
+        return f"settings ({hint.__name__})"
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"list of {_plural(type_name(args[0]))}"
+        if len(set(args)) == 1:
+            return f"list of {len(args)} {_plural(type_name(args[0]))}"
+        return "list (" + ", ".join(type_name(a) for a in args) + ")"
+    if origin is dict:
+        return f"mapping of {type_name(args[0])} to {type_name(args[1])}" if args else "mapping"
+    if origin is list:
+        return f"list of {type_name(args[0])}" if args else "list"
+    if hint is Any:
+        return "any"
+    return {bool: "boolean", int: "integer", float: "number", str: "text"}.get(
+        hint, getattr(hint, "__name__", str(hint))
+    )
+
+
+def _plain(value: Any) -> Any:
+    from imply.options import Config
+
+    if isinstance(value, Config):
+        return value.to_dict()
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _json(value: Any) -> str:
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return json.dumps(_plain(value), default=str, ensure_ascii=False)
+
+
+_BOUND_WORDS = {
+    "minimum": "≥ {}",
+    "maximum": "≤ {}",
+    "exclusive_minimum": "> {}",
+    "exclusive_maximum": "< {}",
+    "choices": "one of {}",
+    "min_items": "at least {} items",
+    "max_items": "at most {} items",
+    "unique": "no repeats",
+    "pattern": "matches {}",
+}
+
+
+def _bound_words(bounds: dict[str, Any]) -> list[str]:
+    out = []
+    for key, value in bounds.items():
+        if key == "unique" and not value:
+            continue
+        shown = ", ".join(map(str, value)) if key == "choices" else value
+        out.append(_BOUND_WORDS[key].format(shown))
+    return out
+
+
+def bounds_text(metadata: Any) -> str:
+    """A field's bounds in words (its value's, each item's, the keys it may have)."""
+    if not metadata:
+        return ""
+    parts = _bound_words(metadata.get("bounds", {}))
+    items = _bound_words(metadata.get("items", {}))
+    if items:
+        parts.append("each " + ", ".join(items))
+    if metadata.get("keys") is not None:
+        parts.append("keys: " + ", ".join(metadata["keys"]))
+    if metadata.get("required"):
+        parts.append("spelt out in config.yaml")
+    return "; ".join(parts)
+
+
+def config_keys(cls: type | None = None, prefix: str = "", instance: Any = None, depth: int = 0) -> list[ConfigKey]:
+    """Every key of settings class ``cls`` (default: the whole study config), nested keys dotted, in order.
+
+    Defaults come from ``instance`` (the parent's default), else the field's own default. A
+    mapping of settings (``model.presets``) is described once per entry of its default, a
+    union with settings (``encoder.arch``: a name or a mapping) gives the mapping's keys too.
+    """
+    from imply.options import Config
+
+    if cls is None:
+        from imply.workflow_config import StudyConfig
+
+        cls = StudyConfig
+    if instance is None:
+        try:
+            instance = cls()
+        except TypeError:  # a class with required fields: defaults field by field
+            instance = None
+    hints = typing.get_type_hints(cls)
+    out: list[ConfigKey] = []
+    for f in dataclasses.fields(cls):
+        hint = hints[f.name]
+        key = f"{prefix}{f.name}"
+        has_default = f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+        value = getattr(instance, f.name) if instance is not None else None
+        if instance is None and has_default:
+            value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        known = instance is not None or has_default
+        nested = [a for a in (hint, *typing.get_args(hint)) if _is_settings(a)]
+        default = "required" if not known else ("" if isinstance(value, Config) else _json(value))
+        out.append(ConfigKey(key, type_name(hint), default, bounds_text(f.metadata), f.metadata.get("doc", ""), depth))
+        if nested and typing.get_origin(hint) is not dict:
+            sub = nested[0]
+            out += config_keys(sub, f"{key}.", value if isinstance(value, sub) else None, depth + 1)
+        elif typing.get_origin(hint) is dict and nested:
+            sub = nested[0]
+            for name, entry in (value or {}).items():
+                out += config_keys(sub, f"{key}.{name}.", entry, depth + 1)
+    return out
+
+
+def config_reference() -> str:
+    """The config reference page: one table per top-level section of ``config.yaml``."""
+    from imply.workflow_config import StudyConfig
+
+    keys = config_keys()
+    hints = typing.get_type_hints(StudyConfig)
+    out = [
+        "# Configuration reference",
+        "",
+        "Every key of `config.yaml`, generated when the site is built from the settings classes "
+        "(`imply.workflow_config.StudyConfig` and the classes it names), the same source the workflow's schema "
+        "`workflow/schemas/config.schema.yaml` and the command line's defaults are written from. *Default* is "
+        "the study's value; *required* means the key has no default. A run's own file overrides any of them: "
+        "`snakemake --configfile my.yaml` or `--config key=value`. An unknown key at any level is refused "
+        "when Snakemake reads the workflow, with the nearest known name.",
+        "",
+    ]
+    for f in dataclasses.fields(StudyConfig):
+        hint = hints[f.name]
+        section = [k for k in keys if k.key == f.name or k.key.startswith(f.name + ".")]
+        doc = f.metadata.get("doc", "")
+        out += [f"## `{f.name}`", "", doc[:1].upper() + doc[1:] + "."]
+        nested = [a for a in (hint, *typing.get_args(hint)) if _is_settings(a)]
+        if nested and nested[0].__doc__:
+            first = " ".join(nested[0].__doc__.strip().split("\n\n")[0].split())
+            out += ["", f"{rst_to_markdown(first).strip()} (`{nested[0].__module__}.{nested[0].__name__}`)"]
+        out += ["", "| key | type | default | bounds | doc |", "|---|---|---|---|---|"]
+        for k in section:
+            out.append(f"| {code(k.key)} | {cell(k.type)} | {code(k.default)} | {cell(k.bounds)} | {cell(k.doc)} |")
+        out.append("")
+    return "\n".join(out)
+
+
+# -- the command-line reference ----------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command of ``imply``: its words (``["sim", "pushes"]``), its parser and its one-line help."""
+
+    words: tuple[str, ...]
+    parser: argparse.ArgumentParser
+    help: str
+    children: list[Command] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return " ".join(("imply", *self.words))
+
+
+def commands(parser: argparse.ArgumentParser | None = None, words: tuple[str, ...] = (), help: str = "") -> Command:
+    """The command tree of ``imply`` (default: :func:`imply.cli.build_parser`), in the parsers' own order."""
+    if parser is None:
+        from imply.cli import build_parser
+
+        parser = build_parser()
+        help = parser.description or ""
+    node = Command(words, parser, help)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help or "" for a in action._choices_actions}
+            for name, sub in action.choices.items():
+                node.children.append(commands(sub, (*words, name), helps.get(name, "")))
+    return node
+
+
+def walk_commands(node: Command) -> list[Command]:
+    return [node, *(c for child in node.children for c in walk_commands(child))]
+
+
+def _help(action: argparse.Action, parser: argparse.ArgumentParser) -> str:
+    text = action.help or ""
+    if "%(" in text:
+        try:
+            text = text % {**vars(action), "prog": parser.prog}
+        except (KeyError, TypeError, ValueError):
+            pass
+    return text
+
+
+def _usage(parser: argparse.ArgumentParser) -> str:
+    before = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "100"
+    try:
+        return parser.format_usage().strip()
+    finally:
+        if before is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = before
+
+
+def options_of(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    """A parser's own arguments and options (not its help, not its subcommands)."""
+    return [a for a in parser._actions
+            if not isinstance(a, argparse._SubParsersAction | argparse._HelpAction)]  # fmt: skip
+
+
+def _default(action: argparse.Action) -> str:
+    if action.required or isinstance(action, argparse._StoreTrueAction | argparse._StoreFalseAction):
+        return ""
+    if action.default is None or action.default is argparse.SUPPRESS:
+        return ""
+    return code(action.default if isinstance(action.default, str) else _json(action.default))
+
+
+def cli_reference() -> str:
+    """The command-line reference page: every command of ``imply`` with its usage and every option."""
+    tree = commands()
+    out = [
+        "# Command-line reference",
+        "",
+        "Every command and option of `imply`, generated when the site is built from the command line's own "
+        "parsers (`imply.cli.build_parser`). `imply COMMAND --help` prints the same. Defaults that come from a "
+        "settings class are that class's (see the [configuration reference](config.md)). A user error (bad "
+        "input, bad option, an output that would overwrite an input) is one line on stderr and exit status 2.",
+        "",
+    ]
+    for node in walk_commands(tree):
+        level = "#" * min(2 + max(len(node.words) - 1, 0), 4)
+        out += [f"{level} `{node.name}`", ""]
+        text = node.parser.description if node.words else node.help
+        if node.help and node.words:
+            out += [node.help[:1].upper() + node.help[1:] + ("" if node.help.endswith(".") else "."), ""]
+        if text and text != node.help:
+            out += [rst_to_markdown(text).strip(), ""]
+        out += ["```text", _usage(node.parser), "```", ""]
+        actions = options_of(node.parser)
+        if node.children:
+            out += ["| command | what it does |", "|---|---|"]
+            out += [f"| [`{c.name}`](#{anchor(c.name)}) | {cell(c.help)} |" for c in node.children]
+            out.append("")
+        if actions:
+            out += ["| argument | default | help |", "|---|---|---|"]
+            for a in actions:
+                if a.option_strings:
+                    name = ", ".join(code(o) for o in a.option_strings)
+                    if a.nargs != 0:
+                        name += " " + cell(a.metavar or a.dest.upper())
+                else:
+                    name = code(a.metavar or a.dest)
+                req = " (required)" if a.required and a.option_strings else ""
+                choices = f" One of: {', '.join(map(str, a.choices))}." if a.choices else ""
+                out.append(f"| {name}{req} | {_default(a)} | {cell(_help(a, node.parser) + choices)} |")
+            out.append("")
+    return "\n".join(out)
+
+
+def anchor(title: str) -> str:
+    """The id MkDocs' toc gives a heading (its default slugify)."""
+    from markdown.extensions.toc import slugify
+
+    return slugify(title, "-")
+
+
+# -- the file formats --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Format:
+    """A file format: its title, the module that reads or writes it, and the column or file lists it names."""
+
+    title: str
+    module: str
+    names: tuple[str, ...] = ()
+    what: str = ""
+
+
+FORMATS: tuple[Format, ...] = (
+    Format("Push log (`imply diagnose`)", "imply.diagnose.pushlog", ("REQUIRED", "OPTIONAL_NUMERIC"),
+           "what a robot records: one row per push"),
+    Format("Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"),
+    Format("Rollouts to score (`imply score`)", "imply.score_file", ("ROLES", "SCORE_COLUMNS"),
+           "a model's rollouts read as slides, and the scores written back"),
+    Format("User tables in general (CSV or parquet)", "imply.input_files", ("PARQUET_SUFFIXES",)),
+    Format("The evaluation suite (`imply suite build`)", "imply.evaluate.suite",
+           ("FILES", "SUITE_ARRAYS", "TRUTH_ARRAYS")),
+    Format("The suite as files (`imply suite export`) and generated videos (`imply evaluate --videos`)",
+           "imply.evaluate.video_package"),
+    Format("Rollouts made elsewhere (`imply evaluate --rollouts`)", "imply.evaluate.rollouts_file", ("CSV_COLUMNS",)),
+    Format("The report of `imply evaluate`", "imply.evaluate.report", ("REPORT_FILES",)),
+    Format("The report of `imply diagnose`", "imply.diagnose.report", ("REPORT_FILES",)),
+    Format("The next pushes (`next_pushes.csv`)", "imply.diagnose.next_pushes"),
+    Format("The push table (`results/table/table.npz`)", "imply.table"),
+    Format("Result documents (`results/**/*.json`)", "imply.paper.results"),
+    Format("Macros and numbers (`results/paper/macros.tex`, `numbers.json`)", "imply.paper.macros"),
+    Format("The reproduction report (`results/paper/reproduction.md`, `.csv`)", "imply.paper.report"),
+)  # fmt: skip
+
+
+def formats_reference() -> str:
+    """The file formats page: each format's module docstring and the column or file lists it names."""
+    out = [
+        "# File formats",
+        "",
+        "Every file IMPLY reads from you or writes for you, generated when the site is built from the docstring "
+        "and the column lists of the module that reads or writes it (the module named under each title), so "
+        "the page and the code cannot drift apart.",
+        "",
+    ]
+    for fmt in FORMATS:
+        module = importlib.import_module(fmt.module)
+        out += [f"## {fmt.title}", "", f"*Module `{fmt.module}`*" + (f": {fmt.what}." if fmt.what else "."), ""]
+        out += [rst_to_markdown(module.__doc__ or "(no docstring)"), ""]
+        for name in fmt.names:
+            value = getattr(module, name)
+            shown = ", ".join(f"`{v}`" for v in value) if isinstance(value, list | tuple) else f"`{value}`"
+            out += [f"- `{name}`: {shown}"]
+        if fmt.names:
+            out.append("")
+    return "\n".join(out)
+
+
+# -- results: the reproduction status, figures, times ------------------------------
+
+
+def _when(path: Path) -> str:
+    return datetime.fromtimestamp(path.stat().st_mtime, UTC).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def status_page(root: Path = ROOT) -> str:
+    """The reproduction status: ``results/paper/reproduction.md`` as the last run wrote it, or why there is none."""
+    report = root / "results" / "paper" / "reproduction.md"
+    numbers = root / "results" / "paper" / "numbers.json"
+    out = ["# Reproduction status", ""]
+    if not report.is_file():
+        return "\n".join([*out,
+            "!!! note \"The study has not run in this checkout\"",
+            "    This page is generated from `results/paper/reproduction.md` and `results/paper/numbers.json`, "
+            "which the study writes. Neither is here yet, so there is nothing to report. Run the study "
+            "([tutorial](tutorials/reproduce.md)), then build the site again: `snakemake --cores 2 && mkdocs build`.",
+            "",
+            "The reproduction report puts every number the paper prints beside the reproduced one (*matches*, "
+            "*close*, *differs*, *not produced*) and marks every claim of every stage *holds* or *fails*. Claims "
+            "that fail are reported, never tuned away. Earlier runs are recorded in the "
+            "[notes](notes/study-runs.md).", ""])  # fmt: skip
+    out += [f"Generated from `results/paper/reproduction.md` (written {_when(report)})"]
+    if numbers.is_file():
+        values = json.loads(numbers.read_text())
+        undefined = sum(v is None for v in values.values())
+        out[-1] += (f" and `results/paper/numbers.json` ({len(values)} numbers, {undefined} undefined; "
+                    f"written {_when(numbers)})")  # fmt: skip
+    out[-1] += ". Rebuild the site after a run to refresh it."
+    body = report.read_text()
+    body = re.sub(r"^# .*\n", "", body, count=1)
+    body = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", body, flags=re.M)
+    return "\n".join([*out, "", body])
+
+
+@dataclass
+class Context:
+    """What a build's placeholders need: the repository root (and config.yaml, read once)."""
+
+    root: Path = ROOT
+    config: dict[str, Any] | None = None
+
+    def config_value(self, dotted: str) -> Any:
+        if self.config is None:
+            import yaml
+
+            self.config = yaml.safe_load((self.root / "config.yaml").read_text())
+        value: Any = self.config
+        for part in dotted.split("."):
+            if not isinstance(value, dict) or part not in value:
+                raise KeyError(f"config.yaml has no key {dotted!r}")
+            value = value[part]
+        return value
+
+
+def _relative(page: str, target: str) -> str:
+    depth = len(Path(page).parent.parts)
+    return "../" * depth + target
+
+
+def ph_config(ctx: Context, page: str, arg: str) -> str:
+    """``{{ config model.train.epochs }}``: a value of ``config.yaml`` (lists joined by commas)."""
+    value = ctx.config_value(arg.strip())
+    if isinstance(value, list):
+        return ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    return f"{value:,}" if isinstance(value, int) and not isinstance(value, bool) else str(value)
+
+
+def _figure_site_path(path: str) -> str:
+    return f"{FIGURES}/{path.removeprefix('results/')}"
+
+
+def figure_files(docs_dir: Path, root: Path = ROOT) -> dict[str, Path]:
+    """Site path -> file under ``results/`` of every figure placeholder in the pages under ``docs_dir`` that exists."""
+    out = {}
+    for page in sorted(docs_dir.rglob("*.md")):
+        for m in _PLACEHOLDER.finditer(page.read_text()):
+            if m.group(1) == "figure":
+                path = m.group(2).partition("|")[0].strip()
+                if (root / path).is_file():
+                    out[_figure_site_path(path)] = root / path
+    return out
+
+
+def ph_figure(ctx: Context, page: str, arg: str) -> str:
+    """``{{ figure results/x.png | caption }}``: the figure (copied into the site from results/), or a note saying
+    when it appears."""
+    path, _, caption = (s.strip() for s in arg.partition("|"))
+    if caption.startswith("@"):  # the caption the workflow's own report gives it: workflow/report/<name>.rst
+        caption = " ".join((ctx.root / "workflow" / "report" / f"{caption[1:]}.rst").read_text().split())
+    source = ctx.root / path
+    if source.is_file():
+        site = _figure_site_path(path)
+        return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, from the last run here)"
+    return (f"!!! note \"Figure: {caption}\"\n    `{path}` appears here once it has been built "
+            f"(`snakemake --cores 2 {path}`), and the site rebuilt.")  # fmt: skip
+
+
+def rule_stages(root: Path = ROOT) -> dict[str, str]:
+    """Rule name -> its stage (the rules file it is in, ``workflow/rules/<stage>.smk``)."""
+    out = {}
+    for smk in sorted((root / "workflow" / "rules").glob("*.smk")):
+        for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), re.M):
+            out[name] = smk.stem
+    return out
+
+
+def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
+    """``{{ stage_times }}``: each stage's jobs and time in the last run, from the rules' benchmark files."""
+    from imply.paper.timings import by_rule, read_benchmarks
+
+    jobs = read_benchmarks(ctx.root / "results" / "benchmarks")
+    if not jobs:
+        return ("!!! note \"Times per stage\"\n    The time each stage took appears here after a run: every rule "
+                "writes `results/benchmarks/<rule>/<wildcards>.tsv` (wall and CPU seconds, peak memory) and the "
+                "site reads them when it is built. Until then, the [record of earlier runs](../notes/study-runs.md) "
+                "gives the whole study's times on 2 cores.")  # fmt: skip
+    stages = rule_stages(ctx.root)
+    rows: dict[str, list] = {}
+    for r in by_rule(jobs):
+        rows.setdefault(stages.get(r.rule, "other"), []).append(r)
+    out = ["| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]
+    for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1])):
+        out.append(f"| {stage} | {', '.join(r.rule for r in rs)} | {sum(r.jobs for r in rs)} | "
+                   f"{sum(r.seconds for r in rs):.0f} | {max(r.longest for r in rs):.0f} | "
+                   f"{sum(r.cpu_seconds for r in rs):.0f} |")  # fmt: skip
+    newest = max(j.end for j in jobs)
+    when = datetime.fromtimestamp(newest, UTC).strftime("%Y-%m-%d")
+    return "\n".join([*out, "", f"*Read from the {len(jobs)} benchmark files in `results/benchmarks/` (newest "
+                      f"{when}) when the site was built. Jobs of different stages run side by side on the cores, "
+                      "so the whole study takes less than the sum.*"])  # fmt: skip
+
+
+def _fmt(value: Any, spec: str) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return format(value, spec)
+
+
+def ph_standins(ctx: Context, page: str, arg: str) -> str:
+    """``{{ standins }}``: Section 4's stand-ins through ``imply evaluate``, from ``results/evaluate/standins.json``."""
+    path = ctx.root / "results" / "evaluate" / "standins.json"
+    if not path.is_file():
+        return ("!!! note \"The stand-ins' known answers\"\n    A table of the four stand-ins (tracking r, log error, "
+                "self and anchored disagreement, AUROC against the oracle, static sets) appears here once "
+                "`snakemake --cores 2 results/evaluate/standins.json` has run and the site is rebuilt.")  # fmt: skip
+    result = json.loads(path.read_text())["result"]
+    out = ["| stand-in | tracking r | log error | self | anchored | AUROC vs oracle, self | AUROC, anchored | "
+           "static sets |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for s in result["standins"].values():
+        out.append(f"| {s['model']} | {_fmt(s['track'], '.2f')} | {_fmt(s['error'], '.3f')} | "
+                   f"{_fmt(s['self'], '.3f')} | {_fmt(s['anchored'], '.3f')} | {_fmt(s.get('auroc_self'), '.2f')} | "
+                   f"{_fmt(s.get('auroc_anchored'), '.2f')} | {_fmt(s['static_share'], '.0%')} |")  # fmt: skip
+    ro = result["readout"]
+    return "\n".join([*out, "", f"*From `results/evaluate/standins.json` ({_when(path)}): {result['n_objects']} "
+                      f"objects, condition {next(iter(result['standins'].values()))['condition']}, sample set 0; the "
+                      f"{ro['name']} readout's R² on real check clips {ro['r2_check']:.3f}, mean absolute log error "
+                      f"{ro['error_check']:.3f}. Every number with its interval is in "
+                      "`results/evaluate/standins/report.md`.*"])  # fmt: skip
+
+
+PLACEHOLDERS: dict[str, Callable[[Context, str, str], str]] = {
+    "config": ph_config,
+    "figure": ph_figure,
+    "stage_times": ph_stage_times,
+    "standins": ph_standins,
+}
+_PLACEHOLDER = re.compile(r"\{\{\s*(\w+)\s*(.*?)\s*\}\}")
+
+
+def expand(markdown: str, page: str, ctx: Context) -> str:
+    """A hand-written page with its placeholders replaced (``page``: its path under docs/)."""
+
+    def one(m: re.Match) -> str:
+        name = m.group(1)
+        if name not in PLACEHOLDERS:
+            raise ValueError(f"{page}: unknown placeholder {{{{ {name} }}}} (known: {', '.join(PLACEHOLDERS)})")
+        return PLACEHOLDERS[name](ctx, page, m.group(2))
+
+    return _PLACEHOLDER.sub(one, markdown)
+
+
+GENERATED: dict[str, Callable[[Path], str]] = {
+    "reference/config.md": lambda root: config_reference(),
+    "reference/cli.md": lambda root: cli_reference(),
+    "reference/formats.md": lambda root: formats_reference(),
+    "status.md": status_page,
+}
