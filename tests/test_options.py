@@ -26,6 +26,7 @@ LEFT_TO_THE_DEFAULT = {
     "gap.diagnose.model_floor",
     "gap.diagnose.noise_sd",
     "gap.diagnose.pusher_speed_noise_sd",
+    "gap.diagnose.track_noise_sd",
     "gap.diagnose.scan",
     "gap.diagnose.stop_time_floor",
     "gap.diagnose.stop_time_noise_sd",

@@ -94,6 +94,30 @@ def test_pushes_with_physics_columns_on_the_builtin_scene(tmp_path, capsys):
     assert "row 1 (line 2), column mass" in capsys.readouterr().err
 
 
+def test_pushes_filmed_on_a_user_model_give_a_track_the_diagnostic_reads(tmp_path):
+    """`imply sim pushes --track-rate` writes the boxes' tracks beside the log; the track file reader accepts them,
+    and their last frame agrees with the log's displacement (two code paths: the frames and the final state)."""
+    from imply.diagnose.pushlog import read_pushlog
+    from imply.diagnose.track_file import read_track, track_beside
+
+    xml = tmp_path / "box.xml"
+    assert run_cli("sim", "export-xml", "mass=0.8", "friction=0.3", "-o", str(xml)) == 0
+    pushes = tmp_path / "pushes.csv"
+    pushes.write_text("object_id,speed\nx,0.3\nx,0.6\nx,0.9\n")
+    log = tmp_path / "log.csv"
+    assert run_cli("sim", "pushes", str(pushes), "--model", str(xml), "--track-rate", "120", "-o", str(log)) == 0
+    track = pd.read_csv(tmp_path / "log.track.csv")
+    assert list(track.columns) == ["object_id", "push", "t", "x", "y", "yaw"] and set(track.push) == {1, 2, 3}
+    frame = pd.read_csv(log)
+    last = track.groupby("push").last()
+    first = track.groupby("push").first()
+    np.testing.assert_allclose((last.x - first.x).to_numpy(), frame.displacement.to_numpy(), rtol=0.02)
+    # frames are taken at the simulation step nearest their due time
+    np.testing.assert_allclose(np.diff(track[track.push == 1].t.to_numpy()[:3]), 1 / 120, rtol=0.02)
+    tracked = read_track(track_beside(log), read_pushlog(log))
+    assert (np.diff(tracked.crossing_times, axis=1) > 0).all()  # a quarter, then half, then three quarters
+
+
 def test_console_script_is_installed():
     proc = subprocess.run([sys.executable, "-m", "imply.cli", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "score" in proc.stdout

@@ -167,7 +167,7 @@ def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_pat
     assert main(args) == 0
     labels = json.loads((tmp_path / "s.json").read_text())
     assert sorted(labels) == ["log-000", "log-001"] and sorted(p.name for p in (tmp_path / "logs").iterdir()) == [
-        "log-000.csv", "log-001.csv"]  # fmt: skip
+        "log-000.csv", "log-000.track.csv", "log-001.csv", "log-001.track.csv"]  # fmt: skip
     for label in labels.values():
         assert label["engine"] == "mujoco" and label["contact"]["kinds"] and label["design"] == "random"
         assert set(label["noise_free"]) == ({"all"} if label["group"] == "null_contact" else {"all", "contact"})

@@ -172,6 +172,19 @@ def gap_contact_shard_logs(wildcards):
     return [f"results/gap/contact/logs/{c}.csv" for i, c in enumerate(GAP_CONTACT_CASES) if i % len(GAP_SHARDS) == k]
 
 
+def gap_shard_tracks(wildcards):
+    """The tracks of a shard's logs (beside them, where `imply gap diagnose-many` finds them)."""
+    return [log.removesuffix(".csv") + ".track.csv" for log in gap_shard_logs(wildcards)]
+
+
+def gap_contact_shard_tracks(wildcards):
+    return [log.removesuffix(".csv") + ".track.csv" for log in gap_contact_shard_logs(wildcards)]
+
+
+# the diagnosis with every observable the benchmark's logs carry, beside the default one
+GAP_OBSERVED_OPTIONS = {**config["gap"]["diagnose"], "use_pusher_speed": True, "use_track": True}
+
+
 def folder_of(files):
     """The folder holding a list of files (how a rule names a folder of its declared outputs)."""
     return str(Path(files[0]).parent)

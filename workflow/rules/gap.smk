@@ -39,6 +39,7 @@ rule gap_generate:
         table="results/table/table.npz",
     output:
         logs=expand("results/gap/logs/{case}.csv", case=GAP_CASES),
+        tracks=expand("results/gap/logs/{case}.track.csv", case=GAP_CASES),
         sealed="results/gap/sealed/labels.json",
         accuracy="results/gap/world_accuracy.json",
     params:
@@ -63,6 +64,7 @@ rule gap_diagnose:
         IMPLY_ENV
     input:
         logs=gap_shard_logs,
+        tracks=gap_shard_tracks,
         table="results/table/table.npz",
         tables="results/gap/effect_tables",
     output:
@@ -91,6 +93,7 @@ rule gap_contact_generate:
         table="results/table/table.npz",
     output:
         logs=expand("results/gap/contact/logs/{case}.csv", case=GAP_CONTACT_CASES),
+        tracks=expand("results/gap/contact/logs/{case}.track.csv", case=GAP_CONTACT_CASES),
         sealed="results/gap/contact/sealed/labels.json",
         accuracy="results/gap/contact/world_accuracy.json",
     params:
@@ -115,6 +118,7 @@ rule gap_contact_diagnose:
         IMPLY_ENV
     input:
         logs=gap_contact_shard_logs,
+        tracks=gap_contact_shard_tracks,
         table="results/table/table.npz",
         tables="results/gap/effect_tables",
     output:
@@ -166,6 +170,62 @@ rule gap_contact_closed_loop:
         " --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
+# The same logs diagnosed with every observable they carry (the pusher's measured speed, the box's
+# track), scored beside the default diagnosis.
+rule gap_diagnose_observed:
+    conda:
+        IMPLY_ENV
+    input:
+        logs=gap_shard_logs,
+        tracks=gap_shard_tracks,
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/reports_observed/shard{shard}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(GAP_OBSERVED_OPTIONS),
+        effects=gap_effects_option(),
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=30,
+    log:
+        "results/logs/gap_diagnose_observed_shard{shard}.log",
+    benchmark:
+        "results/benchmarks/gap_diagnose_observed/{shard}.tsv"
+    shell:
+        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
+
+
+rule gap_contact_diagnose_observed:
+    conda:
+        IMPLY_ENV
+    input:
+        logs=gap_contact_shard_logs,
+        tracks=gap_contact_shard_tracks,
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/contact/reports_observed/shard{shard}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(GAP_OBSERVED_OPTIONS),
+        effects=gap_effects_option(),
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=30,
+    log:
+        "results/logs/gap_contact_diagnose_observed_shard{shard}.log",
+    benchmark:
+        "results/benchmarks/gap_contact_diagnose_observed/{shard}.tsv"
+    shell:
+        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
+
+
 rule gap_benchmark:
     conda:
         IMPLY_ENV
@@ -177,6 +237,8 @@ rule gap_benchmark:
         contact_reports=expand("results/gap/contact/reports/shard{shard}", shard=GAP_SHARDS),
         contact_sealed="results/gap/contact/sealed/labels.json",
         closed_loop=expand("results/gap/contact/closed_loop/shard{shard}", shard=GAP_SHARDS),
+        observed=expand("results/gap/reports_observed/shard{shard}", shard=GAP_SHARDS),
+        contact_observed=expand("results/gap/contact/reports_observed/shard{shard}", shard=GAP_SHARDS),
     output:
         result=report(
             "results/gap/benchmark.json",
@@ -204,4 +266,5 @@ rule gap_benchmark:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
         " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
-        " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop} > {log} 2>&1"
+        " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop}"
+        " --observed-reports {input.observed} --observed-contact-reports {input.contact_observed} > {log} 2>&1"

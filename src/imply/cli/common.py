@@ -284,7 +284,7 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) 
         folders.append(out)
     table = load_table(args.table)
     with user_errors(InputError):
-        logs = [read_checked_pushlog(pushlog, table) for pushlog, _ in reports]
+        logs = [read_checked_pushlog(pushlog, table, getattr(args, "track", None)) for pushlog, _ in reports]
     opts, grid = diagnosis_options(args.options_json, args.effect_grid_json, noise_sd=args.noise_sd,
                                    ignore_measured=args.ignore_measured)  # fmt: skip
     return DiagnoseRequest(

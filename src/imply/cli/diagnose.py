@@ -23,13 +23,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="locate the sim-to-real gap of a push log and rank unmodelled effects that explain it",
         description=(
             "PUSHLOG (CSV or parquet): object_id,speed,displacement (m/s, m) and optional direction (rad), "
-            "stop_time, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed instead of "
-            "fitted). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
+            "stop_time, pusher_speed, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed "
+            "instead of fitted), push (numbers the tracks refer to); the boxes' tracks in a second file (--track). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
             "folder; with --force, into a folder holding an earlier report, whose files alone are replaced."
         ),
     )
     d.add_argument("pushlog")
     d.add_argument("-o", "--output", required=True, help="report folder to write (new or empty)")
+    d.add_argument(
+        "--track", help="the boxes' tracks (CSV or parquet, rows object_id,push,t,x,y[,yaw]; default: "
+        "PUSHLOG's <stem>.track.csv or .parquet beside it, where there is one)",
+    )  # fmt: skip
     add_diagnose_options(d)
     d.set_defaults(func=cmd_diagnose)
 

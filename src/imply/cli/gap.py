@@ -96,6 +96,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--contact-bench-json", type=json_arg, help="config gap.contact_benchmark (its targets)")
     b.add_argument("--contact-sealed", help="the contact benchmark's sealed labels")
     b.add_argument("--contact-reports", nargs="+", default=[], help="folders of the contact benchmark's reports")
+    b.add_argument(
+        "--observed-reports", nargs="+", default=[],
+        help="folders of the same logs' reports with every observable the logs carry (the pusher's measured speed, "
+        "the box's track), scored beside the others",
+    )  # fmt: skip
+    b.add_argument(
+        "--observed-contact-reports", nargs="+", default=[], help="the same for the contact benchmark's logs",
+    )  # fmt: skip
     b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply gap closed-loop'")
     b.set_defaults(func=cmd_benchmark)
 
@@ -191,7 +199,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         accuracy = json.load(fh)
     with user_errors(FileNotFoundError, message="--reports: {error}"):
         summaries = find_summaries(labels, [Path(r) for r in args.reports])
-    result = score_cases(labels, summaries, visible_sizes(labels, table), config=config, accuracy=accuracy)
+    sizes = visible_sizes(labels, table)
+    result = score_cases(labels, summaries, sizes, config=config, accuracy=accuracy)
     if args.contact_sealed:
         from imply.diagnose.benchmark import score_contact_cases
 
@@ -216,6 +225,17 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
                 contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
                 min_size_sd=design.min_size_sd, sizes=sizes,
             )  # fmt: skip
+    if args.observed_reports:
+        with user_errors(FileNotFoundError, message="--observed-reports: {error}"):
+            observed = find_summaries(labels, [Path(r) for r in args.observed_reports])
+        result["observed"] = score_cases(labels, observed, sizes, config=config, accuracy=accuracy)
+        if args.observed_contact_reports and args.contact_sealed:
+            from imply.diagnose.benchmark import score_contact_cases
+
+            with user_errors(FileNotFoundError, message="--observed-contact-reports: {error}"):
+                seen = find_summaries(contact_labels, [Path(r) for r in args.observed_contact_reports])
+            result["observed"]["contact"] = score_contact_cases(contact_labels, seen, targets=dict(design.targets),
+                                                                min_size_sd=design.min_size_sd)  # fmt: skip
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
     log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "

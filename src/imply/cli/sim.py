@@ -37,6 +37,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     pu.add_argument("--model", help="user MJCF file (default: the built-in scene)")
     add_scene_options(pu)
     pu.add_argument("-o", "--output", required=True)
+    pu.add_argument(
+        "--track-rate", type=float, default=None, metavar="HZ",
+        help="also film each push: the box's track at HZ frames per second, written beside the log as "
+        "<output stem>.track.csv (where `imply diagnose` finds it)",
+    )  # fmt: skip
     pu.add_argument("--threads", type=int_range(0), default=0)
     pu.set_defaults(func=cmd_pushes)
 
@@ -90,7 +95,12 @@ def cmd_pushes(args: argparse.Namespace) -> int:
         model = load_push_model(args.model) if args.model else None
     scene = scene_from_args(args) if model is None else None
     with user_errors(KeyError, ValueError, message="cannot simulate on this model: {error}"), user_errors(InputError):
-        log_frame = simulate_push_table(pushes, model=model, scene=scene, nthread=args.threads, progress=True)
+        log_frame, track = simulate_push_table(pushes, model=model, scene=scene, nthread=args.threads, progress=True,
+                                               track_rate=args.track_rate)  # fmt: skip
+    if track is not None:
+        track_path = output.with_name(f"{output.stem}.track.csv")
+        write_csv(track_path, track)
+        log.info("the boxes' tracks at %g frames per second -> %s", args.track_rate, track_path)
     write_csv(output, log_frame)
     log.info("simulated %d pushes (%d failed checks) -> %s", len(log_frame), int((~log_frame["ok"]).sum()), output)
     return 0

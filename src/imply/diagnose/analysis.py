@@ -28,7 +28,7 @@ error) is passed to it, never changed behind it (:class:`imply.diagnose.fit.Prob
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -83,6 +83,10 @@ class DiagnosisConfig(Config):
     pusher_speed_noise_sd: float | None = option(
         None, doc="log pusher speed noise sd (null: estimated from the log)", exclusive_minimum=0
     )
+    track_noise_sd: float | None = option(
+        None, doc="noise sd of the log of the track's crossing times, each fraction alike (null: each estimated from "
+        "the log)", exclusive_minimum=0,
+    )  # fmt: skip
     model_floor: float | None = option(None, doc="the model's own log d error (null: measured)", minimum=0)
     stop_time_floor: float | None = option(None, doc="the model's own stop time error (null: measured)", minimum=0)
     min_share: float = option(
@@ -98,6 +102,9 @@ class DiagnosisConfig(Config):
     use_pusher_speed: bool = option(
         False, doc="use pusher_speed (the pusher's measured mean speed) where the log has it (off: chosen on the "
         "development sets, where it made null logs of other contact models state a speed error)",
+    )  # fmt: skip
+    use_track: bool = option(
+        False, doc="use the box's track (the times it covers fractions of its travel) where the log has one",
     )  # fmt: skip
     max_effects: int = option(3, doc="library effects in one hypothesis at most", minimum=0, maximum=3)
     screen: int = option(4, doc="alias classes, best alone first, whose combinations are fitted", minimum=0)
@@ -130,6 +137,7 @@ class NoiseReport(Record):
     sd: float
     stop_time_sd: float | None
     pusher_speed_sd: float | None = json_field(omit_none=True, default=None)
+    aux_sd: dict[str, float] = field(default_factory=dict)  # every observable beside log d, by name
     source: str
 
 
@@ -300,6 +308,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
                           pusher_speed=noise.aux.get("pusher_speed"), sd=problem.noise_d,
                           stop_time_sd=noise.aux["stop_time"].sd if "stop_time" in noise.aux else None,
                           pusher_speed_sd=noise.aux["pusher_speed"].sd if "pusher_speed" in noise.aux else None,
+                          aux_sd={name: float(n.sd) for name, n in noise.aux.items()},
                           source=noise.displacement.source),
         outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),

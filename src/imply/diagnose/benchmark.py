@@ -336,6 +336,8 @@ def score_contact_cases(
     - ``one_cause``: the share of those logs whose verdict says "one cause", and ``one_cause_right``: of these, the
       share whose cause is the true effect alone (its alias class, no other effect stated beside it) with magnitude
       within ``targets["magnitude_within"]``;
+    - ``single_right``: one-effect logs whose verdict states the true effect as the one cause (alone) with
+      magnitude within that;
     - ``named``: one-effect logs whose verdict states the true effect as a cause with magnitude within that;
     - ``wrong_single``: logs with an effect outside the library whose verdict states a library mechanism as the one
       cause; ``wrong_mechanism``: ... states one as a cause at all.
@@ -382,6 +384,7 @@ def score_contact_cases(
     out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
     for key, mask, column in (("null_no_library", null, "no_library"), ("among_named", single, "among_named"),
                               ("named", single, "named"), ("one_cause", single, "one_cause"),
+                              ("single_right", single, "one_cause_right"),
                               ("wrong_single", outside, "wrong_single"), ("wrong_mechanism", outside, "wrong")):  # fmt: skip
         out[key], out[f"n_{key}"] = share(mask, column)
         for engine in ("mujoco", "bullet"):

@@ -64,7 +64,36 @@ def claims_of(r: dict) -> list[Claim]:
         Claim("gap-shrink", "gap", f"Median held-out shrinkage >= {targets['shrinkage']:.0%} of the gap above the noise "
               "floor", _holds(r["shrinkage_median"], lambda x: x >= targets["shrinkage"]),
               f"median {_f(r['shrinkage_median'], '.3f')} on {r['n_shrinkage']} logs"),
-    ] + contact_claims(r.get("contact"))  # fmt: skip
+    ] + contact_claims(r.get("contact")) + observed_claims(r.get("observed"))  # fmt: skip
+
+
+def observed_claims(o: dict | None) -> list[Claim]:
+    """The targets with what a robot records (the pusher's measured speed and the box's track in every fit): every
+    main-benchmark target again, and on other contact models the nulls, the one cause and the outside effects."""
+    if not o:
+        return []
+    main = [Claim(f"gap-observed-{c.id.removeprefix('gap-')}", "gap", f"With the pusher's speed and the box's track: "
+                  f"{c.statement[0].lower()}{c.statement[1:]}", c.holds, c.detail)
+            for c in claims_of({**o, "contact": None, "observed": None}) if c.id != "gap-world"]  # fmt: skip
+    c = o.get("contact")
+    if not c:
+        return main
+    t = c["targets"]
+    return main + [
+        Claim("gap-observed-contact-null", "gap", "With the pusher's speed and the box's track, null logs of another "
+              f"contact model: no library effect stated in >= {t['null_no_library']:.0%}",
+              _holds(c["null_no_library"], lambda x: x >= t["null_no_library"]),
+              f"{_f(c['null_no_library'])} on {c['n_null_no_library']} logs"),
+        Claim("gap-observed-contact-single", "gap", "With the pusher's speed and the box's track, in-library effects of "
+              f"at least {c['min_size_sd']:g}x the noise on another contact model: stated as the one cause within "
+              f"{t['magnitude_within']:.0%} in >= {t['observed_single_right']:.0%}",
+              _holds(c["single_right"], lambda x: x >= t["observed_single_right"]),
+              f"{_f(c['single_right'])} on {c['n_single_right']} logs"),
+        Claim("gap-observed-contact-wrong", "gap", "With the pusher's speed and the box's track, effects outside the "
+              f"library on another contact model: a library mechanism the one cause in <= {t['wrong_single']:.0%}",
+              _holds(c["wrong_single"], lambda x: x <= t["wrong_single"]),
+              f"{_f(c['wrong_single'])} on {c['n_wrong_single']} logs"),
+    ]  # fmt: skip
 
 
 def contact_claims(c: dict | None) -> list[Claim]:
@@ -181,7 +210,49 @@ def write_benchmark_markdown(result: dict, path: str | os.PathLike) -> None:
                      f"{'y' if c['measured_mass'] else ''} | {c['visible_rms']:.4f} ({c['size_sd']:.1f}) | "
                      f"{c['accepted']} | {'yes' if c['correct'] else 'no'} | {_f(c['gap_share_closed'], '.2f')} |")  # fmt: skip
     lines += contact_markdown(r.get("contact"))
+    lines += observed_markdown(r)
     write_text(path, "\n".join(lines) + "\n")
+
+
+# (label, key, format, target key or None, direction) of the side-by-side table
+MAIN_ROWS = (("false alarms, null logs", "false_alarm", ".3f", "false_alarm", "<="),
+             ("top-1, one big library effect", "top1_big", ".3f", "top1", ">="),
+             ("both named, two big effects", "both_named_big", ".3f", "both_named", ">="),
+             ("'none', effects outside the library", "none_recall_outside", ".3f", "none_outside", ">="),
+             ("median relative magnitude error", "magnitude_rel_error_median", ".3f", "magnitude_error", "<="),
+             ("median held-out shrinkage", "shrinkage_median", ".3f", "shrinkage", ">="),
+             ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""))  # fmt: skip
+CONTACT_ROWS = (("null logs: no library effect stated", "null_no_library", ".3f", "null_no_library", ">="),
+                ("one big effect: among the named", "among_named", ".3f", "among_named", ">="),
+                ("... explanations in contention, mean", "contenders_mean", ".2f", "contenders_mean", "<="),
+                ("... stated as the one cause", "one_cause", ".3f", None, ""),
+                ("... the true effect the one cause, within tolerance", "single_right", ".3f", None, ""),
+                ("outside effects: a library mechanism the one cause", "wrong_single", ".3f", "wrong_single", "<="),
+                ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""))  # fmt: skip
+
+
+def observed_markdown(r: dict) -> list[str]:
+    """The same logs diagnosed with every observable they carry (the pusher's measured speed and the box's track),
+    beside the default diagnosis: one table per benchmark."""
+    o = r.get("observed")
+    if not o:
+        return []
+    lines = ["", "# With what a robot records", "",
+             "The same logs, diagnosed again with the pusher's measured speed and the box's track in every "
+             "hypothesis's fit (options `use_pusher_speed` and `use_track`), beside the default diagnosis "
+             "(displacement, and stop time where the log has it).", ""]  # fmt: skip
+
+    def table(title: str, rows, without: dict, with_: dict, targets: dict) -> list[str]:
+        out = [f"## {title}", "", "| | default | with pusher speed and track | target |", "|---|---|---|---|"]
+        for label, key, spec, tkey, direction in rows:
+            target = f"{direction} {targets[tkey]}" if tkey and tkey in targets else ""
+            out.append(f"| {label} | {_f(without.get(key), spec)} | {_f(with_.get(key), spec)} | {target} |")
+        return out + [""]
+
+    lines += table("Main benchmark", MAIN_ROWS, r, o, r["targets"])
+    if r.get("contact") and o.get("contact"):
+        lines += table("Other contact models", CONTACT_ROWS, r["contact"], o["contact"], r["contact"]["targets"])
+    return lines
 
 
 def contact_markdown(c: dict | None) -> list[str]:

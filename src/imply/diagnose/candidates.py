@@ -28,7 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.sim.effects import EFFECTS, Effect
+from imply.sim.track import FRACTIONS
 
 SPEED_GAIN, SPEED_OFFSET, FRICTION2, TABLE, TILT = "speed_gain", "speed_offset", "friction2", "table", "tilt"
 DISCREPANCY = "discrepancy"  # not a library effect: a smooth, low-dimensional model discrepancy
@@ -316,7 +318,11 @@ class Model:
 DISCREPANCY_D = ("d_v", "d_vv", "d_vu", "d_vm", "d_vvv", "d_vvu", "d_vvm")
 DISCREPANCY_T = ("t_1", "t_v", "t_vv", "t_vu", "t_vm")
 # each observable beside the displacement has its own coefficients, named with its prefix
-AUX_PREFIX = {"stop_time": "t", "pusher_speed": "p"}
+AUX_PREFIX = {
+    "stop_time": "t",
+    "pusher_speed": "p",
+    **{name: f"c{100 * q:.0f}" for name, q in zip(TRACK_OBSERVABLES, FRACTIONS, strict=True)},
+}
 
 
 def discrepancy_candidate(*, aux: tuple[str, ...] = (), prior_sd: float, bound: float) -> Candidate:

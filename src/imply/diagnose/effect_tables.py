@@ -13,8 +13,9 @@ Besides the library's keys, the diagnostic tabulates ``slope_across``: the table
 across the push (gravity tilted toward the scene's +y), which a tilt in any direction
 other than along the push brings (the diagnostic's ``tilt`` candidate uses both).
 
-Observables beside the displacement (:data:`AUX`): log stop time and log of the pusher's
-mean speed over its stroke (what a robot's encoders give, :mod:`imply.sim.track`). The push
+Observables beside the displacement (:data:`AUX`): log stop time, log of the pusher's
+mean speed over its stroke (what a robot's encoders give) and log of the times at which the
+box covers fractions of its travel (what a camera's track gives; :mod:`imply.sim.track`). The push
 table holds displacements only, so their baselines, f_a(v, m, mu), are tabulated here too,
 on their own grid (:class:`CoarseGrid` ``stop_*``), and every effect table carries each
 effect's change of them beside its change of log d. A push's stop time is when the box's
@@ -52,6 +53,7 @@ from mujoco import batch as mjbatch
 from scipy.interpolate import RegularGridInterpolator
 from tqdm.auto import tqdm
 
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.io import write_json, write_npz
 from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec
@@ -67,11 +69,12 @@ STOP_SPEED = 0.01
 # positions are recorded this often (s) to find the stop time
 FRAME_STEP = 0.001
 # bump when the files' content changes meaning
-FORMAT = 4
+FORMAT = 5
 
 # the observables beside log d that the tables hold, in the order of their last axis: log stop
-# time, and log of the pusher's mean speed over the stroke (imply.sim.track)
-AUX = ("stop_time", "pusher_speed")
+# time, log of the pusher's mean speed over the stroke, and log of the times the box takes to
+# cover fractions of its travel (imply.sim.track; named as the push log names them)
+AUX = ("stop_time", "pusher_speed", *TRACK_OBSERVABLES)
 
 # tabulated keys the diagnostic adds to the library's scene edits
 ACROSS = "slope_across"
@@ -207,7 +210,7 @@ def simulate_observables(
 
 def aux_values(obs: PushObservables) -> np.ndarray:
     """(n, K) the observables of :data:`AUX` of simulated pushes."""
-    return np.stack([obs.log_t, obs.log_p], -1)
+    return np.concatenate([obs.log_t[:, None], obs.log_p[:, None], obs.log_tq], -1)
 
 
 def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:

@@ -34,7 +34,7 @@ from scipy import stats
 
 from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
 from imply.diagnose.effect_tables import EffectTables
-from imply.diagnose.pushlog import PushLog
+from imply.diagnose.pushlog import TRACK_OBSERVABLES, PushLog
 from imply.table import PushTable
 
 _H = 1e-4  # finite-difference step in log m and log mu
@@ -227,6 +227,7 @@ class Problem:
         use_measured: bool = True,
         use_stop_time: bool = True,
         use_pusher_speed: bool = True,
+        use_track: bool = True,
     ) -> Problem:
         """The problem of a push log at unit noise, no model error and every push weighted 1; the observables
         beside the displacement are those the log has, the tables hold and the flags allow."""
@@ -237,7 +238,8 @@ class Problem:
         key = np.stack([obj.astype(float), np.round(v, 9), np.round(np.mod(phi, 2 * np.pi), 6)], 1)
         uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
         n_obj = len(pushlog.objects)
-        wanted = {"stop_time": use_stop_time, "pusher_speed": use_pusher_speed}
+        wanted = {"stop_time": use_stop_time, "pusher_speed": use_pusher_speed,
+                  **dict.fromkeys(TRACK_OBSERVABLES, use_track)}  # fmt: skip
         held = etables.aux if etables is not None else ()
         aux = tuple(a for a in held if wanted.get(a) and pushlog.aux(a) is not None)
         use_t = bool(aux)

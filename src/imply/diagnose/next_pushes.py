@@ -43,7 +43,7 @@ import pandas as pd
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.model_error import numerical_floors
-from imply.diagnose.pushlog import SIZE_COLUMNS, PushLog
+from imply.diagnose.pushlog import SIZE_COLUMNS, TRACK_OBSERVABLES, PushLog
 from imply.diagnose.records import Record
 from imply.io import write_csv
 from imply.options import Config
@@ -79,6 +79,8 @@ class PushDesign(Record):
 
 # the noise sd (log units) assumed for an observable the log lacks, to say what measuring it would add
 ASSUMED_SD = 0.02
+# the name :attr:`PushDesign.measure` gives the box's track (its crossing times together)
+TRACK = "track"
 
 
 def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, directions: int) -> PushLog:
@@ -96,7 +98,9 @@ def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, di
     return PushLog(path="<next pushes>", frame=frame, objects=list(log.objects), obj=obj, speed=v, displacement=ones,
                    direction=phi, has_direction=log.has_direction, mass=log.mass, friction=log.friction,
                    stop_time=ones if log.stop_time is not None else None,
-                   pusher_speed=ones if log.pusher_speed is not None else None)  # fmt: skip
+                   pusher_speed=ones if log.pusher_speed is not None else None,
+                   crossing_times=np.ones((ones.size, len(TRACK_OBSERVABLES))) if log.crossing_times is not None
+                   else None)  # fmt: skip
 
 
 def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
@@ -114,13 +118,20 @@ def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str,
     missing = [a for a in held if problem.log.aux(a) is None]
     if not missing:
         return None
-    with_all = replace(problem.log, **{a: np.ones(problem.log.n) for a in missing})
-    full = Problem.of(with_all, problem.table, problem.etables, grid=problem.grid)
+    ones = {a: np.ones(problem.log.n) for a in missing if a not in TRACK_OBSERVABLES}
+    if any(a in TRACK_OBSERVABLES for a in missing):
+        ones["crossing_times"] = np.ones((problem.log.n, len(TRACK_OBSERVABLES)))
+    full = Problem.of(replace(problem.log, **ones), problem.table, problem.etables, grid=problem.grid)
     preds = [predictions(full, f)[1] for _, f, _ in contenders]
+    # the track is one measurement: its crossing times count together
+    measured = {a: [a] for a in missing if a not in TRACK_OBSERVABLES}
+    if "crossing_times" in ones:
+        measured[TRACK] = list(TRACK_OBSERVABLES)
     out = {}
-    for name in missing:
-        a = full.aux.index(name)
-        out[name] = {f"{labels[i]} | {labels[j]}": float(np.sqrt(np.sum(((preds[i][a] - preds[j][a]) / ASSUMED_SD) ** 2)))
+    for name, parts in measured.items():
+        rows = [full.aux.index(a) for a in parts]
+        out[name] = {f"{labels[i]} | {labels[j]}":
+                     float(np.sqrt(np.sum(((preds[i][rows] - preds[j][rows]) / ASSUMED_SD) ** 2)))
                      for i, j in pairs}  # fmt: skip
     return out
 
@@ -155,7 +166,8 @@ def design_pushes(
         return None
     cand = Problem.of(candidate_log(problem.log, problem.v_range, speeds=speeds, directions=directions), problem.table,
                       problem.etables, grid=problem.grid, use_stop_time="stop_time" in problem.aux,
-                      use_pusher_speed="pusher_speed" in problem.aux)  # fmt: skip
+                      use_pusher_speed="pusher_speed" in problem.aux,
+                      use_track=any(a in problem.aux for a in TRACK_OBSERVABLES))  # fmt: skip
     num_d, num_t = numerical_floors(problem, opts)
     lead = contenders[0][1]
     ind_d, ind_t = cand.interpolation_indicator(lead.objects, lead.model, lead.theta)

@@ -20,6 +20,7 @@ import numpy as np
 
 from imply.diagnose.candidates import Model
 from imply.diagnose.fit import Problem
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.records import Record
 from imply.options import Config
 
@@ -160,7 +161,7 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
     """Each observable's noise sd and the rows flagged as gross outliers, from ``problem`` at unit noise.
 
     ``opts`` is the diagnosis' settings (:class:`imply.diagnose.analysis.DiagnosisConfig`:
-    ``noise_sd``, ``stop_time_noise_sd``, ``pusher_speed_noise_sd``, ``outlier_sd``)."""
+    ``noise_sd``, ``stop_time_noise_sd``, ``pusher_speed_noise_sd``, ``track_noise_sd``, ``outlier_sd``)."""
     ones = np.ones(problem.y.size)
     groups = _groups(problem.cond, ones)
     # a first baseline fit, on everything, to tell which member of a pair is off
@@ -173,7 +174,7 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
         w_t = np.ones(unit.y_t.size)
         for name in unit.aux:
             rows = unit.aux_rows(name)
-            option_sd = getattr(opts, f"{name}_noise_sd")
+            option_sd = opts.track_noise_sd if name in TRACK_OBSERVABLES else getattr(opts, f"{name}_noise_sd")
             aux[name], w_t[rows] = _observable(unit, unit.y_t[rows], rt[rows], groups=groups, option_sd=option_sd,
                                                k=opts.outlier_sd)  # fmt: skip
     return Noise(displacement=disp, aux=aux, weights_d=w_d, weights_t=w_t)

@@ -8,7 +8,12 @@ the pusher's mean speed over its stroke, from its encoders: the stroke length ov
 time from the start of the push until the pusher reached the end of its stroke),
 ``size_x,size_y,size_z`` (box half-extents, m, > 0; all three or none), ``mass`` (kg,
 > 0) and ``friction`` (> 0) where measured, and ``ok`` (true/false, as written by
-``imply sim pushes``). Other columns are kept and ignored.
+``imply sim pushes``), and ``push`` (a number naming each push, unique: what a track file
+refers to; without it, a push is its row number). Other columns are kept and ignored.
+
+The box's track over time, where recorded, comes in a second file of long rows
+(:mod:`imply.diagnose.track_file`); the diagnostic reads from it the times at which the box
+covers fractions of its travel (:attr:`PushLog.crossing_times`).
 
 Measured ``mass`` and ``friction`` must be constant within an object and inside the
 table's range; the diagnostic then holds them fixed instead of fitting them (see
@@ -29,10 +34,13 @@ import numpy as np
 import pandas as pd
 
 from imply.input_files import InputError, read_table_lines, row_error
+from imply.sim.track import FRACTIONS
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
-OPTIONAL_NUMERIC = ["direction", "stop_time", "pusher_speed", *SIZE_COLUMNS, "mass", "friction"]
+OPTIONAL_NUMERIC = ["direction", "stop_time", "pusher_speed", *SIZE_COLUMNS, "mass", "friction", "push"]
+# the observables a track gives: log of the time the box takes to cover each fraction of its travel
+TRACK_OBSERVABLES = tuple(f"crossing_{round(100 * q)}" for q in FRACTIONS)
 
 
 @dataclass(frozen=True)
@@ -51,9 +59,15 @@ class PushLog:
     friction: np.ndarray | None = None  # measured friction per object, where the log has it
     stop_time: np.ndarray | None = None  # (n,) seconds from the start of the push to the stop, where logged
     pusher_speed: np.ndarray | None = None  # (n,) the pusher's measured mean speed over the stroke (m/s), where logged
+    crossing_times: np.ndarray | None = None  # (n, Q) from the box's track: when it covered each of FRACTIONS (s)
+    track_path: str | None = None  # the track file they were read from
 
     def aux(self, name: str) -> np.ndarray | None:
-        """(n,) the log of an observable beside the displacement (``stop_time``, ``pusher_speed``), or None."""
+        """(n,) the log of an observable beside the displacement (``stop_time``, ``pusher_speed``, or one of
+        :data:`TRACK_OBSERVABLES`), or None where the log lacks it."""
+        if name in TRACK_OBSERVABLES:
+            ct = self.crossing_times
+            return None if ct is None else np.log(ct[:, TRACK_OBSERVABLES.index(name)])
         values = getattr(self, name)
         return None if values is None else np.log(values)
 
@@ -144,6 +158,9 @@ def read_pushlog(
             "ok",
             lambda x: "the push failed the simulator's checks (ok=false); remove the row or fix the model",
         )
+    if "push" in frame:
+        first_bad(frame["push"].duplicated().to_numpy(), "push",
+                  lambda x: f"{x:g} names an earlier push too; push numbers must be unique (a track refers to them)")  # fmt: skip
 
     objects = list(dict.fromkeys(frame["object_id"]))
     index = {o: i for i, o in enumerate(objects)}

@@ -19,14 +19,21 @@ from imply.diagnose.discrepancy import DiscrepancyReport
 from imply.diagnose.estimates import EffectEstimate
 from imply.diagnose.hypotheses import Hypothesis
 from imply.diagnose.next_pushes import PushDesign
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.shrinkage import Shrinkage
 from imply.diagnose.verdict import Adequacy, Contender, Identification, Verdict
+from imply.sim.track import FRACTIONS
 
 # the observables, as the report and the observables note name them
 OBSERVABLE_WORDS = {
     "displacement": "displacement",
     "stop_time": "stop time",
     "pusher_speed": "the pusher's measured speed",
+    **{
+        name: f"the track's time to {100 * q:.0f}% of the travel"
+        for name, q in zip(TRACK_OBSERVABLES, FRACTIONS, strict=True)
+    },
+    "track": "the box's track",
 }
 
 

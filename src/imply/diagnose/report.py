@@ -34,6 +34,7 @@ from imply.diagnose.analysis import Diagnosis, Summary
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.localisation import FACTORS
 from imply.diagnose.next_pushes import write_next_pushes
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.render import OBSERVABLE_WORDS
 from imply.diagnose.verdict import explanations
 from imply.io import atomic_path, write_csv, write_json, write_text
@@ -290,6 +291,11 @@ def markdown(s: Summary) -> str:
         f"Noise: sd {_fmt(noise.sd)} in log d ({noise.source})"
         + (f", {_fmt(noise.stop_time_sd)} in log stop time" if noise.stop_time_sd else "")
         + (f", {_fmt(noise.pusher_speed_sd)} in log pusher speed" if noise.pusher_speed_sd else "")
+        + "".join(
+            f", {_fmt(sd)} in log of {OBSERVABLE_WORDS[name]}"
+            for name, sd in noise.aux_sd.items()
+            if name in TRACK_OBSERVABLES
+        )
         + f". Table model floor: {_fmt(s.options.model_floor)} RMS log d{_floor_parts(s.model_floor)}.",
         "",
         "## Verdict",

@@ -25,6 +25,7 @@ from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
 from imply.diagnose.pushlog import PushLog, read_pushlog
 from imply.diagnose.report import REPORT_FILES, write_report
+from imply.diagnose.track_file import read_track, track_beside
 from imply.io import check_folder, write_folder
 from imply.table import PushTable
 
@@ -78,7 +79,8 @@ def effect_tables(
     """The effect tables the candidates need (from the cache, or simulated into it)."""
     return load_or_build(
         table, library_effects(list(candidates)), grid, cache_dir, nthread=nthread, progress=progress,
-        across=needs_across(list(candidates)), aux=options.use_stop_time or options.use_pusher_speed,
+        across=needs_across(list(candidates)),
+        aux=options.use_stop_time or options.use_pusher_speed or options.use_track,
     )  # fmt: skip
 
 
@@ -95,9 +97,13 @@ def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
     return Session(request.table, request.candidates, options, etables, plots=request.plots)
 
 
-def read_checked_pushlog(path: str | os.PathLike, table: PushTable) -> PushLog:
-    """A push log checked against the table's ranges (InputError naming the row and column)."""
-    return read_pushlog(path, table.speed_range, mass_range=table.mass_range, friction_range=table.friction_range)
+def read_checked_pushlog(path: str | os.PathLike, table: PushTable, track: str | os.PathLike | None = None) -> PushLog:
+    """A push log checked against the table's ranges (InputError naming the row and column), with the box's
+    track from ``track``, or else from the file beside the log named ``<stem>.track.csv`` (or ``.parquet``)
+    where there is one (:mod:`imply.diagnose.track_file`)."""
+    pushlog = read_pushlog(path, table.speed_range, mass_range=table.mass_range, friction_range=table.friction_range)
+    track = track or track_beside(path)
+    return read_track(track, pushlog) if track else pushlog
 
 
 def check_report_folder(folder: str | os.PathLike, force: bool, inputs) -> None:
@@ -110,7 +116,7 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
     opts = session.options
     problem = Problem.of(
         report.pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
-        use_stop_time=opts.use_stop_time, use_pusher_speed=opts.use_pusher_speed,
+        use_stop_time=opts.use_stop_time, use_pusher_speed=opts.use_pusher_speed, use_track=opts.use_track,
     )  # fmt: skip
     diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)

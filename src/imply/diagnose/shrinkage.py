@@ -17,6 +17,7 @@ import numpy as np
 from scipy import stats
 
 from imply.diagnose.fit import JointFit, Problem
+from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.screening import folds
 
@@ -52,6 +53,7 @@ class LackOfFit(Record):
     displacement: ObservableFit
     stop_time: ObservableFit | None = json_field(omit_none=True, default=None)
     pusher_speed: ObservableFit | None = json_field(omit_none=True, default=None)
+    track: dict[str, ObservableFit] | None = json_field(omit_none=True, default=None)  # by crossing-time observable
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -161,7 +163,8 @@ def shrinkage(
         heldout_chi2=lof_ss, dof=lof_dof, p_value=float(stats.chi2.sf(lof_ss, lof_dof)), in_sample_chi2=final.sse,
         baseline_chi2=float(np.sum(rw0[keep_w] ** 2)),
         displacement=observable(rd0 / problem.sd_d, held.resid_d / problem.sd_d, problem.w_d),
-        **aux_fits,
+        **{k: f for k, f in aux_fits.items() if k not in TRACK_OBSERVABLES},
+        track={k: f for k, f in aux_fits.items() if k in TRACK_OBSERVABLES} or None,
     )  # fmt: skip
     dispersion = max(final.sse / max(nw - k * N - final.model.dim, 1), 1.0)
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1

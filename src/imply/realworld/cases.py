@@ -66,7 +66,7 @@ TARGETS = ("false_alarm", "top1", "both_named", "none_outside", "magnitude_error
 CONTACT_GROUPS = ("null_contact", "single_contact", "outside_contact", "null_engine", "single_engine",
                   "outside_engine")  # fmt: skip
 CONTACT_TARGETS = ("null_no_library", "among_named", "contenders_mean", "magnitude_within", "wrong_single",
-                   "closed_loop")  # fmt: skip
+                   "closed_loop", "observed_single_right")  # fmt: skip
 DIRECTIONS = 4  # pushes per object and speed in the four-direction design, 90 degrees apart
 
 
@@ -83,6 +83,11 @@ class NoiseModel(Config):
         doc="Gaussian noise of the log of the pusher's measured mean speed (sd; encoders: no heavy tails)",
         exclusive_minimum=0,
     )
+    track_sd: float = option(
+        0.001, doc="Gaussian noise of each position of the box's track (m; a camera's, in x and y alike)",
+        exclusive_minimum=0,
+    )  # fmt: skip
+    track_rate: float = option(60.0, doc="frames per second of the box's track (a camera's)", exclusive_minimum=0)
     heavy_sd: float = option(0.03, doc="scale of the heavy-tailed noise", exclusive_minimum=0)
     heavy_df: float = option(3.0, doc="degrees of freedom of the heavy-tailed (Student t) noise", exclusive_minimum=2)
     outliers: tuple[int, int] = option(
@@ -214,11 +219,13 @@ class ContactBenchmarkConfig(BenchmarkConfig):
     contact: ContactDraw = option(ContactDraw(), doc="how each MuJoCo log's contact model is drawn", required=True)
     targets: dict[str, float] = option(
         {"null_no_library": 0.9, "among_named": 0.9, "contenders_mean": 3.0, "magnitude_within": 0.3,
-         "wrong_single": 0.1, "closed_loop": 0.6},
+         "wrong_single": 0.1, "closed_loop": 0.6, "observed_single_right": 0.8},
         doc="null logs stating no library effect as a cause (share, at least); one-effect logs naming theirs among "
         "the causes or contenders (share, at least), with contenders_mean contenders on average (at most); outside "
         "logs stating a library mechanism as the one cause (share, at most); after the next pushes, "
-        "one-effect logs with several contenders stating theirs as the one cause within magnitude_within (share, at least)",
+        "one-effect logs with several contenders stating theirs as the one cause within magnitude_within (share, at "
+        "least); with the pusher's measured speed and the box's track, one-effect logs stating theirs as the one cause "
+        "within magnitude_within (share, at least)",
         keys=CONTACT_TARGETS,
     )  # fmt: skip
 
@@ -408,17 +415,60 @@ def simulate_cases(
         allp = WorldPushes.concat([r[3] for r in mine])
         bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
         disp, stop, stroke, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
+        times = track_times(design.noise)
+        track = np.zeros((allp.n, times.size, 3), np.float32)
         starts = range(0, allp.n, chunk)
         for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
             idx = np.arange(a, min(a + chunk, allp.n))
-            res = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread)
+            res = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread,
+                                  track_times=times)  # fmt: skip
             disp[idx], stop[idx], stroke[idx], ok[idx] = res.displacement, res.stop_time, res.stroke_time, res.ok
+            track[idx] = res.track
         ok &= np.isfinite(stroke) & (stroke > 0)
         for k, (cid, what, _, _) in enumerate(mine):
             sl = slice(bounds[k], bounds[k + 1])
             out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl],
                                              "pusher_speed": pusher_speed(scene.stroke, stroke[sl])}  # fmt: skip
+            if what == "all":  # the camera films the log's own pushes
+                out[cid][what]["track"] = track[sl]
     return {case["id"]: out[case["id"]] for case in cases}
+
+
+# a track is filmed from the start of the push for this long at most (s), and cut this long after the box stops
+TRACK_END = 2.5
+TRACK_AFTER_STOP = 0.1
+
+
+def track_times(noise: NoiseModel) -> np.ndarray:
+    """(T,) the camera's frame times (s from the start of a push)."""
+    return np.arange(0.0, TRACK_END, 1.0 / noise.track_rate)
+
+
+def log_track(case: dict, sim: dict, label: dict, design: BenchmarkConfig) -> pd.DataFrame:
+    """The box's track of every row of ``case``'s log (:func:`make_log`'s ``label`` says which push and replicate
+    each row is), as a camera records it: rows ``object_id,push,t,x,y,yaw`` (:mod:`imply.diagnose.track_file`),
+    positions in the table's frame with the camera's noise, cut shortly after the box stops."""
+    nm = design.noise
+    times = track_times(nm)
+    res = sim["all"]
+    obj, _ = push_layout(case, design)
+    phi = np.asarray(case["direction"], float)
+    names = object_names(design.n_objects)
+    # the camera's noise from a generator of its own: the log's columns are the same draws with or without a track
+    rng = np.random.default_rng([case["noise_seed"], 2])
+    parts = []
+    for row, (j, _) in enumerate(label["rows_kept"]):
+        along, across, yaw = (np.asarray(res["track"][j][:, c], float) for c in range(3))
+        stop = res["stop_time"][j]
+        keep = times <= stop + TRACK_AFTER_STOP if np.isfinite(stop) else np.ones(times.size, bool)
+        c, s = np.cos(phi[j]), np.sin(phi[j])
+        x = along * c - across * s + rng.normal(0.0, nm.track_sd, times.size)
+        y = along * s + across * c + rng.normal(0.0, nm.track_sd, times.size)
+        parts.append(pd.DataFrame({"object_id": names[obj[j]], "push": row + 1, "t": np.round(times[keep], 6),
+                                   "x": np.round(x[keep], 6), "y": np.round(y[keep], 6),
+                                   "yaw": np.round(yaw[keep], 5)}))  # fmt: skip
+    columns = ["object_id", "push", "t", "x", "y", "yaw"]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
 
 
 def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig) -> tuple[pd.DataFrame, dict]:
@@ -538,6 +588,7 @@ def write_benchmark_logs(
     for case in cases:
         frame, label = make_log(case, sims[case["id"]], design, scene)
         write_csv(logs / f"{case['id']}.csv", frame)
+        write_csv(logs / f"{case['id']}.track.csv", log_track(case, sims[case["id"]], label, design))
         labels[case["id"]] = label
     check = design.accuracy
     log.info("measuring the world's numerical error on %d of its pushes", check.pushes + check.nominal)

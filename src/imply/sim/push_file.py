@@ -5,6 +5,11 @@ The pushes file lists ``object_id,speed`` and, on the built-in scene, optional
 ``stop_time``, ``pusher_speed`` (the pusher's mean speed over its stroke, as a robot's
 encoders give it) and ``ok`` (the simulator's checks). A user MJCF must keep the names the
 simulator relies on (:func:`imply.sim.pushes.simulate_pushes`).
+
+Beside the log, :func:`simulate_push_table` can film each push: the box's track as the
+rows ``object_id,push,t,x,y,yaw`` of :mod:`imply.diagnose.track_file` (``push`` the log's
+row number; positions in the model's frame, the push along +x; no noise added), from the
+start of the push until shortly after the box comes to rest.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from imply.input_files import InputError, read_table_lines, row_error
-from imply.sim.pushes import PushStepping, simulate_pushes
+from imply.sim.pushes import PushStepping, simulate_pushes_run
 from imply.sim.scene import SceneConfig, build_model
 from imply.sim.track import pusher_speed
 
@@ -55,22 +60,52 @@ def simulate_push_table(
     scene: SceneConfig | None = None,
     nthread: int = 0,
     progress: bool = False,
-) -> pd.DataFrame:
-    """The push log of ``pushes`` (as :func:`read_pushes` returns it) on ``model`` or the built-in ``scene``."""
+    track_rate: float | None = None,
+) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """The push log of ``pushes`` (as :func:`read_pushes` returns it) on ``model`` or the built-in ``scene``, and
+    with ``track_rate`` (frames per second) the boxes' tracks (None without)."""
     has_size = all(c in pushes for c in SIZE_COLUMNS)
     if model is not None and has_size:
         raise InputError("size_x/size_y/size_z columns cannot vary the box of a user model; edit the MJCF instead")
-    result = simulate_pushes(
+    frame_times = None
+    if track_rate is not None:
+        if not track_rate > 0:
+            raise ValueError(f"the track's rate must be positive, not {track_rate:g}")
+        frame_times = np.arange(0.0, TRACK_END, 1.0 / track_rate)
+    run = simulate_pushes_run(
         pushes["speed"].to_numpy(),
         pushes["mass"].to_numpy() if "mass" in pushes else None,
         pushes["friction"].to_numpy() if "friction" in pushes else None,
         pushes[SIZE_COLUMNS].to_numpy() if has_size else None,
         scene=None if model is not None else scene, model=model, nthread=nthread, progress=progress,
+        frame_times=frame_times,
     )  # fmt: skip
+    result = run.result
     out = pushes.copy()
     out["displacement"] = result.displacement
     out["stop_time"] = result.stop_time
     stroke = PushStepping.of(model if model is not None else build_model(scene or SceneConfig())).stroke
     out["pusher_speed"] = pusher_speed(stroke, result.stroke_time)
     out["ok"] = result.ok
-    return out
+    return out, (None if frame_times is None else _track_rows(out, run))
+
+
+# a push is filmed for this long at most (s), and until this long after its box comes to rest
+TRACK_END = 3.0
+TRACK_AFTER_STOP = 0.1
+
+
+def _track_rows(log_frame: pd.DataFrame, run) -> pd.DataFrame:
+    """The rows of :mod:`imply.diagnose.track_file` of every push of a run recorded at frame times."""
+    q = run.frames_box_qpos
+    w, qx, qy, qz = (q[:, :, k] for k in range(3, 7))
+    yaw = np.arctan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
+    parts = []
+    for i in range(q.shape[0]):
+        t = run.frames_time[i]
+        stop = run.result.stop_time[i]
+        keep = t <= stop + TRACK_AFTER_STOP if np.isfinite(stop) else np.ones(t.size, bool)
+        parts.append(pd.DataFrame({"object_id": log_frame["object_id"].iloc[i], "push": i + 1,
+                                   "t": np.round(t[keep], 6), "x": q[i, keep, 0], "y": q[i, keep, 1],
+                                   "yaw": yaw[i, keep]}))  # fmt: skip
+    return pd.concat(parts, ignore_index=True)

@@ -191,7 +191,25 @@ def simulate_pushes(
     chunk: int = 10,
     progress: bool = False,
 ) -> PushResult:
-    """Simulate one push per entry of ``speeds`` (m/s), all in one batch.
+    """Simulate one push per entry of ``speeds`` (m/s), all in one batch (:func:`simulate_pushes_run`'s result)."""
+    return simulate_pushes_run(speeds, masses, frictions, half_extents, scene=scene, model=model, nthread=nthread,
+                               chunk=chunk, progress=progress).result  # fmt: skip
+
+
+def simulate_pushes_run(
+    speeds,
+    masses=None,
+    frictions=None,
+    half_extents=None,
+    *,
+    scene: SceneConfig | None = None,
+    model: mujoco.MjModel | None = None,
+    nthread: int = 0,
+    chunk: int = 10,
+    progress: bool = False,
+    frame_times: np.ndarray | None = None,
+) -> PushRun:
+    """Simulate one push per entry of ``speeds`` (m/s), all in one batch, recording the box at ``frame_times``.
 
     Args:
       speeds: (n,) commanded pusher speeds.
@@ -204,6 +222,8 @@ def simulate_pushes(
       nthread: threads of the batch (0: all CPUs).
       chunk: substeps between checks for settled boxes while sliding.
       progress: show a progress bar of settled pushes.
+      frame_times: (T,) increasing times (s from the start of the push) at which to record the box
+        (:attr:`PushRun.frames_box_qpos`); None records nothing.
     """
     speeds = np.atleast_1d(np.asarray(speeds, dtype=float)).ravel()
     n = speeds.size
@@ -228,12 +248,12 @@ def simulate_pushes(
         per_sim = None
         batch = mjbatch.Batch(model, n, nthread=nthread)
         _set_batch_physics(batch, model, masses, frictions)
-    run = run_pushes(batch, model, speeds, models=per_sim, chunk=chunk, progress=progress)
+    run = run_pushes(batch, model, speeds, models=per_sim, chunk=chunk, progress=progress, frame_times=frame_times)
     if not run.result.ok.all():
         log.warning(
             "%d of %d pushes failed checks (unsettled, tipped, NaN or deflected)", int((~run.result.ok).sum()), n
         )
-    return run.result
+    return run
 
 
 def batch_with_geometry(
