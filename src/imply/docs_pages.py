@@ -247,7 +247,7 @@ def bounds_text(metadata: Any) -> str:
     if metadata.get("keys") is not None:
         parts.append("keys: " + ", ".join(metadata["keys"]))
     if metadata.get("required"):
-        parts.append("spelt out in config.yaml")
+        parts.append("must be in config.yaml")
     return "; ".join(parts)
 
 
@@ -595,11 +595,12 @@ def ph_figure(ctx: Context, page: str, arg: str) -> str:
     when it appears."""
     path, _, caption = (s.strip() for s in arg.partition("|"))
     if caption.startswith("@"):  # the caption the workflow's own report gives it: workflow/report/<name>.rst
-        caption = " ".join((ctx.root / "workflow" / "report" / f"{caption[1:]}.rst").read_text().split())
+        rst = (ctx.root / "workflow" / "report" / f"{caption[1:]}.rst").read_text()
+        caption = " ".join(rst_to_markdown(rst).split())
     source = ctx.root / path
     if source.is_file():
         site = _figure_site_path(path)
-        return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, from the last run here)"
+        return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, as the last run here wrote it.)"
     return (f"!!! note \"Figure: {caption}\"\n    `{path}` appears here once it has been built "
             f"(`snakemake --cores 2 {path}`), and the site rebuilt.")  # fmt: skip
 
@@ -655,7 +656,8 @@ def ph_standins(ctx: Context, page: str, arg: str) -> str:
     result = json.loads(path.read_text())["result"]
     out = ["| stand-in | tracking r | log error | self | anchored | AUROC vs oracle, self | AUROC, anchored | "
            "static sets |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for s in result["standins"].values():
+    order = ("oracle", "jitter", "blind", "collapse")  # from the truth to the worst
+    for _, s in sorted(result["standins"].items(), key=lambda kv: (order + (kv[0],)).index(kv[0])):
         out.append(f"| {s['model']} | {_fmt(s['track'], '.2f')} | {_fmt(s['error'], '.3f')} | "
                    f"{_fmt(s['self'], '.3f')} | {_fmt(s['anchored'], '.3f')} | {_fmt(s.get('auroc_self'), '.2f')} | "
                    f"{_fmt(s.get('auroc_anchored'), '.2f')} | {_fmt(s['static_share'], '.0%')} |")  # fmt: skip
