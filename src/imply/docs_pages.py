@@ -308,6 +308,13 @@ def config_reference() -> str:
         "`snakemake --configfile my.yaml` or `--config key=value`. An unknown key at any level is refused "
         "when Snakemake reads the workflow, with the nearest known name.",
         "",
+        "Beyond each key's type and bounds, `imply.config_check` checks rules across keys when the workflow is "
+        "read (so `snakemake -n` already refuses a bad config, in one line naming the key): every range ordered, "
+        "query and calibration speeds inside the table's speed range, the selection's query speed among the query "
+        "speeds, enough jitter draws for the selection's candidates, candidate and benchmark effects known, the "
+        "model preset among the presets, released encoder weights present and of the right shapes, and the scene "
+        "compiled once by MuJoCo (which catches unknown `scene.option` attributes).",
+        "",
     ]
     for f in dataclasses.fields(StudyConfig):
         hint = hints[f.name]
@@ -463,6 +470,8 @@ class Format:
 FORMATS: tuple[Format, ...] = (
     Format("Push log (`imply diagnose`)", "imply.diagnose.pushlog", ("REQUIRED", "OPTIONAL_NUMERIC"),
            "what a robot records: one row per push"),
+    Format("The box's track beside a push log (`imply diagnose --track`)", "imply.diagnose.track_file",
+           ("REQUIRED", "OPTIONAL_NUMERIC"), "where each pushed box was over time, one row per frame"),
     Format("Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"),
     Format("Rollouts to score (`imply score`)", "imply.score_file", ("ROLES", "SCORE_COLUMNS"),
            "a model's rollouts read as slides, and the scores written back"),
