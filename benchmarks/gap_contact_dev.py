@@ -34,7 +34,7 @@ import yaml
 from imply.diagnose.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
-METRICS = ("null_no_library", "among_named", "one_cause", "named", "wrong_single", "wrong_mechanism")
+METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "named", "wrong_single", "wrong_mechanism")
 MAIN_METRICS = {
     "false_alarm": "n_null",
     "top1_big": "n_big",
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
                         "--bench-json" if args.main else "--contact-bench-json",
                         json.dumps(design), "--logs", str(logs), "--sealed", str(labels), "--accuracy",
                         str(args.out / "accuracy.json"), "--threads", "2"], check=True)  # fmt: skip
-    files = sorted(str(p) for p in logs.glob("*.csv"))
+    files = sorted(str(p) for p in logs.glob("*.csv") if not p.name.endswith(".track.csv"))
     run = args.out / "runs" / args.name
     t0 = time.perf_counter()
     procs = []

@@ -73,6 +73,8 @@ def _edit_row(frame: pd.DataFrame, row: int, **values) -> pd.DataFrame:
          f"row {5 * FRAMES + 1} (line {5 * FRAMES + 2}), column push: 9 is not a push of"),
         (lambda f: f.assign(x=np.where(f["push"] == 3, f["x"] * 0 + 0.2, f["x"])),
          f"row {3 * FRAMES} (line {3 * FRAMES + 1}), column x: the track of push 3 ends 0 m along the push"),
+        (lambda f: f.assign(y=np.where(f["push"] == 6, f["x"], f["y"]), x=np.where(f["push"] == 6, 0.2, f["x"])),
+         "the track of push 6 ends 0 m along the push"),  # filmed across the log's direction
         (lambda f: f.assign(x=f["x"] * 1000, y=f["y"] * 1000), "ends 50 m along the push from where it starts; "
          "the log's displacement is 0.05 m"),
         (lambda f: pd.concat([f.iloc[:FRAMES // 2], f.iloc[FRAMES:2 * FRAMES], f.iloc[FRAMES // 2:FRAMES],

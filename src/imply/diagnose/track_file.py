@@ -23,8 +23,8 @@ Checks, each refused with one line naming the row: the cells are finite numbers;
 push's frames are consecutive rows with increasing ``t``; the first frame comes with the
 push (0 <= t <= :data:`MAX_START`, the box has not yet moved far); a track has at least
 :data:`MIN_FRAMES` frames; its final travel along the push agrees with the log's
-displacement within :data:`TRAVEL_TOLERANCE` (else it is another push's track or
-another unit); every push of the log has a track once any has; a track names a push the
+displacement within a factor :data:`TRAVEL_FACTOR`, give or take :data:`TRAVEL_SLACK`
+(else it is another push's track, another unit or another frame); every push of the log has a track once any has; a track names a push the
 log has, with that push's object.
 """
 
@@ -43,7 +43,11 @@ REQUIRED = ["object_id", "push", "t", "x", "y"]
 OPTIONAL_NUMERIC = ["yaw"]
 MAX_START = 0.1  # s: a track's first frame is at most this long after the push starts
 MIN_FRAMES = 5
-TRAVEL_TOLERANCE = 0.25  # relative: a track's final travel against the log's displacement
+# a track's final travel must be within this factor of the log's displacement, give or take TRAVEL_SLACK (m): loose
+# enough for a camera's few millimetres and a readout's gross outlier, tight enough to catch millimetres for metres,
+# a track filmed in another frame than the log's directions, or most other pushes' tracks
+TRAVEL_FACTOR = 3.0
+TRAVEL_SLACK = 0.005
 
 
 def push_numbers(pushlog: PushLog) -> np.ndarray:
@@ -99,7 +103,7 @@ def read_track(path: str | os.PathLike, pushlog: PushLog) -> PushLog:
         phi = pushlog.direction[i]
         travel = (x[a:b] - x[a]) * np.cos(phi) + (y[a:b] - y[a]) * np.sin(phi)
         final, d = round(float(travel[-1]), 6), float(pushlog.displacement[i])
-        if not abs(final - d) <= TRAVEL_TOLERANCE * d:
+        if not d / TRAVEL_FACTOR - TRAVEL_SLACK <= final <= d * TRAVEL_FACTOR + TRAVEL_SLACK:
             raise row_error(path, b - 1, "x", f"the track of push {p:g} ends {final:.4g} m along the push from where "
                             f"it starts; the log's displacement is {d:.4g} m: is it this push's track, in metres, "
                             "in the frame of the log's direction?", lines)  # fmt: skip

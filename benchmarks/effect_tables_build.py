@@ -1,0 +1,80 @@
+"""The effect tables' build time with the track summaries, against the build before them, in the same run.
+
+Builds the gap stage's effect tables (``imply gap tables``, the workflow's settings from
+config.yaml, into an empty cache each time) with this checkout's code and with the code of
+a baseline commit (a git worktree, imported ahead of the installed package), alternating
+the order over ``--repeats`` rounds, and prints each build's wall time and peak memory,
+their medians and the ratio. The default baseline is the last commit whose tables held
+the stop time and the pusher's speed alone (format 4).
+
+Run: python benchmarks/effect_tables_build.py [--baseline REV] [--repeats 2] [--threads 2]
+Needs results/table/table.npz.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+BASELINE = "df94700"  # format 4: stop time and pusher speed, no track summaries
+
+
+def build(src: Path, table: Path, config: dict, threads: int, out: Path) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
+    gap = config["gap"]
+    cmd = [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); import imply; "
+           "assert imply.__file__.startswith(sys.argv[1]), imply.__file__; from imply.cli import main; "
+           "sys.exit(main(sys.argv[2:]))", str(src),
+           "gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
+           "--options-json", json.dumps(gap["diagnose"]), "--threads", str(threads), "-o", str(out)]  # fmt: skip
+    if gap.get("candidates"):
+        cmd += ["--effects", ",".join(gap["candidates"])]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    start = time.perf_counter()
+    subprocess.run(cmd, check=True, capture_output=True)
+    wall = time.perf_counter() - start
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    # ru_maxrss of children is the largest so far: a smaller later child reads as the earlier peak
+    return wall, max(peak, before) / 1024.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--baseline", default=BASELINE, help="git revision whose build is the baseline")
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--table", type=Path, default=ROOT / "results/table/table.npz")
+    args = ap.parse_args(argv)
+    config = yaml.safe_load((ROOT / "config.yaml").read_text())
+    times: dict[str, list[float]] = {"baseline": [], "current": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        tree = Path(tmp) / "baseline"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), args.baseline], check=True,
+                       capture_output=True)  # fmt: skip
+        try:
+            for r in range(args.repeats):
+                order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
+                for which in order:
+                    src = tree / "src" if which == "baseline" else ROOT / "src"
+                    wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}")
+                    times[which].append(wall)
+                    print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False)
+    base, cur = statistics.median(times["baseline"]), statistics.median(times["current"])
+    print(f"median: baseline ({args.baseline}) {base:.1f} s, current {cur:.1f} s, ratio {cur / base:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
