@@ -29,19 +29,26 @@ ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "df94700"  # format 4: stop time and pusher speed, no track summaries
 
 
-def build(src: Path, table: Path, config: dict, threads: int, out: Path) -> tuple[float, float]:
+# options the baseline does not know (they change no table)
+NEWER_OPTIONS = ("use_track", "track_noise_sd")
+
+
+def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, baseline: bool) -> tuple[float, float]:
     """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
     gap = config["gap"]
+    options = {k: v for k, v in gap["diagnose"].items() if not (baseline and k in NEWER_OPTIONS)}
     cmd = [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); import imply; "
            "assert imply.__file__.startswith(sys.argv[1]), imply.__file__; from imply.cli import main; "
            "sys.exit(main(sys.argv[2:]))", str(src),
            "gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
-           "--options-json", json.dumps(gap["diagnose"]), "--threads", str(threads), "-o", str(out)]  # fmt: skip
+           "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out)]  # fmt: skip
     if gap.get("candidates"):
         cmd += ["--effects", ",".join(gap["candidates"])]
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     start = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode:
+        raise SystemExit(f"imply gap tables under {src} failed:\n{proc.stderr[-2000:]}")
     wall = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     # ru_maxrss of children is the largest so far: a smaller later child reads as the earlier peak
@@ -66,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
                 order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
                 for which in order:
                     src = tree / "src" if which == "baseline" else ROOT / "src"
-                    wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}")
+                    wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
+                                       baseline=which == "baseline")  # fmt: skip
                     times[which].append(wall)
                     print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
         finally:

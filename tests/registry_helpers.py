@@ -27,7 +27,8 @@ def fake_results(reg, stage: str, value: float = 0.5) -> dict:
         doc["world_error"]["table_rms"] = value
         contact = doc.setdefault("contact", {})
         contact.update(targets={"null_no_library": 0.9, "among_named": 0.9, "contenders_mean": 3.0,
-                                "magnitude_within": 0.3, "wrong_single": 0.1, "closed_loop": 0.6},
+                                "magnitude_within": 0.3, "wrong_single": 0.1, "closed_loop": 0.6,
+                                "observed_single_right": 0.8},
                        min_size_sd=2.0)  # fmt: skip
         for key in ("null_no_library", "among_named", "one_cause", "one_cause_right", "named", "wrong_single",
                     "wrong_mechanism", "contenders_mean", "contenders_max"):  # fmt: skip

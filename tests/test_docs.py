@@ -277,7 +277,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         'else "$PY" -m imply.cli "$@"; fi; }\n'
     )
     blocks = bash_blocks(DOCS / "tutorials" / "diagnose.md")
-    assert len(blocks) == 4
+    assert len(blocks) == 5
     proc = subprocess.run(["bash", "-c", prelude + "\n".join(blocks)], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((tmp_path / "gap-report" / "summary.json").read_text())
@@ -290,3 +290,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert again["verdict"]["effects"] == ["tilt"]
     n_first = sum(1 for _ in open(tmp_path / "pushlog.csv"))
     assert sum(1 for _ in open(tmp_path / "pushlog2.csv")) > n_first
+    filmed = json.loads((tmp_path / "gap-report-filmed" / "summary.json").read_text())
+    assert (tmp_path / "filmed.track.csv").is_file()
+    assert filmed["observables"][-3:] == ["crossing_25", "crossing_50", "crossing_75"], filmed["observables"]
+    assert filmed["verdict"]["effects"] == ["tilt"], filmed["verdict"]

@@ -26,7 +26,11 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert {c["id"] for c in part["claims"]} == {
         "gap-world", "gap-null", "gap-top1", "gap-both", "gap-outside", "gap-magnitude", "gap-shrink",
         "gap-contact-null", "gap-contact-named", "gap-contact-contenders", "gap-contact-wrong", "gap-contact-loop",
+        # the same logs with the pusher's speed and the box's track in every fit
+        "gap-observed-null", "gap-observed-top1", "gap-observed-both", "gap-observed-outside", "gap-observed-magnitude",
+        "gap-observed-shrink", "gap-observed-contact-null", "gap-observed-contact-single", "gap-observed-contact-wrong",
     }  # fmt: skip
+    assert {"gapObsFalseAlarm", "gapObsContactSingleRight", "gapContactSingleRight"} <= set(part["numbers"])
     assert {"gapContactLogsN", "gapContactNullNoLib", "gapContactAmongNamed", "gapContactWrongSingle",
             "gapLoopRight", "gapLoopRandomRight"} <= set(part["numbers"])  # fmt: skip
     bench = json.loads((tmp_path / "results/gap/benchmark.json").read_text())["result"]
@@ -35,8 +39,9 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     acc = json.loads((tmp_path / "results/gap/world_accuracy.json").read_text())
     assert acc["against_finer"]["log_d"]["n"] == 6 and acc["table_numerical_error"]["cells"] == 4
     # the diagnose rules never see the labels: the push logs hold what a lab records, named log-NNN
-    logs = sorted(p.name for p in (tmp_path / "results/gap/logs").iterdir())
-    assert logs == [f"log-{k:03d}.csv" for k in range(7)]
+    files = sorted(p.name for p in (tmp_path / "results/gap/logs").iterdir())
+    logs = [f"log-{k:03d}.csv" for k in range(7)]
+    assert files == sorted(logs + [f"log-{k:03d}.track.csv" for k in range(7)])  # each log filmed
     for name in logs:
         header = (tmp_path / "results/gap/logs" / name).read_text().splitlines()[0].split(",")
         assert header[:4] == ["object_id", "speed", "direction", "displacement"]
@@ -49,6 +54,11 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     contact = bench["contact"]
     assert contact["n_logs"] == 4 and {row["engine"] for row in contact["cases"]} == {"mujoco", "bullet"}
     assert "# Other contact models" in md
+    # both benchmarks diagnosed again with every observable the logs carry, side by side in the report
+    seen = json.loads(next((tmp_path / "results/gap/contact/reports_observed").glob("shard*/log-*/summary.json"))
+                      .read_text())  # fmt: skip
+    assert {"pusher_speed", "crossing_50"} <= set(seen["observables"])
+    assert "# With what a robot records" in md and "| with pusher speed and track |" in md
     report = next((tmp_path / "results/gap/reports").glob("shard*/log-*/report.md")).read_text()
     assert report.startswith("# Sim-to-real gap diagnosis\n\n**")
     # the closed loop: every undecided log's next pushes run in its world, and as many random ones

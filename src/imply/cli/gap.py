@@ -199,8 +199,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         accuracy = json.load(fh)
     with user_errors(FileNotFoundError, message="--reports: {error}"):
         summaries = find_summaries(labels, [Path(r) for r in args.reports])
-    sizes = visible_sizes(labels, table)
-    result = score_cases(labels, summaries, sizes, config=config, accuracy=accuracy)
+    visible = visible_sizes(labels, table)
+    result = score_cases(labels, summaries, visible, config=config, accuracy=accuracy)
     if args.contact_sealed:
         from imply.diagnose.benchmark import score_contact_cases
 
@@ -219,16 +219,16 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
             from imply.diagnose.benchmark import effect_size_on_contact
             from imply.diagnose.closed_loop import score_closed_loop
 
-            sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
-                     for cid, lab in contact_labels.items() if len(lab["effects"]) == 1}  # fmt: skip
+            loop_sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
+                          for cid, lab in contact_labels.items() if len(lab["effects"]) == 1}  # fmt: skip
             result["contact"]["closed_loop"] = score_closed_loop(
                 contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
-                min_size_sd=design.min_size_sd, sizes=sizes,
+                min_size_sd=design.min_size_sd, sizes=loop_sizes,
             )  # fmt: skip
     if args.observed_reports:
         with user_errors(FileNotFoundError, message="--observed-reports: {error}"):
             observed = find_summaries(labels, [Path(r) for r in args.observed_reports])
-        result["observed"] = score_cases(labels, observed, sizes, config=config, accuracy=accuracy)
+        result["observed"] = score_cases(labels, observed, visible, config=config, accuracy=accuracy)
         if args.observed_contact_reports and args.contact_sealed:
             from imply.diagnose.benchmark import score_contact_cases
 
