@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import UserError, add_scene_options, int_range, output_file, scene_from_args, user_errors
+from imply.cli.common import (
+    UserError,
+    add_scene_options,
+    int_range,
+    output_file,
+    positive_float,
+    scene_from_args,
+    user_errors,
+)
 
 log = logging.getLogger("imply")
 
@@ -38,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_scene_options(pu)
     pu.add_argument("-o", "--output", required=True)
     pu.add_argument(
-        "--track-rate", type=float, default=None, metavar="HZ",
+        "--track-rate", type=positive_float, default=None, metavar="HZ",
         help="also film each push: the box's track at HZ frames per second, written beside the log as "
         "<output stem>.track.csv (where `imply diagnose` finds it)",
     )  # fmt: skip
