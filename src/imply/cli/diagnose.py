@@ -24,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "PUSHLOG (CSV or parquet): object_id,speed,displacement (m/s, m) and optional direction (rad), "
             "stop_time, pusher_speed, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed "
-            "instead of fitted), push (numbers the tracks refer to); the boxes' tracks in a second file (--track). Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
+            "instead of fitted), push (numbers the tracks refer to); the boxes' tracks in a second file (--track). "
+            "Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
             "folder; with --force, into a folder holding an earlier report, whose files alone are replaced."
         ),
     )
