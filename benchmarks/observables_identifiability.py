@@ -22,11 +22,11 @@ import sys
 
 import numpy as np
 
-from imply.diagnose.effect_tables import simulate_observables, stop_times
+from imply.diagnose.effect_tables import simulate_observables
 from imply.realworld.world import WorldPushes, simulate_world
 from imply.sim.effects import EFFECTS, MODEL, effect_spec
 from imply.sim.scene import SceneConfig, build_model
-from imply.sim.track import FRACTIONS, crossing_times, pusher_speed
+from imply.sim.track import FRACTIONS, crossing_times, pusher_speed, stop_times
 
 SPEEDS = np.array([0.25, 0.4, 0.55, 0.7, 0.85])
 OBJECTS = [(0.4, 0.2), (1.0, 0.35), (1.8, 0.5)]  # (mass kg, friction)

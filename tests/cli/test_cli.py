@@ -117,6 +117,13 @@ def test_pushes_filmed_on_a_user_model_give_a_track_the_diagnostic_reads(tmp_pat
     tracked = read_track(track_beside(log), read_pushlog(log))
     assert (np.diff(tracked.crossing_times, axis=1) > 0).all()  # a quarter, then half, then three quarters
 
+    # the log's stop time is the one the diagnostic's tables hold (the box's speed below 1 cm/s), not the settling
+    from imply.diagnose.effect_tables import simulate_observables
+    from imply.sim.push_file import load_push_model
+
+    tables = simulate_observables(load_push_model(xml), frame.speed, 0.8, 0.3)
+    np.testing.assert_allclose(np.log(frame.stop_time.to_numpy()), tables.log_t, atol=1e-9)
+
 
 def test_console_script_is_installed():
     proc = subprocess.run([sys.executable, "-m", "imply.cli", "--help"], capture_output=True, text=True)

@@ -59,15 +59,11 @@ from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
-from imply.sim.track import crossing_times, pusher_speed
+from imply.sim.track import FRAME_STEP, STOP_HORIZON, STOP_SPEED, crossing_times, pusher_speed, stop_times
 from imply.table import PushTable, config_digest
 
 log = logging.getLogger("imply.diagnose")
 
-# a push's stop time: when the box's speed in the table plane falls below this (m/s)
-STOP_SPEED = 0.01
-# positions are recorded this often (s) to find the stop time
-FRAME_STEP = 0.001
 # bump when the files' content changes meaning
 FORMAT = 5
 
@@ -144,35 +140,6 @@ class PushObservables:
     log_tq: np.ndarray | None = None
 
 
-def stop_times(frames_xy: np.ndarray, frames_time: np.ndarray, threshold: float = STOP_SPEED) -> np.ndarray:
-    """When each push's speed in the plane first falls below ``threshold`` after it has exceeded it.
-
-    frames_xy: (n, T, 2) box positions at times frames_time (n, T). Speeds are taken
-    between successive frames (at their mid-times) and the crossing is interpolated.
-    """
-    dt = np.diff(frames_time, axis=1)
-    dist = np.linalg.norm(np.diff(frames_xy, axis=1), axis=2)
-    valid = dt > 1e-9  # two frames taken at one step carry no speed: use the previous one's
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.where(valid, dist / np.where(valid, dt, 1.0), 0.0)
-    mid = 0.5 * (frames_time[:, 1:] + frames_time[:, :-1])
-    n, k = speed.shape
-    last = np.maximum.accumulate(np.where(valid, np.arange(k)[None, :], 0), axis=1)
-    rows = np.arange(n)[:, None]
-    speed, mid = speed[rows, last], mid[rows, last]
-    out = np.full(n, np.nan)
-    moving = np.maximum.accumulate(speed >= threshold, axis=1)
-    below = (speed < threshold) & moving
-    first = np.argmax(below, axis=1)
-    has = below[np.arange(n), first]
-    for i in np.flatnonzero(has):
-        j = first[i]
-        s0, s1 = speed[i, j - 1], speed[i, j]
-        w = (s0 - threshold) / (s0 - s1) if s0 > s1 else 1.0
-        out[i] = mid[i, j - 1] + w * (mid[i, j] - mid[i, j - 1])
-    return out
-
-
 def simulate_observables(
     model: mujoco.MjModel, speeds, masses, frictions, *, nthread: int = 0, max_frame_time: float | None = None
 ) -> PushObservables:
@@ -190,7 +157,9 @@ def simulate_observables(
     # slides in the table's range last about a second; a push still sliding at the last
     # frame has no stop time (NaN)
     end = (
-        max_frame_time if max_frame_time is not None else min(2.5, float(np.asarray(model.numeric("max_time").data)[0]))
+        max_frame_time
+        if max_frame_time is not None
+        else min(STOP_HORIZON, float(np.asarray(model.numeric("max_time").data)[0]))
     )
     frames = np.arange(0.0, end + FRAME_STEP / 2, FRAME_STEP)
     run = run_pushes(batch, model, speeds, frame_times=frames)

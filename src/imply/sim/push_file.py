@@ -2,7 +2,8 @@
 
 The pushes file lists ``object_id,speed`` and, on the built-in scene, optional
 ``mass,friction,size_x,size_y,size_z``; the push log adds ``displacement``,
-``stop_time``, ``pusher_speed`` (the pusher's mean speed over its stroke, as a robot's
+``stop_time`` (when the box's speed falls below :data:`imply.sim.track.STOP_SPEED`, read
+from its positions every millisecond as the diagnostic's tables read it), ``pusher_speed`` (the pusher's mean speed over its stroke, as a robot's
 encoders give it) and ``ok`` (the simulator's checks). A user MJCF must keep the names the
 simulator relies on (:func:`imply.sim.pushes.simulate_pushes`).
 
@@ -24,7 +25,7 @@ import pandas as pd
 from imply.input_files import InputError, read_table_lines, row_error
 from imply.sim.pushes import PushStepping, simulate_pushes_run
 from imply.sim.scene import SceneConfig, build_model
-from imply.sim.track import pusher_speed
+from imply.sim.track import FRAME_STEP, STOP_HORIZON, pusher_speed, stop_times
 
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
 
@@ -67,11 +68,14 @@ def simulate_push_table(
     has_size = all(c in pushes for c in SIZE_COLUMNS)
     if model is not None and has_size:
         raise InputError("size_x/size_y/size_z columns cannot vary the box of a user model; edit the MJCF instead")
-    frame_times = None
+    # the box every millisecond for its stop time, and at the camera's frames for its track
+    stop_frames = np.arange(0.0, STOP_HORIZON + FRAME_STEP / 2, FRAME_STEP)
+    track_frames = None
     if track_rate is not None:
         if not track_rate > 0:
             raise ValueError(f"the track's rate must be positive, not {track_rate:g}")
-        frame_times = np.arange(0.0, TRACK_END, 1.0 / track_rate)
+        track_frames = np.arange(0.0, STOP_HORIZON, 1.0 / track_rate)
+    frame_times = stop_frames if track_frames is None else np.union1d(stop_frames, track_frames)
     run = simulate_pushes_run(
         pushes["speed"].to_numpy(),
         pushes["mass"].to_numpy() if "mass" in pushes else None,
@@ -81,29 +85,29 @@ def simulate_push_table(
         frame_times=frame_times,
     )  # fmt: skip
     result = run.result
+    at_stop = np.isin(frame_times, stop_frames)
     out = pushes.copy()
     out["displacement"] = result.displacement
-    out["stop_time"] = result.stop_time
+    out["stop_time"] = stop_times(run.frames_box_qpos[:, at_stop, :2], run.frames_time[:, at_stop])
     stroke = PushStepping.of(model if model is not None else build_model(scene or SceneConfig())).stroke
     out["pusher_speed"] = pusher_speed(stroke, result.stroke_time)
     out["ok"] = result.ok
-    return out, (None if frame_times is None else _track_rows(out, run))
+    return out, (None if track_frames is None else _track_rows(out, run, np.isin(frame_times, track_frames)))
 
 
-# a push is filmed for this long at most (s), and until this long after its box comes to rest
-TRACK_END = 3.0
+# a push is filmed until this long after its box comes to rest (s)
 TRACK_AFTER_STOP = 0.1
 
 
-def _track_rows(log_frame: pd.DataFrame, run) -> pd.DataFrame:
-    """The rows of :mod:`imply.diagnose.track_file` of every push of a run recorded at frame times."""
-    q = run.frames_box_qpos
+def _track_rows(log_frame: pd.DataFrame, run, frames: np.ndarray) -> pd.DataFrame:
+    """The rows of :mod:`imply.diagnose.track_file` of every push of a run, at its frames ``frames`` (mask)."""
+    q = run.frames_box_qpos[:, frames]
     w, qx, qy, qz = (q[:, :, k] for k in range(3, 7))
     yaw = np.arctan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
     parts = []
     for i in range(q.shape[0]):
-        t = run.frames_time[i]
-        stop = run.result.stop_time[i]
+        t = run.frames_time[i, frames]
+        stop = log_frame["stop_time"].iloc[i]
         keep = t <= stop + TRACK_AFTER_STOP if np.isfinite(stop) else np.ones(t.size, bool)
         parts.append(pd.DataFrame({"object_id": log_frame["object_id"].iloc[i], "push": i + 1,
                                    "t": np.round(t[keep], 6), "x": q[i, keep, 0], "y": q[i, keep, 1],

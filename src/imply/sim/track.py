@@ -24,6 +24,11 @@ import numpy as np
 
 # fractions of the final displacement whose crossing times summarise a track
 FRACTIONS = (0.25, 0.5, 0.75)
+# a push's stop time: when the box's speed in the table plane falls below this (m/s), read from its
+# positions recorded every FRAME_STEP (s) for at most STOP_HORIZON (s) from the start of the push
+STOP_SPEED = 0.01
+FRAME_STEP = 0.001
+STOP_HORIZON = 2.5
 
 
 def crossing_times(times: np.ndarray, travel: np.ndarray, displacement: np.ndarray,
@@ -67,3 +72,32 @@ def pusher_speed(stroke: float, stroke_time: np.ndarray) -> np.ndarray:
     st = np.asarray(stroke_time, float)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(st > 0, stroke / st, np.nan)
+
+
+def stop_times(frames_xy: np.ndarray, frames_time: np.ndarray, threshold: float = STOP_SPEED) -> np.ndarray:
+    """When each push's speed in the plane first falls below ``threshold`` after it has exceeded it.
+
+    frames_xy: (n, T, 2) box positions at times frames_time (n, T). Speeds are taken
+    between successive frames (at their mid-times) and the crossing is interpolated.
+    """
+    dt = np.diff(frames_time, axis=1)
+    dist = np.linalg.norm(np.diff(frames_xy, axis=1), axis=2)
+    valid = dt > 1e-9  # two frames taken at one step carry no speed: use the previous one's
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where(valid, dist / np.where(valid, dt, 1.0), 0.0)
+    mid = 0.5 * (frames_time[:, 1:] + frames_time[:, :-1])
+    n, k = speed.shape
+    last = np.maximum.accumulate(np.where(valid, np.arange(k)[None, :], 0), axis=1)
+    rows = np.arange(n)[:, None]
+    speed, mid = speed[rows, last], mid[rows, last]
+    out = np.full(n, np.nan)
+    moving = np.maximum.accumulate(speed >= threshold, axis=1)
+    below = (speed < threshold) & moving
+    first = np.argmax(below, axis=1)
+    has = below[np.arange(n), first]
+    for i in np.flatnonzero(has):
+        j = first[i]
+        s0, s1 = speed[i, j - 1], speed[i, j]
+        w = (s0 - threshold) / (s0 - s1) if s0 > s1 else 1.0
+        out[i] = mid[i, j - 1] + w * (mid[i, j] - mid[i, j - 1])
+    return out
