@@ -44,15 +44,13 @@ def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, base
            "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out)]  # fmt: skip
     if gap.get("candidates"):
         cmd += ["--effects", ",".join(gap["candidates"])]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     start = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode:
         raise SystemExit(f"imply gap tables under {src} failed:\n{proc.stderr[-2000:]}")
     wall = time.perf_counter() - start
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    # ru_maxrss of children is the largest so far: a smaller later child reads as the earlier peak
-    return wall, max(peak, before) / 1024.0
+    # the children's ru_maxrss is the largest of any child so far: a smaller later build reads as the earlier peak
+    return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
 
 
 def main(argv: list[str] | None = None) -> int:

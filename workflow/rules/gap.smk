@@ -172,21 +172,13 @@ rule gap_contact_closed_loop:
 
 # The same logs diagnosed with every observable they carry (the pusher's measured speed, the box's
 # track), scored beside the default diagnosis.
-rule gap_diagnose_observed:
-    conda:
-        IMPLY_ENV
-    input:
-        logs=gap_shard_logs,
-        tracks=gap_shard_tracks,
-        table="results/table/table.npz",
-        tables="results/gap/effect_tables",
+use rule gap_diagnose as gap_diagnose_observed with:
     output:
         directory("results/gap/reports_observed/shard{shard}"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(GAP_OBSERVED_OPTIONS),
         effects=gap_effects_option(),
-    threads: 1
     resources:
         mem_mb=1500,
         runtime=30,
@@ -194,26 +186,15 @@ rule gap_diagnose_observed:
         "results/logs/gap_diagnose_observed_shard{shard}.log",
     benchmark:
         "results/benchmarks/gap_diagnose_observed/{shard}.tsv"
-    shell:
-        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
-rule gap_contact_diagnose_observed:
-    conda:
-        IMPLY_ENV
-    input:
-        logs=gap_contact_shard_logs,
-        tracks=gap_contact_shard_tracks,
-        table="results/table/table.npz",
-        tables="results/gap/effect_tables",
+use rule gap_contact_diagnose as gap_contact_diagnose_observed with:
     output:
         directory("results/gap/contact/reports_observed/shard{shard}"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(GAP_OBSERVED_OPTIONS),
         effects=gap_effects_option(),
-    threads: 1
     resources:
         mem_mb=1500,
         runtime=30,
@@ -221,9 +202,6 @@ rule gap_contact_diagnose_observed:
         "results/logs/gap_contact_diagnose_observed_shard{shard}.log",
     benchmark:
         "results/benchmarks/gap_contact_diagnose_observed/{shard}.tsv"
-    shell:
-        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
 rule gap_benchmark:

@@ -59,7 +59,7 @@ from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
-from imply.sim.track import FRAME_STEP, STOP_HORIZON, STOP_SPEED, crossing_times, pusher_speed, stop_times
+from imply.sim.track import STOP_HORIZON, STOP_SPEED, crossing_times, pusher_speed, stop_frame_times, stop_times
 from imply.table import PushTable, config_digest
 
 log = logging.getLogger("imply.diagnose")
@@ -161,8 +161,7 @@ def simulate_observables(
         if max_frame_time is not None
         else min(STOP_HORIZON, float(np.asarray(model.numeric("max_time").data)[0]))
     )
-    frames = np.arange(0.0, end + FRAME_STEP / 2, FRAME_STEP)
-    run = run_pushes(batch, model, speeds, frame_times=frames)
+    run = run_pushes(batch, model, speeds, frame_times=stop_frame_times(end))
     res = run.result
     t = stop_times(run.frames_box_qpos[:, :, :2], run.frames_time)
     ok = res.ok & np.isfinite(t) & (res.displacement > 0)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -124,8 +125,6 @@ def read_track(path: str | os.PathLike, pushlog: PushLog) -> PushLog:
 
 def track_beside(log_path: str | os.PathLike) -> str | None:
     """The track file that goes with a push log by name (``<stem>.track.csv`` or ``.parquet`` beside it), or None."""
-    from pathlib import Path
-
     p = Path(log_path)
     for suffix in (".csv", ".parquet"):
         candidate = p.with_name(f"{p.stem}.track{suffix}")

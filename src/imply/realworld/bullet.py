@@ -55,8 +55,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from imply.options import Config, option
-from imply.realworld.world import WorldPushes, WorldResult, check_track_times, yaw_of
+from imply.realworld.world import WorldPushes, WorldResult, check_track_times
 from imply.sim.scene import SceneConfig
+from imply.sim.track import yaw_of
 
 # the parameters this engine implements (any value); every other one must be nominal
 SUPPORTED = frozenset(

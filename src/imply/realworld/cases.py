@@ -54,7 +54,7 @@ from imply.realworld.contact import (
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
 from imply.realworld.world import WorldPushes, WorldStepping
 from imply.sim.scene import SceneConfig
-from imply.sim.track import pusher_speed
+from imply.sim.track import filmed, pusher_speed, track_frame_times
 
 log = logging.getLogger("imply.realworld")
 
@@ -415,7 +415,7 @@ def simulate_cases(
         allp = WorldPushes.concat([r[3] for r in mine])
         bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
         disp, stop, stroke, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
-        times = track_times(design.noise)
+        times = track_frame_times(design.noise.track_rate)
         track = np.zeros((allp.n, times.size, 3), np.float32)
         starts = range(0, allp.n, chunk)
         for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
@@ -434,22 +434,12 @@ def simulate_cases(
     return {case["id"]: out[case["id"]] for case in cases}
 
 
-# a track is filmed from the start of the push for this long at most (s), and cut this long after the box stops
-TRACK_END = 2.5
-TRACK_AFTER_STOP = 0.1
-
-
-def track_times(noise: NoiseModel) -> np.ndarray:
-    """(T,) the camera's frame times (s from the start of a push)."""
-    return np.arange(0.0, TRACK_END, 1.0 / noise.track_rate)
-
-
 def log_track(case: dict, sim: dict, label: dict, design: BenchmarkConfig) -> pd.DataFrame:
     """The box's track of every row of ``case``'s log (:func:`make_log`'s ``label`` says which push and replicate
     each row is), as a camera records it: rows ``object_id,push,t,x,y,yaw`` (:mod:`imply.diagnose.track_file`),
     positions in the table's frame with the camera's noise, cut shortly after the box stops."""
     nm = design.noise
-    times = track_times(nm)
+    times = track_frame_times(nm.track_rate)
     res = sim["all"]
     obj, _ = push_layout(case, design)
     phi = np.asarray(case["direction"], float)
@@ -459,8 +449,7 @@ def log_track(case: dict, sim: dict, label: dict, design: BenchmarkConfig) -> pd
     parts = []
     for row, (j, _) in enumerate(label["rows_kept"]):
         along, across, yaw = (np.asarray(res["track"][j][:, c], float) for c in range(3))
-        stop = res["stop_time"][j]
-        keep = times <= stop + TRACK_AFTER_STOP if np.isfinite(stop) else np.ones(times.size, bool)
+        keep = filmed(times, res["stop_time"][j])
         c, s = np.cos(phi[j]), np.sin(phi[j])
         x = along * c - across * s + rng.normal(0.0, nm.track_sd, times.size)
         y = along * s + across * c + rng.normal(0.0, nm.track_sd, times.size)

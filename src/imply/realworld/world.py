@@ -61,6 +61,7 @@ from tqdm.auto import tqdm
 
 from imply.options import Config, option
 from imply.sim.scene import SceneConfig, build_xml
+from imply.sim.track import yaw_of
 
 log = logging.getLogger("imply.realworld")
 
@@ -197,12 +198,6 @@ class WorldResult:
     steps: np.ndarray
     stroke_time: np.ndarray | None = None
     track: np.ndarray | None = None
-
-
-def yaw_of(quat: np.ndarray) -> np.ndarray:
-    """Yaw (rad) of unit quaternions (..., 4), w first: the rotation about the vertical."""
-    w, x, y, z = (quat[..., i] for i in range(4))
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def _structure_key(p: dict[str, np.ndarray], i: int) -> tuple[float, float, float]:

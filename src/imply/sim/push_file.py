@@ -25,7 +25,7 @@ import pandas as pd
 from imply.input_files import InputError, read_table_lines, row_error
 from imply.sim.pushes import PushStepping, simulate_pushes_run
 from imply.sim.scene import SceneConfig, build_model
-from imply.sim.track import FRAME_STEP, STOP_HORIZON, pusher_speed, stop_times
+from imply.sim.track import filmed, pusher_speed, stop_frame_times, stop_times, track_frame_times, yaw_of
 
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
 
@@ -69,12 +69,12 @@ def simulate_push_table(
     if model is not None and has_size:
         raise InputError("size_x/size_y/size_z columns cannot vary the box of a user model; edit the MJCF instead")
     # the box every millisecond for its stop time, and at the camera's frames for its track
-    stop_frames = np.arange(0.0, STOP_HORIZON + FRAME_STEP / 2, FRAME_STEP)
+    stop_frames = stop_frame_times()
     track_frames = None
     if track_rate is not None:
         if not track_rate > 0:
             raise ValueError(f"the track's rate must be positive, not {track_rate:g}")
-        track_frames = np.arange(0.0, STOP_HORIZON, 1.0 / track_rate)
+        track_frames = track_frame_times(track_rate)
     frame_times = stop_frames if track_frames is None else np.union1d(stop_frames, track_frames)
     run = simulate_pushes_run(
         pushes["speed"].to_numpy(),
@@ -95,20 +95,14 @@ def simulate_push_table(
     return out, (None if track_frames is None else _track_rows(out, run, np.isin(frame_times, track_frames)))
 
 
-# a push is filmed until this long after its box comes to rest (s)
-TRACK_AFTER_STOP = 0.1
-
-
 def _track_rows(log_frame: pd.DataFrame, run, frames: np.ndarray) -> pd.DataFrame:
     """The rows of :mod:`imply.diagnose.track_file` of every push of a run, at its frames ``frames`` (mask)."""
     q = run.frames_box_qpos[:, frames]
-    w, qx, qy, qz = (q[:, :, k] for k in range(3, 7))
-    yaw = np.arctan2(2.0 * (w * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
+    yaw = yaw_of(q[:, :, 3:7])
     parts = []
     for i in range(q.shape[0]):
         t = run.frames_time[i, frames]
-        stop = log_frame["stop_time"].iloc[i]
-        keep = t <= stop + TRACK_AFTER_STOP if np.isfinite(stop) else np.ones(t.size, bool)
+        keep = filmed(t, log_frame["stop_time"].iloc[i])
         parts.append(pd.DataFrame({"object_id": log_frame["object_id"].iloc[i], "push": i + 1,
                                    "t": np.round(t[keep], 6), "x": q[i, keep, 0], "y": q[i, keep, 1],
                                    "yaw": yaw[i, keep]}))  # fmt: skip

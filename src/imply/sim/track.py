@@ -29,6 +29,31 @@ FRACTIONS = (0.25, 0.5, 0.75)
 STOP_SPEED = 0.01
 FRAME_STEP = 0.001
 STOP_HORIZON = 2.5
+# a filmed push's track is cut this long (s) after its box stops
+TRACK_AFTER_STOP = 0.1
+
+
+def stop_frame_times(end: float = STOP_HORIZON) -> np.ndarray:
+    """(T,) the times (s from the start of a push) at which the box is recorded to find its stop time."""
+    return np.arange(0.0, end + FRAME_STEP / 2, FRAME_STEP)
+
+
+def track_frame_times(rate: float) -> np.ndarray:
+    """(T,) a camera's frame times (s from the start of a push) at ``rate`` frames per second, up to the horizon."""
+    return np.arange(0.0, STOP_HORIZON, 1.0 / rate)
+
+
+def filmed(times: np.ndarray, stop_time: float) -> np.ndarray:
+    """(T,) which frames at ``times`` a push's track keeps: up to :data:`TRACK_AFTER_STOP` after the box stopped
+    (every frame where it never stopped, NaN)."""
+    times = np.asarray(times, float)
+    return times <= stop_time + TRACK_AFTER_STOP if np.isfinite(stop_time) else np.ones(times.size, bool)
+
+
+def yaw_of(quat: np.ndarray) -> np.ndarray:
+    """Yaw (rad) of unit quaternions (..., 4), w first: the rotation about the vertical."""
+    w, x, y, z = (quat[..., i] for i in range(4))
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def crossing_times(times: np.ndarray, travel: np.ndarray, displacement: np.ndarray,
