@@ -39,8 +39,9 @@ PIXEL_CONDITIONS = {"calib": "own,other", "nocalib": "none"}
 SUITE_FILES = ["manifest.json", "suite.npz", "truth.npz", "table.npz", "README.md"]
 GAP_CASES = case_ids(BenchmarkConfig.from_dict(config["gap"]["benchmark"]))
 GAP_CONTACT_CASES = case_ids(ContactBenchmarkConfig.from_dict(config["gap"]["contact_benchmark"]))
-# the benchmark's diagnoses run in one process per shard (imports and tables loaded once)
-GAP_SHARDS = list(range(config["threads"]))
+# the benchmark's diagnoses run in one process per shard (imports and tables loaded once); two shards
+# per core keep each job to a minute or two, so the last ones do not hold one core while the other idles
+GAP_SHARDS = list(range(2 * config["threads"]))
 # each stage's result documents, from which its part reads the registered numbers
 STAGE_RESULTS = {
     "section4": ["results/section4/metrics.json", "results/section4/noise.json", "results/section4/selection.json"],

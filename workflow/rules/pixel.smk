@@ -18,6 +18,8 @@ rule pixel_train:
     wildcard_constraints:
         variant="calib|nocalib",
     threads: config["threads"]
+    # before the predictors' trainings: a job asking for both cores waits until both are idle at once
+    priority: 10
     resources:
         mem_mb=6000,
         runtime=30,
@@ -51,7 +53,8 @@ rule pixel_evaluate:
         seed=config["evaluate"]["seed"],
     wildcard_constraints:
         variant="calib|nocalib",
-    threads: config["threads"]
+    # one thread: its files are the same with more, and a job asking for both cores waits until both are idle
+    threads: 1
     resources:
         mem_mb=6000,
         runtime=30,

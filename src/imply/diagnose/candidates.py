@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -247,7 +248,8 @@ class Model:
 
     candidates: tuple[Candidate, ...] = ()
 
-    @property
+    # cached: a fit asks for these tens of thousands of times
+    @cached_property
     def dim(self) -> int:
         return sum(c.dim for c in self.candidates)
 
@@ -256,18 +258,22 @@ class Model:
         return [c.name for c in self.candidates]
 
     def slices(self) -> list[slice]:
+        return list(self._slices)
+
+    @cached_property
+    def _slices(self) -> tuple[slice, ...]:
         out, k = [], 0
         for c in self.candidates:
             out.append(slice(k, k + c.dim))
             k += c.dim
-        return out
+        return tuple(out)
 
     def plus(self, c: Candidate) -> Model:
         return Model((*self.candidates, c))
 
     def project(self, theta: np.ndarray) -> np.ndarray:
         theta = np.asarray(theta, float).copy()
-        for c, sl in zip(self.candidates, self.slices(), strict=True):
+        for c, sl in zip(self.candidates, self._slices, strict=True):
             theta[sl] = c.project(theta[sl])
         return theta
 

@@ -53,7 +53,10 @@ def run_closed_loop(
 ) -> list[dict]:  # fmt: skip
     """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the
     appended logs in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
-    cases = {c["id"]: c for c in draw_cases(design)}
+    drawn = draw_cases(design)
+    cases = {c["id"]: c for c in drawn}
+    # the random arm's draws follow the log's place in the benchmark, not in this job's share of it
+    number = {c["id"]: k for k, c in enumerate(drawn)}
     index = {name: i for i, name in enumerate(object_names(design.n_objects))}
     folders = sorted(p for p in reports.iterdir() if (p / "summary.json").is_file())
     chosen = [f for f in folders if len(_summary(f).verdict.contenders) > 1]
@@ -65,7 +68,7 @@ def run_closed_loop(
         case = cases[cid]
         frame = pd.read_csv(logs / f"{cid}.csv")
         nxt = pd.read_csv(folder / "next_pushes.csv")
-        picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, len(rows)]))}
+        picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, number[cid]]))}
         for arm, pushes in picks.items():
             new = extra_pushes(case, design, scene, pushes["object_id"].map(index).to_numpy(),
                                pushes["speed"].to_numpy(float), pushes["direction"].to_numpy(float),

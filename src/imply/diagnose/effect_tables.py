@@ -42,6 +42,7 @@ import dataclasses
 import json
 import logging
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -60,7 +61,7 @@ from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
 from imply.sim.track import STOP_HORIZON, STOP_SPEED, crossing_times, pusher_speed, stop_frame_times, stop_times
-from imply.table import PushTable, config_digest
+from imply.table import PushTable, config_digest, spline_of
 
 log = logging.getLogger("imply.diagnose")
 
@@ -229,7 +230,7 @@ class EffectTables:
         return self.aux.index(name)
 
     @cached_property
-    def _interp(self) -> dict[str, RegularGridInterpolator]:
+    def _interp(self) -> dict[str, Callable[[np.ndarray], np.ndarray]]:
         """One interpolator per key over every level of every observable (values (nv, nm, nu, (1 + K) L))."""
         v, m, u = self.axes
         pts = (v, np.log(m), np.log(u))
@@ -240,7 +241,7 @@ class EffectTables:
             if dt is not None and self.aux:
                 parts += [dt[..., a] for a in range(dt.shape[-1])]
             stacked = np.moveaxis(np.concatenate(parts), 0, -1)
-            out[k] = RegularGridInterpolator(pts, stacked, method="cubic")
+            out[k] = spline_of(RegularGridInterpolator(pts, stacked, method="cubic"))
         return out
 
     @cached_property
@@ -275,25 +276,43 @@ class EffectTables:
         if interp is None:
             raise ValueError("these effect tables hold no observables beside log d")
         pts, shape = _points(self.aux_axes, v, m, mu)
-        return interp(pts).reshape(*shape, -1)
+        return self._aux_spline(pts).reshape(*shape, -1)
+
+    @cached_property
+    def _aux_spline(self) -> Callable[[np.ndarray], np.ndarray]:
+        return spline_of(self._aux_interp)
 
     def delta_both(self, key: str, v, m, mu, s) -> tuple[np.ndarray, np.ndarray]:
         """Delta log d (...) and Delta of every observable of :attr:`aux` (..., K) at points (v, m, mu)
         with per-point level s (clipped to the tabulated range; linear between the two bracketing levels)."""
-        levels = self.levels[key]
         v, m, mu, s = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu, s)))
-        s = np.clip(s, levels[0], levels[-1]).ravel()
+        pts, shape = _points(self.axes, v, m, mu)
+        d, t = self.mix_levels(key, self.level_values(key, pts), s.ravel())
+        return d.reshape(shape), t.reshape(*shape, t.shape[-1])
+
+    def level_values(self, key: str, pts: np.ndarray) -> np.ndarray:
+        """(n, (1 + K) L) every tabulated level of log d and of the K observables at interpolation points
+        ``pts`` (n, 3) of (v, log m, log mu) inside :attr:`axes` (clipped as :meth:`delta_both` clips)."""
+        return self._interp[key](pts)
+
+    def points(self, v, m, mu) -> np.ndarray:
+        """(n, 3) the interpolation points of :meth:`level_values` for flat v, m, mu (n,), clipped to the axes."""
+        return _points(self.axes, v, m, mu)[0]
+
+    def mix_levels(self, key: str, vals: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delta log d (n,) and Delta of every observable (n, K) at per-point levels ``s`` (n,) (clipped to the
+        tabulated range; linear between the two bracketing levels) from :meth:`level_values`' ``vals``."""
+        levels = self.levels[key]
+        s = np.clip(s, levels[0], levels[-1])
         j = np.clip(np.searchsorted(levels, s, side="right") - 1, 0, levels.size - 2)
         w = (s - levels[j]) / (levels[j + 1] - levels[j])
-        pts, shape = _points(self.axes, v, m, mu)
-        vals = self._interp[key](pts)  # (n, (1 + K) L)
         L = levels.size
-        rows = np.arange(s.size)
+        rows = np.arange(s.size)[:, None]
         k_aux = vals.shape[1] // L - 1
-        d = (1.0 - w) * vals[rows, j] + w * vals[rows, j + 1]
-        t = np.stack([(1.0 - w) * vals[rows, (1 + a) * L + j] + w * vals[rows, (1 + a) * L + j + 1]
-                      for a in range(k_aux)], -1) if k_aux else np.zeros((s.size, 0))  # fmt: skip
-        return d.reshape(shape), t.reshape(*shape, k_aux)
+        # column 0 is log d, column 1 + a the observable a: each read at the two bracketing levels
+        cols = np.arange(1 + k_aux)[None, :] * L + j[:, None]
+        both = (1.0 - w[:, None]) * vals[rows, cols] + w[:, None] * vals[rows, cols + 1]
+        return both[:, 0], both[:, 1:]
 
     def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
         """Delta log d (``which='d'``) or of the observable ``which`` of :attr:`aux`, see :meth:`delta_both`."""

@@ -40,6 +40,22 @@ from imply.table import PushTable
 _H = 1e-4  # finite-difference step in log m and log mu
 
 
+def distinct_blocks(n_blocks: int, *columns: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Columns (n,) made of ``n_blocks`` equal-length blocks: the rows of the first of each set of equal
+    blocks, and for every row its position among those rows (None, None where every block differs)."""
+    if n_blocks < 2:
+        return None, None
+    size = columns[0].size // n_blocks
+    seen: dict[bytes, int] = {}
+    which = np.array([seen.setdefault(b"".join(c[b * size : (b + 1) * size].tobytes() for c in columns), len(seen))
+                      for b in range(n_blocks)])  # fmt: skip
+    if len(seen) == n_blocks:
+        return None, None
+    firsts = np.unique(which, return_index=True)[1]
+    within = np.arange(size)
+    return (firsts[:, None] * size + within).ravel(), (which[:, None] * size + within).ravel()
+
+
 @dataclass(frozen=True)
 class ObjectFit:
     """Per-object fit: (N,) log mass, log friction and weighted sum of squares (whitened)."""
@@ -328,9 +344,10 @@ class Problem:
         return int((self.w_d > 0).sum())
 
     # -- predictions -------------------------------------------------------------------
-    def predict(self, model: Model, theta, lm_c, lu_c, cond=None) -> Prediction:
+    def predict(self, model: Model, theta, lm_c, lu_c, cond=None, blocks: int = 1) -> Prediction:
         """log d and log T at conditions ``cond`` (all by default) given per-condition log m, log mu,
-        and theta (p,) or per condition (n, p).
+        and theta (p,) or per condition (n, p). ``blocks``: the rows are that many equal-length settings
+        (:meth:`residuals`); the tables are read once for settings that put every push at the same point.
 
         A speed or friction that the model's effects carry outside the table's range is read at
         the range's edge and extrapolated linearly (the edge's slope); the prediction keeps what
@@ -346,8 +363,15 @@ class Problem:
             lu = lu + np.log(np.maximum(t.friction, 1e-6))
         vc, luc = np.clip(v, *self.v_range), np.clip(lu, *self.lu_range)
         mu = np.exp(luc)
-        pd = self.table.log_displacement(vc, m, mu)
-        pt = self.etables.aux_log(vc, m, mu)[:, self.aux_cols] if self.use_t else None
+        # a step in an effect's level or in the discrepancy moves no push's point: such settings share reads
+        rows, back = distinct_blocks(blocks, vc, m, mu)
+        vr, mr, mur = (vc, m, mu) if rows is None else (vc[rows], m[rows], mu[rows])
+
+        def spread(values: np.ndarray) -> np.ndarray:
+            return values if back is None else values[back]
+
+        pd = spread(self.table.log_displacement(vr, mr, mur))
+        pt = spread(self.etables.aux_log(vr, mr, mur)[:, self.aux_cols]) if self.use_t else None
         ext_d = ext_t = None
         out = (vc != v) | (luc != lu)
         if out.any():
@@ -372,8 +396,10 @@ class Problem:
                 ext_t[o] = tv * dv[:, None] + tu * dlu[:, None]
                 pt = pt + ext_t
         if t is not None:
+            pts = self.etables.points(vr, mr, mur) if t.tables else None
             for key, s in t.tables:
-                dd, dt = self.etables.delta_both(key, vc, m, mu, s)
+                vals = spread(self.etables.level_values(key, pts))
+                dd, dt = self.etables.mix_levels(key, vals, np.broadcast_to(s, vc.shape))
                 pd = pd + dd
                 if self.use_t:
                     pt = pt + dt[:, self.aux_cols]
@@ -438,7 +464,7 @@ class Problem:
         lm_c = lms[:, self.c_obj].ravel()
         lu_c = lus[:, self.c_obj].ravel()
         th = np.repeat(np.atleast_2d(thetas), C, axis=0) if model.dim else np.zeros(0)
-        pred = self.predict(model, th, lm_c, lu_c, cond)
+        pred = self.predict(model, th, lm_c, lu_c, cond, blocks=k)
         pd = pred.log_d.reshape(k, C)
         pt = None if pred.log_t is None else pred.log_t.reshape(k, C, len(self.aux))
         rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
