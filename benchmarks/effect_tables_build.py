@@ -18,14 +18,13 @@ import json
 import resource
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import yaml
+from baseline_tree import ROOT, baseline_tree, imply_command
 
-ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "df94700"  # format 4: stop time and pusher speed, no track summaries
 
 
@@ -37,11 +36,8 @@ def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, base
     """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
     gap = config["gap"]
     options = {k: v for k, v in gap["diagnose"].items() if not (baseline and k in NEWER_OPTIONS)}
-    cmd = [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); import imply; "
-           "assert imply.__file__.startswith(sys.argv[1]), imply.__file__; from imply.cli import main; "
-           "sys.exit(main(sys.argv[2:]))", str(src),
-           "gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
-           "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out)]  # fmt: skip
+    cmd = imply_command(src, "gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
+                        "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out))  # fmt: skip
     if gap.get("candidates"):
         cmd += ["--effects", ",".join(gap["candidates"])]
     start = time.perf_counter()
@@ -62,21 +58,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
     times: dict[str, list[float]] = {"baseline": [], "current": []}
-    with tempfile.TemporaryDirectory() as tmp:
-        tree = Path(tmp) / "baseline"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), args.baseline], check=True,
-                       capture_output=True)  # fmt: skip
-        try:
-            for r in range(args.repeats):
-                order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
-                for which in order:
-                    src = tree / "src" if which == "baseline" else ROOT / "src"
-                    wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
-                                       baseline=which == "baseline")  # fmt: skip
-                    times[which].append(wall)
-                    print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=False)
+    with tempfile.TemporaryDirectory() as tmp, baseline_tree(args.baseline) as tree:
+        for r in range(args.repeats):
+            order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
+            for which in order:
+                src = tree / "src" if which == "baseline" else ROOT / "src"
+                wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
+                                   baseline=which == "baseline")  # fmt: skip
+                times[which].append(wall)
+                print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
     base, cur = statistics.median(times["baseline"]), statistics.median(times["current"])
     print(f"median: baseline ({args.baseline}) {base:.1f} s, current {cur:.1f} s, ratio {cur / base:.2f}")
     return 0
