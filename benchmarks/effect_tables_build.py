@@ -16,14 +16,11 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import statistics
-import subprocess
 import tempfile
-import time
 from pathlib import Path
 
 import yaml
-from baseline_tree import ROOT, baseline_tree, imply_command
+from baseline_tree import ROOT, ab_rounds, baseline_tree, print_medians, timed_imply
 
 BASELINE = "df94700"  # format 4: stop time and pusher speed, no track summaries
 
@@ -36,15 +33,9 @@ def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, base
     """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
     gap = config["gap"]
     options = {k: v for k, v in gap["diagnose"].items() if not (baseline and k in NEWER_OPTIONS)}
-    cmd = imply_command(src, "gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
-                        "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out))  # fmt: skip
-    if gap.get("candidates"):
-        cmd += ["--effects", ",".join(gap["candidates"])]
-    start = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode:
-        raise SystemExit(f"imply gap tables under {src} failed:\n{proc.stderr[-2000:]}")
-    wall = time.perf_counter() - start
+    args = ["gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
+            "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out)]  # fmt: skip
+    wall = timed_imply(src, args, gap.get("candidates"))
     # the children's ru_maxrss is the largest of any child so far: a smaller later build reads as the earlier peak
     return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
 
@@ -59,16 +50,13 @@ def main(argv: list[str] | None = None) -> int:
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
     times: dict[str, list[float]] = {"baseline": [], "current": []}
     with tempfile.TemporaryDirectory() as tmp, baseline_tree(args.baseline) as tree:
-        for r in range(args.repeats):
-            order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
-            for which in order:
-                src = tree / "src" if which == "baseline" else ROOT / "src"
-                wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
-                                   baseline=which == "baseline")  # fmt: skip
-                times[which].append(wall)
-                print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
-    base, cur = statistics.median(times["baseline"]), statistics.median(times["current"])
-    print(f"median: baseline ({args.baseline}) {base:.1f} s, current {cur:.1f} s, ratio {cur / base:.2f}")
+        for r, which in ab_rounds(args.repeats):
+            src = tree / "src" if which == "baseline" else ROOT / "src"
+            wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
+                               baseline=which == "baseline")  # fmt: skip
+            times[which].append(wall)
+            print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
+    print_medians(times, args.baseline)
     return 0
 
 

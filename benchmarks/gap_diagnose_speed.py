@@ -17,14 +17,11 @@ import argparse
 import filecmp
 import json
 import resource
-import statistics
-import subprocess
 import tempfile
-import time
 from pathlib import Path
 
 import yaml
-from baseline_tree import ROOT, baseline_tree, imply_command
+from baseline_tree import ROOT, ab_rounds, baseline_tree, print_medians, timed_imply
 
 BASELINE = "bc9cf74"  # before the diagnoses shared their table reads
 OBSERVED = {"use_pusher_speed": True, "use_track": True}
@@ -33,17 +30,10 @@ OBSERVED = {"use_pusher_speed": True, "use_track": True}
 def diagnose(src: Path, logs: list[Path], options: dict, config: dict, out: Path) -> float:
     """Wall seconds of one ``imply gap diagnose-many`` of ``logs`` with the package under ``src``."""
     gap = config["gap"]
-    cmd = imply_command(src, "gap", "diagnose-many", *map(str, logs), "--table", str(ROOT / "results/table/table.npz"),
-                        "--effect-grid-json", json.dumps(gap["effect_grid"]), "--options-json", json.dumps(options),
-                        "--cache-dir", str(ROOT / "results/gap/effect_tables"), "--threads", "1", "--no-plots",
-                        "-o", str(out))  # fmt: skip
-    if gap.get("candidates"):
-        cmd += ["--effects", ",".join(gap["candidates"])]
-    start = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode:
-        raise SystemExit(f"imply gap diagnose-many under {src} failed:\n{proc.stderr[-2000:]}")
-    return time.perf_counter() - start
+    args = ["gap", "diagnose-many", *map(str, logs), "--table", str(ROOT / "results/table/table.npz"),
+            "--effect-grid-json", json.dumps(gap["effect_grid"]), "--options-json", json.dumps(options),
+            "--cache-dir", str(ROOT / "results/gap/effect_tables"), "--threads", "1", "--no-plots", "-o", str(out)]  # fmt: skip
+    return timed_imply(src, args, gap.get("candidates"))
 
 
 def differences(a: Path, b: Path) -> list[str]:
@@ -82,17 +72,14 @@ def main(argv: list[str] | None = None) -> int:
     options = {**config["gap"]["diagnose"], **(OBSERVED if args.observed else {})}
     times: dict[str, list[float]] = {"baseline": [], "current": []}
     with tempfile.TemporaryDirectory() as tmp, baseline_tree(args.baseline) as tree:
-        for r in range(args.repeats):
-            order = ("baseline", "current") if r % 2 == 0 else ("current", "baseline")
-            for which in order:
-                src = tree / "src" if which == "baseline" else ROOT / "src"
-                wall = diagnose(src, logs, options, config, Path(tmp) / f"{which}-{r}")
-                times[which].append(wall)
-                peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-                print(f"round {r + 1} {which:8s} {wall:6.1f} s for {len(logs)} logs  (peak RSS so far {peak:.0f} MiB)")
+        for r, which in ab_rounds(args.repeats):
+            src = tree / "src" if which == "baseline" else ROOT / "src"
+            wall = diagnose(src, logs, options, config, Path(tmp) / f"{which}-{r}")
+            times[which].append(wall)
+            peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+            print(f"round {r + 1} {which:8s} {wall:6.1f} s for {len(logs)} logs  (peak RSS so far {peak:.0f} MiB)")
         changed = differences(Path(tmp) / "baseline-0", Path(tmp) / "current-0")
-    base, cur = statistics.median(times["baseline"]), statistics.median(times["current"])
-    print(f"median: baseline ({args.baseline}) {base:.1f} s, current {cur:.1f} s, ratio {cur / base:.2f}")
+    print_medians(times, args.baseline)
     print("reports: the same but the seconds" if not changed else f"reports differ: {', '.join(changed[:10])}")
     return 1 if changed else 0
 
