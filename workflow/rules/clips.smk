@@ -20,7 +20,8 @@ rule clips_render:
         clips=as_json(config["clips"]),
         score=score_subset("calibration_speeds", "query_speeds"),
         scene=as_json(config["scene"]),
-    threads: config["threads"]
+    # one thread: its files are the same with more, and a job asking for both cores waits until both are idle
+    threads: 1
     # the training chain is the study's longest: it starts first, the rest fills the other core
     priority: 10
     resources:
