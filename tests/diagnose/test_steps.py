@@ -18,7 +18,7 @@ from imply.diagnose import candidates
 from imply.diagnose.aliasing import aliasing
 from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
 from imply.diagnose.candidates import Model
-from imply.diagnose.fit import Problem
+from imply.diagnose.fit import Problem, distinct_blocks
 from imply.diagnose.hypotheses import NO_EFFECT, enumerate_hypotheses, log_evidence
 from imply.diagnose.localisation import localise
 from imply.diagnose.model_error import model_error
@@ -86,6 +86,31 @@ def test_prediction_keeps_what_it_extrapolated(analytic_table):
     assert (size_d[prob.c_v == 0.9] > 0).all() and not size_d[prob.c_v < 0.8].any()
     exact = analytic_log_d(prob.c_v + 0.18, 0.5, 0.3)
     np.testing.assert_allclose(beyond.log_d, exact, atol=0.01)
+
+
+def test_equal_blocks_are_found_and_spread_back():
+    a, b = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.0, 4.0])
+    col = np.concatenate([a, b, a, a])
+    other = np.concatenate([b, b, b, b])
+    rows, back = distinct_blocks(4, col, other)
+    np.testing.assert_array_equal(rows, np.arange(6))  # the first two blocks
+    np.testing.assert_array_equal(col[rows][back], col)
+    np.testing.assert_array_equal(other[rows][back], other)
+    # a block equal in one column but not in the other is distinct
+    assert distinct_blocks(2, np.r_[a, a], np.r_[a, b]) == (None, None)
+    assert distinct_blocks(1, a) == (None, None)
+
+
+def test_settings_that_share_points_give_the_residuals_of_one_at_a_time(analytic_table):
+    prob = problem_of(make_log(), analytic_table)
+    model = Model((candidates.CANDIDATES["speed_gain"],))
+    thetas = np.array([[0.05], [0.05], [0.1], [0.05]])
+    lms = np.repeat(np.log(np.full((1, prob.n_obj), 0.5)), 4, 0)
+    lus = np.repeat(np.log(np.full((1, prob.n_obj), 0.3)), 4, 0)
+    lus[3] += 0.01  # the last setting moves every push's friction: a point of its own
+    together = prob.residuals(model, thetas, lms, lus)
+    alone = np.concatenate([prob.residuals(model, thetas[k : k + 1], lms[k : k + 1], lus[k : k + 1]) for k in range(4)])
+    np.testing.assert_array_equal(together, alone)
 
 
 # -- step 1: noise and outliers --------------------------------------------------------------
