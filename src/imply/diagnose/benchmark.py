@@ -84,6 +84,12 @@ def _named(true: str, summary: Summary) -> bool:
     return any(true in cls for cls in _classes(summary))
 
 
+def wrong_share(correct: pd.Series) -> float:
+    """The share of logs whose verdict is wrong (nan for none): counted, so that 2 of 40 reads 0.05 exactly and
+    a target of at most 5% is judged on the count, not on ``1 - 0.95``'s rounding."""
+    return float((~correct.astype(bool)).sum() / len(correct)) if len(correct) else float("nan")
+
+
 def true_theta(e: dict) -> dict:
     return {"magnitude": abs(e["magnitude"]) if e["name"] in ("tilt", "anisotropic") else e["magnitude"],
             "azimuth_deg": None if e.get("azimuth") is None else float(np.degrees(e["azimuth"]))}  # fmt: skip
@@ -211,9 +217,9 @@ def score_cases(
 
     g = frame["group"]
     null = g.isin(["null_gaussian", "null_heavy"])
-    fa_all = 1.0 - rate(null)[0] if null.any() else float("nan")
-    fa_gauss = 1.0 - rate(g == "null_gaussian")[0] if (g == "null_gaussian").any() else float("nan")
-    fa_heavy = 1.0 - rate(g == "null_heavy")[0] if (g == "null_heavy").any() else float("nan")
+    fa_all = wrong_share(frame.loc[null, "correct"])
+    fa_gauss = wrong_share(frame.loc[g == "null_gaussian", "correct"])
+    fa_heavy = wrong_share(frame.loc[g == "null_heavy", "correct"])
     single, double, out = g == "single", g == "double", g == "outside"
     top1_big, n_big = rate(single & frame["big"])
     top1_all, n_single = rate(single)
