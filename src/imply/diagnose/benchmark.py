@@ -322,6 +322,20 @@ def stated_error(e: dict, summary: Summary) -> float | None:
     return abs(hit.magnitude - t) / abs(t) if t else None
 
 
+def told_error(e: dict, summary: Summary) -> float | None:
+    """The relative magnitude error of the true effect ``e``'s own hypothesis (that effect alone, with or without the
+    discrepancy: the heavier), whatever the verdict (None: not fitted alone, as where the library marks it not
+    identifiable). A verdict that stated the true effect alone would state this magnitude, so the share of logs where
+    it is within tolerance is what a verdict rule could reach on these fits if it were told the cause."""
+    own = [h for h in summary.hypotheses if h.effects == [e["name"]] and h.estimates]
+    if not own:
+        return None
+    hit = max(own, key=lambda h: h.weight).estimates[0]
+    restricted = any(k.endswith("_along") for k in hit.components)
+    t = restricted_truth(e, hit) if restricted else true_theta(e)["magnitude"]
+    return abs(hit.magnitude - t) / abs(t) if t else None
+
+
 def named_classes(summary: Summary) -> list[set[str]]:
     """The alias class (a set of candidate names) of every library effect the verdict names: the causes, then the
     contenders' other effects."""
@@ -345,6 +359,8 @@ def score_contact_cases(
     - ``single_right``: one-effect logs whose verdict states the true effect as the one cause (alone) with
       magnitude within that;
     - ``named``: one-effect logs whose verdict states the true effect as a cause with magnitude within that;
+    - ``told_right``: one-effect logs whose true effect's own hypothesis (:func:`told_error`) has its magnitude within
+      that, whatever the verdict: the reach of ``single_right`` on these fits;
     - ``wrong_single``: logs with an effect outside the library whose verdict states a library mechanism as the one
       cause; ``wrong_mechanism``: ... states one as a cause at all.
     """
@@ -370,6 +386,8 @@ def score_contact_cases(
             named_cls = any(e["name"] in c for c in classes)
             rel = stated_error(e, s)
             named = bool(named_cls and rel is not None and rel <= within)
+            told = told_error(e, s)
+            row.update(told_error=told, told_right=bool(told is not None and told <= within))
             row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
                        relative_error=rel, named=named, among_named=any(e["name"] in c for c in named_classes(s)),
                        one_cause_right=bool(row["one_cause"] and named and len(classes) == 1))  # fmt: skip
@@ -390,7 +408,7 @@ def score_contact_cases(
     out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
     for key, mask, column in (("null_no_library", null, "no_library"), ("among_named", single, "among_named"),
                               ("named", single, "named"), ("one_cause", single, "one_cause"),
-                              ("single_right", single, "one_cause_right"),
+                              ("single_right", single, "one_cause_right"), ("told_right", single, "told_right"),
                               ("wrong_single", outside, "wrong_single"), ("wrong_mechanism", outside, "wrong")):  # fmt: skip
         out[key], out[f"n_{key}"] = share(mask, column)
         for engine in ("mujoco", "bullet"):

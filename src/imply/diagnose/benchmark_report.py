@@ -121,8 +121,11 @@ def observed_claims(r: dict) -> list[Claim]:
         "contact-wrong": "effects outside the library on another contact model: a library mechanism the one cause in "
         f"<= {ct['wrong_single']:.0%}",
     }
+    told = {
+        "contact-single": f"; told the cause, its own hypothesis within tolerance in {_f(c.get('told_right'), '.2f')}"
+    }
     return claims + [Claim(f"gap-observed-{cid}", "gap", prefix + statement, _meets(c, ct, CONTACT_TARGETS[cid]),
-                           f"{_f(c[CONTACT_TARGETS[cid][0]])} on {c[CONTACT_TARGETS[cid][1]]} logs")
+                           f"{_f(c[CONTACT_TARGETS[cid][0]])} on {c[CONTACT_TARGETS[cid][1]]} logs{told.get(cid, '')}")
                      for cid, statement in statements.items()]  # fmt: skip
 
 
@@ -147,7 +150,8 @@ def contact_claims(c: dict | None) -> list[Claim]:
               _holds(c["among_named"], lambda x: x >= t["among_named"]), f"{_f(c['among_named'])} on "
               f"{c['n_among_named']} logs ({split('among_named')}); stated as the one cause in "
               f"{_f(c['one_cause'], '.2f')}, of which the true effect within {t['magnitude_within']:.0%} in "
-              f"{_f(c['one_cause_right'], '.2f')} ({c['n_one_cause_right']} logs)"),
+              f"{_f(c['one_cause_right'], '.2f')} ({c['n_one_cause_right']} logs); told the cause, its own "
+              f"hypothesis within {t['magnitude_within']:.0%} in {_f(c.get('told_right'), '.2f')}"),
         Claim("gap-contact-contenders", "gap", f"... with at most {t['contenders_mean']:g} explanations in contention on "
               "average", _holds(c["contenders_mean"], lambda x: x <= t["contenders_mean"]),
               f"mean {_f(c['contenders_mean'], '.2f')}, largest {c['contenders_max']}"),
@@ -158,7 +162,9 @@ def contact_claims(c: dict | None) -> list[Claim]:
               f"appended: the true effect the one cause within {t['magnitude_within']:.0%} in >= {t['closed_loop']:.0%}",
               _holds(nxt.get("one_cause_right"), lambda x: x >= t["closed_loop"]),
               f"{_f(nxt.get('one_cause_right'))} on {nxt.get('n_single', 0)} logs; as many pushes drawn from the log's "
-              f"own design: {_f(rnd.get('one_cause_right'))}"),
+              f"own design: {_f(rnd.get('one_cause_right'))}; told the cause, its own hypothesis within "
+              f"{t['magnitude_within']:.0%} in {_f(nxt.get('told_right'), '.2f')} (random pushes "
+              f"{_f(rnd.get('told_right'), '.2f')})"),
     ]  # fmt: skip
 
 
@@ -256,6 +262,7 @@ CONTACT_ROWS = (("null logs: no library effect stated", "null_no_library", ".3f"
                 ("... explanations in contention, mean", "contenders_mean", ".2f", "contenders_mean", "<="),
                 ("... stated as the one cause", "one_cause", ".3f", None, ""),
                 ("... the true effect the one cause, within tolerance", "single_right", ".3f", None, ""),
+                ("... told the cause: its own hypothesis within tolerance", "told_right", ".3f", None, ""),
                 ("outside effects: a library mechanism the one cause", "wrong_single", ".3f", "wrong_single", "<="),
                 ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""))  # fmt: skip
 
@@ -306,6 +313,8 @@ def contact_markdown(c: dict | None) -> list[str]:
         lines += [
             f"| one-effect logs: the true effect the one cause, within tolerance | {_f(n['one_cause_right'])} | "
             f"{_f(r['one_cause_right'])} ({n['n_single']} logs) |",
+            f"| ... told the cause: its own hypothesis within tolerance, whatever the verdict | "
+            f"{_f(n.get('told_right'))} | {_f(r.get('told_right'))} |",
             f"| null logs: no library effect stated | {_f(n['null_no_library'])} | {_f(r['null_no_library'])} "
             f"({n['n_null']} logs) |",
             f"| outside effects: a library mechanism the one cause | {_f(n['wrong_single'])} | {_f(r['wrong_single'])} "

@@ -9,7 +9,8 @@ pushes drawn at random from the log's own design (its distinct object, speed and
 direction), run the same way. :func:`run_closed_loop` writes both arms' logs and reports;
 :func:`score_closed_loop` scores them against the sealed labels: how often the true effect
 is then stated as the one cause with its magnitude within the target's tolerance (one-effect
-logs), how often a null log states no library effect, and how often an effect outside
+logs; beside it, how often the true effect's own hypothesis has its magnitude within that,
+whatever the verdict: :func:`imply.diagnose.benchmark.told_error`), how often a null log states no library effect, and how often an effect outside
 the library is stated as a library mechanism's one cause.
 """
 
@@ -24,7 +25,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, stated_error
+from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, stated_error, told_error
 from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
 from imply.diagnose.verdict import Identification
 from imply.io import write_csv, write_json
@@ -109,6 +110,8 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                 if group in CONTACT_SINGLE:
                     row["big"] = bool(sizes.get(r["case"], 0.0) >= min_size_sd * lab["noise"]["sd"])
                     row["one_cause_right"] = _one_cause_right(lab, s, within)
+                    told = told_error(lab["effects"][0], s)
+                    row["told_right"] = bool(told is not None and told <= within)
                 elif group in CONTACT_NULL:
                     row["no_library"] = not s.verdict.effects
                 elif group in CONTACT_OUTSIDE:
@@ -116,7 +119,17 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                         bool(s.verdict.effects) and s.verdict.identification == Identification.ONE_CAUSE
                     )
                 rows.append(row)
-    columns = ["arm", "group", "big", "one_cause_right", "no_library", "wrong_single", "n_contenders", "pushes_added"]
+    columns = [
+        "arm",
+        "group",
+        "big",
+        "one_cause_right",
+        "told_right",
+        "no_library",
+        "wrong_single",
+        "n_contenders",
+        "pushes_added",
+    ]
     frame = pd.DataFrame(rows).reindex(columns=columns)  # every column, so that an empty loop scores as nan
 
     def mean(values: pd.Series) -> float:
@@ -130,6 +143,7 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
         outside = sub[sub["group"].isin(CONTACT_OUTSIDE)]
         out[arm] = {
             "one_cause_right": mean(single["one_cause_right"]), "n_single": int(len(single)),
+            "told_right": mean(single["told_right"]),
             "null_no_library": mean(null["no_library"]), "n_null": int(len(null)),
             "wrong_single": mean(outside["wrong_single"]), "n_outside": int(len(outside)),
             "contenders_mean": mean(sub["n_contenders"]), "pushes_added_mean": mean(sub["pushes_added"]),
