@@ -193,6 +193,25 @@ def test_the_hypotheses_weigh_a_speed_offset_first(analytic_table):
     assert len(labels) == len(hyps.table)  # each hypothesis once
 
 
+def test_effects_the_discrepancy_holds_never_sit_beside_it(analytic_table):
+    prob = problem_of(make_log(seed=7, offset=0.05), analytic_table)
+    prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
+    cands = [*candidates.get(TABLELESS), candidates.discrepancy_candidate(aux=prob.aux, prior_sd=0.1, bound=1.0)]
+    alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
+
+    def table(held):
+        return enumerate_hypotheses(prob, base, cands, alias=alias, max_effects=OPTS.max_effects, screen=OPTS.screen,
+                                    scan=OPTS.scan, n_folds=OPTS.folds, held=held).table  # fmt: skip
+
+    free, held = table(set()), table({"speed_gain"})
+    assert any(h.discrepancy and "speed_gain" in h.effects for h in free)
+    assert not any(h.discrepancy and "speed_gain" in h.effects for h in held)
+    # the held effect stays a hypothesis without the discrepancy, and the others keep theirs with it
+    labels = {h.label for h in held}
+    assert {"speed_gain", "speed_gain+speed_offset", "speed_offset+discrepancy", "discrepancy"} <= labels
+    assert {h.label for h in free} - labels == {h.label for h in free if h.discrepancy and "speed_gain" in h.effects}
+
+
 def test_the_baseline_carries_the_weight_of_a_null_log(analytic_table):
     _, base, hyps = _hypotheses(make_log(seed=8), analytic_table)
     assert hyps.table[0].label == NO_EFFECT and hyps.fits[0] is base

@@ -34,7 +34,7 @@ from typing import ClassVar
 import numpy as np
 
 from imply.diagnose.aliasing import Aliasing, aliasing
-from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate
+from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate, get
 from imply.diagnose.discrepancy import DiscrepancyReport, describe
 from imply.diagnose.effect_tables import AUX
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
@@ -121,6 +121,12 @@ class DiagnosisConfig(Config):
     discrepancy_scales: int = option(
         1, doc="prior sds of the discrepancy the evidence averages over, halving from discrepancy_sd (1: that one)",
         minimum=1,
+    )  # fmt: skip
+    discrepancy_holds: tuple[str, ...] = option(
+        ("speed_gain", "speed_offset", "pusher_softness"),
+        doc="library effects no hypothesis holds beside the discrepancy: a contact that differs from the table's "
+        "changes the pushes as they do, so beside it they would only absorb the contact (chosen on the development "
+        "sets)", unique=True, items={"choices": tuple(c.name for c in get())},
     )  # fmt: skip
     next_pushes: int = option(12, doc="pushes recommended to separate the contenders", minimum=0)
     next_speeds: int = option(9, doc="candidate speeds of the next pushes, across the table's range", minimum=2)
@@ -280,7 +286,8 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     pool = [c.restricted(alias.restricted[c.name].direction) if c.name in alias.restricted else c for c in pool]
     hyps = enumerate_hypotheses(problem, base, pool, alias=alias, max_effects=opts.max_effects, screen=opts.screen,
                                 scan=opts.scan, n_folds=opts.folds,
-                                scales=opts.discrepancy_scales)  # 4. every explanation, weighed  # fmt: skip
+                                scales=opts.discrepancy_scales,
+                                held=set(opts.discrepancy_holds))  # 4. every explanation, weighed  # fmt: skip
     final = hyps.fits[0]  # the leading hypothesis
     held = heldout(problem, final, opts.folds)  # 5. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)

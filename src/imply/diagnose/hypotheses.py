@@ -29,8 +29,17 @@ reported beside it, and the shrinkage of the gap is judged on held-out residuals
 Enumeration: the baseline; the discrepancy alone; every identifiable library effect alone,
 with and without the discrepancy; then, among the ``screen`` alias classes whose best
 member scored highest alone (a first screening pass, so that the count stays near fifty
-fits), every pair and triple (one member per class), with and without the discrepancy. A hypothesis whose one-signed effect (viscous friction, say)
-fits at zero is the hypothesis without it, and is not weighed twice.
+fits), every pair and triple (one member per class), with and without the discrepancy. A
+hypothesis whose one-signed effect (viscous friction, say) fits at zero is the hypothesis
+without it, and is not weighed twice.
+
+The effects the discrepancy *holds* (config ``discrepancy_holds``: the pusher's speed gain
+and offset and a softer pusher) never sit beside it in one hypothesis. A contact that
+differs from the table's changes how a push hands its speed to the box, as they do; beside
+the discrepancy they would take up the part of the contact's difference shaped like them,
+and an effect fitted for that reason would be weighed as if it had been found. They stay
+hypotheses of their own, alone or with other effects, without the discrepancy; where the
+discrepancy explains the log as well, the verdict says they cannot be told from it.
 """
 
 from __future__ import annotations
@@ -177,10 +186,11 @@ def degenerate(fit: JointFit) -> bool:
 
 def enumerate_hypotheses(
     problem: Problem, base: JointFit, pool: list[Candidate], *, alias: Aliasing, max_effects: int, screen: int,
-    scan: int, n_folds: int, scales: int = 1,
+    scan: int, n_folds: int, scales: int = 1, held: set[str] = frozenset(),
 ) -> FittedHypotheses:  # fmt: skip
     """Fit and weigh every hypothesis (module docstring) of the identifiable candidates in ``pool`` (the discrepancy
-    among them where it is used) on top of the baseline fit ``base``."""
+    among them where it is used) on top of the baseline fit ``base``; no hypothesis holds an effect of ``held`` (the
+    effects the discrepancy holds) beside the discrepancy."""
     disc = next((c for c in pool if not c.is_library), None)
     library = [c for c in pool if c.is_library and alias.effects[c.name].identifiable]
     fits: dict[tuple[str, ...], JointFit] = {(): base}
@@ -200,13 +210,14 @@ def enumerate_hypotheses(
     if disc is not None:
         singles.append(add((), disc))
         for c in library:
-            add((c.name,), disc)
+            if c.name not in held:
+                add((c.name,), disc)
     # the screening pass: alias classes ranked by the best score of any member alone (with or without the
     # discrepancy), each class represented in combinations by that member
     dispersion0 = max(1.0, min(f.sse / dof(problem, f) for f in fits.values()))
     score = {}
     for c in library:
-        alone = [fits[(c.name,)]] + ([fits[key([c, disc])]] if disc is not None else [])
+        alone = [fits[(c.name,)]] + ([fits[key([c, disc])]] if disc is not None and c.name not in held else [])
         score[c.name] = max(log_evidence(f, dispersion0, scales) for f in alone)
     by_class: dict[str, Candidate] = {}
     for c in sorted(library, key=lambda c: -score[c.name]):
@@ -220,7 +231,7 @@ def enumerate_hypotheses(
             parent = min((p for p in parents if p in fits), key=lambda p: fits[p].sse)
             newcomer = next(c for c in combo if c.name not in parent)
             add(parent, newcomer)
-            if disc is not None:
+            if disc is not None and not held.intersection(names):
                 add(tuple(names), disc)
     # a hypothesis whose effect fits at zero is the smaller one again: weighed once, as the smaller one
     ordered = [f for f in fits.values() if not degenerate(f)]
