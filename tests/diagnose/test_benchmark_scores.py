@@ -1,8 +1,10 @@
-"""The gap benchmark's rates judged on counts."""
+"""The gap benchmark's rates judged on counts, and what a verdict told the cause would state."""
+
+from types import SimpleNamespace
 
 import pandas as pd
 
-from imply.diagnose.benchmark import wrong_share
+from imply.diagnose.benchmark import told_error, wrong_share
 
 
 def test_two_false_alarms_in_forty_meet_a_five_percent_target():
@@ -16,3 +18,20 @@ def test_wrong_share_counts_wrong_verdicts_and_is_nan_without_logs():
     assert wrong_share(pd.Series([True, False, False, True])) == 0.5
     assert wrong_share(pd.Series([1, 1, 0])) == 1 / 3
     assert pd.isna(wrong_share(pd.Series([], dtype=bool)))
+
+
+def _hyp(effects, weight, magnitude, discrepancy=False):
+    est = SimpleNamespace(magnitude=magnitude, components={effects[0]: magnitude} if effects else {})
+    return SimpleNamespace(effects=effects, weight=weight, discrepancy=discrepancy, estimates=[est] if effects else [])
+
+
+def test_told_error_reads_the_heavier_of_the_true_effects_own_hypotheses_whatever_leads():
+    summary = SimpleNamespace(hypotheses=[
+        _hyp(["viscous", "speed_gain"], 0.97, 0.9),  # leads, but holds another effect
+        _hyp(["viscous"], 0.02, 0.55, discrepancy=True),
+        _hyp(["viscous"], 0.01, 0.2),
+        _hyp([], 0.0, 0.0),
+    ])  # fmt: skip
+    truth = {"name": "viscous", "magnitude": 0.5}
+    assert abs(told_error(truth, summary) - 0.1) < 1e-12  # 0.55 against 0.5, not the lighter 0.2 nor the 0.9
+    assert told_error({"name": "air_drag", "magnitude": 1.0}, summary) is None  # never fitted alone

@@ -54,6 +54,11 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     contact = bench["contact"]
     assert contact["n_logs"] == 4 and {row["engine"] for row in contact["cases"]} == {"mujoco", "bullet"}
     assert "# Other contact models" in md
+    # beside each score, what the true effect's own hypothesis states whatever the verdict
+    single = [row for row in contact["cases"] if row["group"] in ("single_contact", "single_engine")]
+    assert single and all(isinstance(row["told_right"], bool) for row in single)
+    assert all(row["told_error"] is None or row["told_error"] >= 0 for row in single)
+    assert "told the cause: its own hypothesis within tolerance" in md
     # both benchmarks diagnosed again with every observable the logs carry, side by side in the report
     seen = json.loads(next((tmp_path / "results/gap/contact/reports_observed").glob("shard*/log-*/summary.json"))
                       .read_text())  # fmt: skip
