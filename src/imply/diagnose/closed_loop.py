@@ -9,9 +9,10 @@ pushes drawn at random from the log's own design (its distinct object, speed and
 direction), run the same way. :func:`run_closed_loop` writes both arms' logs and reports;
 :func:`score_closed_loop` scores them against the sealed labels: how often the true effect
 is then stated as the one cause with its magnitude within the target's tolerance (one-effect
-logs; beside it, how often the true effect's own hypothesis has its magnitude within that,
-whatever the verdict: :func:`imply.diagnose.benchmark.told_error`), how often a null log states no library effect, and how often an effect outside
-the library is stated as a library mechanism's one cause.
+logs; beside it, how often the true effect's own hypothesis has its magnitude within that
+whatever the verdict, :func:`imply.diagnose.benchmark.told_error`), how often a null log
+states no library effect, and how often an effect outside the library is stated as a library
+mechanism's one cause.
 """
 
 from __future__ import annotations
@@ -119,17 +120,8 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                         bool(s.verdict.effects) and s.verdict.identification == Identification.ONE_CAUSE
                     )
                 rows.append(row)
-    columns = [
-        "arm",
-        "group",
-        "big",
-        "one_cause_right",
-        "told_right",
-        "no_library",
-        "wrong_single",
-        "n_contenders",
-        "pushes_added",
-    ]
+    columns = ["arm", "group", "big", "one_cause_right", "told_right", "no_library", "wrong_single", "n_contenders",
+               "pushes_added"]  # fmt: skip
     frame = pd.DataFrame(rows).reindex(columns=columns)  # every column, so that an empty loop scores as nan
 
     def mean(values: pd.Series) -> float:
