@@ -8,11 +8,13 @@ The development set has the design of config ``gap.contact_benchmark`` with anot
 the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
 development seed 1001; the evaluation set is the config's), scored by
 :func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
-option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out. The logs are generated once per
-folder and reused.
+option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out; ``--closed-loop``
+then runs the closed loop on the development logs with several contenders (``imply gap closed-loop``, two
+shards) and scores it as the workflow does (:func:`imply.diagnose.closed_loop.score_closed_loop`). The logs are
+generated once per folder and reused.
 
 Run: python benchmarks/gap_contact_dev.py --out /tmp/contact-dev [--seed 7117] [--set discrepancy_sd=0.3]
-     [--name LABEL] [--cases]
+     [--name LABEL] [--cases] [--closed-loop]
      python benchmarks/gap_contact_dev.py --main --out /tmp/main-dev [--name LABEL]
 
 Needs results/table/table.npz and results/gap/effect_tables (``snakemake --cores 2
@@ -34,7 +36,8 @@ import yaml
 from imply.diagnose.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
-METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "named", "wrong_single", "wrong_mechanism")
+METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "told_right", "named", "wrong_single",
+           "wrong_mechanism")  # fmt: skip
 MAIN_METRICS = {
     "false_alarm": "n_null",
     "top1_big": "n_big",
@@ -54,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ignore-measured", action="store_true", help="leave the logs' weighed masses out")
     ap.add_argument("--name", default="config", help="label of this run (its diagnoses' folder)")
     ap.add_argument("--cases", action="store_true", help="print every log's verdict")
+    ap.add_argument("--closed-loop", action="store_true", help="run and score the closed loop (other contact only)")
     ap.add_argument("--table", type=Path, default=ROOT / "results/table/table.npz")
     ap.add_argument("--effect-tables", type=Path, default=ROOT / "results/gap/effect_tables")
     args = ap.parse_args(argv)
@@ -109,6 +113,36 @@ def main(argv: list[str] | None = None) -> int:
         frame = pd.DataFrame(result["cases"])
         cols = ["case", "group", "engine", "effects", "identification", "causes", "contenders"]
         print(frame[cols].to_string(index=False))
+    if args.closed_loop:
+        return _closed_loop(args, design, options, grid, run, sealed)
+    return 0
+
+
+def _closed_loop(args: argparse.Namespace, design: dict, options: dict, grid: str, run: Path, sealed: dict) -> int:
+    """The closed loop on the development run ``run``'s reports, scored as the workflow scores it."""
+    from imply.diagnose.benchmark import effect_size_on_contact
+    from imply.diagnose.closed_loop import score_closed_loop
+
+    loop = args.out / "closed" / args.name
+    procs = [subprocess.Popen(["imply", "gap", "closed-loop", "--contact-bench-json", json.dumps(design),
+                               "--logs", str(args.out / "logs"), "--reports", str(run / f"shard{k}"),
+                               "-o", str(loop / f"shard{k}"), "--table", str(args.table),
+                               "--cache-dir", str(args.effect_tables), "--effect-grid-json", grid,
+                               "--options-json", json.dumps(options), "--threads", "1", "--no-plots", "--force"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for k in range(2)]  # fmt: skip
+    if any(p.wait() for p in procs):
+        print("a closed-loop shard failed", file=sys.stderr)
+        return 1
+    sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
+             for cid, lab in sealed.items() if len(lab["effects"]) == 1}  # fmt: skip
+    result = score_closed_loop(sealed, [loop / "shard0", loop / "shard1"], within=design["targets"]["magnitude_within"],
+                               min_size_sd=design["min_size_sd"], sizes=sizes)  # fmt: skip
+    for arm in ("next", "random"):
+        r = result[arm]
+        print(f"  closed loop, {arm:6s} one cause right {r['one_cause_right']:.3f} (n {r['n_single']}), told the "
+              f"cause {r['told_right']:.3f}; null logs clear {r['null_no_library']:.3f} (n {r['n_null']}); outside "
+              f"stated {r['wrong_single']:.3f} (n {r['n_outside']}); contenders {r['contenders_mean']:.2f}")  # fmt: skip
     return 0
 
 
