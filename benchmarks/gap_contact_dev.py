@@ -48,6 +48,15 @@ MAIN_METRICS = {
 }  # metric: its count
 
 
+def run_shards(cmds: list[list[str]]) -> bool:
+    """Run ``imply`` commands side by side (one per core); False, with a line on stderr, if any failed."""
+    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for cmd in cmds]
+    failed = [cmd[2] for cmd, p in zip(cmds, procs, strict=True) if p.wait()]
+    if failed:
+        print(f"a {failed[0]} shard failed", file=sys.stderr)
+    return not failed
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True, help="folder for the development logs and their diagnoses")
@@ -86,16 +95,11 @@ def main(argv: list[str] | None = None) -> int:
     files = sorted(str(p) for p in logs.glob("*.csv") if not p.name.endswith(".track.csv"))
     run = args.out / "runs" / args.name
     t0 = time.perf_counter()
-    procs = []
-    for k, part in enumerate((files[::2], files[1::2])):
-        cmd = ["imply", "gap", "diagnose-many", *part, "--table", str(args.table), "--effect-grid-json", grid,
-               "--options-json", json.dumps(options), "--cache-dir", str(args.effect_tables), "--threads", "1",
-               "--force", "-o", str(run / f"shard{k}")]  # fmt: skip
-        if args.ignore_measured:
-            cmd.append("--ignore-measured")
-        procs.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    if any(p.wait() for p in procs):
-        print("a diagnose-many shard failed", file=sys.stderr)
+    cmds = [["imply", "gap", "diagnose-many", *part, "--table", str(args.table), "--effect-grid-json", grid,
+             "--options-json", json.dumps(options), "--cache-dir", str(args.effect_tables), "--threads", "1",
+             "--force", "-o", str(run / f"shard{k}")] + (["--ignore-measured"] if args.ignore_measured else [])
+            for k, part in enumerate((files[::2], files[1::2]))]  # fmt: skip
+    if not run_shards(cmds):
         return 1
     seconds = time.perf_counter() - t0
     sealed = json.loads(labels.read_text())
@@ -120,24 +124,17 @@ def main(argv: list[str] | None = None) -> int:
 
 def _closed_loop(args: argparse.Namespace, design: dict, options: dict, grid: str, run: Path, sealed: dict) -> int:
     """The closed loop on the development run ``run``'s reports, scored as the workflow scores it."""
-    from imply.diagnose.benchmark import effect_size_on_contact
     from imply.diagnose.closed_loop import score_closed_loop
 
     loop = args.out / "closed" / args.name
-    procs = [subprocess.Popen(["imply", "gap", "closed-loop", "--contact-bench-json", json.dumps(design),
-                               "--logs", str(args.out / "logs"), "--reports", str(run / f"shard{k}"),
-                               "-o", str(loop / f"shard{k}"), "--table", str(args.table),
-                               "--cache-dir", str(args.effect_tables), "--effect-grid-json", grid,
-                               "--options-json", json.dumps(options), "--threads", "1", "--no-plots", "--force"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-             for k in range(2)]  # fmt: skip
-    if any(p.wait() for p in procs):
-        print("a closed-loop shard failed", file=sys.stderr)
+    cmds = [["imply", "gap", "closed-loop", "--contact-bench-json", json.dumps(design), "--logs", str(args.out / "logs"),
+             "--reports", str(run / f"shard{k}"), "-o", str(loop / f"shard{k}"), "--table", str(args.table),
+             "--cache-dir", str(args.effect_tables), "--effect-grid-json", grid, "--options-json", json.dumps(options),
+             "--threads", "1", "--no-plots", "--force"] for k in range(2)]  # fmt: skip
+    if not run_shards(cmds):
         return 1
-    sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
-             for cid, lab in sealed.items() if len(lab["effects"]) == 1}  # fmt: skip
     result = score_closed_loop(sealed, [loop / "shard0", loop / "shard1"], within=design["targets"]["magnitude_within"],
-                               min_size_sd=design["min_size_sd"], sizes=sizes)  # fmt: skip
+                               min_size_sd=design["min_size_sd"])  # fmt: skip
     for arm in ("next", "random"):
         r = result[arm]
         print(f"  closed loop, {arm:6s} one cause right {r['one_cause_right']:.3f} (n {r['n_single']}), told the "

@@ -216,14 +216,11 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=dict(design.targets),
                                                 min_size_sd=design.min_size_sd)  # fmt: skip
         if args.closed_loop:
-            from imply.diagnose.benchmark import effect_size_on_contact
             from imply.diagnose.closed_loop import score_closed_loop
 
-            loop_sizes = {cid: effect_size_on_contact(lab, lab["effects"][0]["name"])
-                          for cid, lab in contact_labels.items() if len(lab["effects"]) == 1}  # fmt: skip
             result["contact"]["closed_loop"] = score_closed_loop(
                 contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
-                min_size_sd=design.min_size_sd, sizes=loop_sizes,
+                min_size_sd=design.min_size_sd,
             )  # fmt: skip
     if args.observed_reports:
         with user_errors(FileNotFoundError, message="--observed-reports: {error}"):

@@ -336,6 +336,12 @@ def told_error(e: dict, summary: Summary) -> float | None:
     return abs(hit.magnitude - t) / abs(t) if t else None
 
 
+def told_within(e: dict, summary: Summary, within: float) -> bool:
+    """Whether :func:`told_error` is at most ``within`` (False where the effect was not fitted alone)."""
+    told = told_error(e, summary)
+    return told is not None and told <= within
+
+
 def named_classes(summary: Summary) -> list[set[str]]:
     """The alias class (a set of candidate names) of every library effect the verdict names: the causes, then the
     contenders' other effects."""
@@ -386,8 +392,7 @@ def score_contact_cases(
             named_cls = any(e["name"] in c for c in classes)
             rel = stated_error(e, s)
             named = bool(named_cls and rel is not None and rel <= within)
-            told = told_error(e, s)
-            row.update(told_error=told, told_right=bool(told is not None and told <= within))
+            row.update(told_error=told_error(e, s), told_right=told_within(e, s, within))
             row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
                        relative_error=rel, named=named, among_named=any(e["name"] in c for c in named_classes(s)),
                        one_cause_right=bool(row["one_cause"] and named and len(classes) == 1))  # fmt: skip

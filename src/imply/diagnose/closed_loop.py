@@ -26,7 +26,14 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.benchmark import CONTACT_NULL, CONTACT_OUTSIDE, CONTACT_SINGLE, stated_error, told_error
+from imply.diagnose.benchmark import (
+    CONTACT_NULL,
+    CONTACT_OUTSIDE,
+    CONTACT_SINGLE,
+    effect_size_on_contact,
+    stated_error,
+    told_within,
+)
 from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
 from imply.diagnose.verdict import Identification
 from imply.io import write_csv, write_json
@@ -93,10 +100,10 @@ def _one_cause_right(label: dict, s: Summary, within: float) -> bool:
     return rel is not None and rel <= within
 
 
-def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: float, min_size_sd: float,
-                      sizes: dict[str, float]) -> dict:  # fmt: skip
+def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: float, min_size_sd: float) -> dict:
     """The closed loop's figures from the sealed ``labels`` and the closed-loop ``folders`` (each with
-    ``closed_loop.json`` and ``reports/``); ``sizes``: each one-effect log's effect size on its contact (log d)."""
+    ``closed_loop.json`` and ``reports/``); a one-effect log counts where its effect is at least ``min_size_sd``
+    noise sds on its contact (:func:`imply.diagnose.benchmark.effect_size_on_contact`)."""
     rows = []
     for folder in folders:
         with open(folder / "closed_loop.json") as fh:
@@ -109,10 +116,10 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                        "identification": str(s.verdict.identification), "causes": "+".join(s.verdict.effects) or "none",
                        "n_contenders": len(s.verdict.contenders)}  # fmt: skip
                 if group in CONTACT_SINGLE:
-                    row["big"] = bool(sizes.get(r["case"], 0.0) >= min_size_sd * lab["noise"]["sd"])
+                    size = effect_size_on_contact(lab, lab["effects"][0]["name"])
+                    row["big"] = bool(size >= min_size_sd * lab["noise"]["sd"])
                     row["one_cause_right"] = _one_cause_right(lab, s, within)
-                    told = told_error(lab["effects"][0], s)
-                    row["told_right"] = bool(told is not None and told <= within)
+                    row["told_right"] = told_within(lab["effects"][0], s, within)
                 elif group in CONTACT_NULL:
                     row["no_library"] = not s.verdict.effects
                 elif group in CONTACT_OUTSIDE:

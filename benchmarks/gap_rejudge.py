@@ -1,0 +1,55 @@
+"""A development run's verdicts judged again, stating causes wherever the gap is at least partly explained.
+
+Reads the summaries that ``benchmarks/gap_contact_dev.py`` wrote for a run (``--out``, ``--name``),
+judges each log's hypothesis table again with :func:`imply.diagnose.verdict.judge` as if its gap were
+explained wherever it is partly explained (adequacy and identification fully separate; the adequacy
+itself is kept), and scores both readings of the same fits with
+:func:`imply.diagnose.benchmark.score_contact_cases`. Nothing is diagnosed again.
+
+Run: python benchmarks/gap_rejudge.py --out /tmp/cdev-t --name final
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import yaml
+
+from imply.diagnose.analysis import Summary
+from imply.diagnose.benchmark import find_summaries, score_contact_cases
+from imply.diagnose.verdict import Adequacy, judge
+
+ROOT = Path(__file__).resolve().parents[1]
+METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "told_right", "wrong_single")
+
+
+def causes_when_partly(s: Summary) -> Summary:
+    """``s`` with its verdict judged as if a partly explained gap were explained (its adequacy kept)."""
+    v = s.verdict
+    if v.adequacy != Adequacy.PARTLY_EXPLAINED:
+        return s
+    opts = s.options
+    again = judge(s.hypotheses, share=1.0, min_share=opts.min_share, contender_ratio=opts.contender_ratio)
+    return replace(s, verdict=replace(again, adequacy=v.adequacy, share_closed=v.share_closed))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--out", type=Path, required=True, help="the development folder of gap_contact_dev.py")
+    ap.add_argument("--name", required=True, help="the run whose summaries are judged again")
+    args = ap.parse_args(argv)
+    design = yaml.safe_load((ROOT / "config.yaml").read_text())["gap"]["contact_benchmark"]
+    labels = json.loads((args.out / "labels.json").read_text())
+    summaries = find_summaries(labels, sorted((args.out / "runs" / args.name).glob("shard*")))
+    for title, judged in (("as judged", summaries), ("causes stated when partly explained",
+                                                     {k: causes_when_partly(s) for k, s in summaries.items()})):  # fmt: skip
+        r = score_contact_cases(labels, judged, targets=design["targets"], min_size_sd=design["min_size_sd"])
+        print(f"{title}: " + ", ".join(f"{k} {r[k]:.3f} (n {r['n_' + k]})" for k in METRICS))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
