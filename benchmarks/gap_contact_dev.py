@@ -4,13 +4,13 @@ evaluation sets.
 The development set has the design of config ``gap.contact_benchmark`` with another seed
 (default 7117; the evaluation set is the config's): ``imply gap generate`` writes it,
 ``imply gap diagnose-many`` diagnoses it in two shards (one process per core), and
-:func:`imply.diagnose.benchmark.score_contact_cases` scores it exactly as the workflow scores
+:func:`imply.realworld.benchmark.score_contact_cases` scores it exactly as the workflow scores
 the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
 development seed 1001; the evaluation set is the config's), scored by
-:func:`imply.diagnose.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
+:func:`imply.realworld.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
 option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out; ``--closed-loop``
 then runs the closed loop on the development logs with several contenders (``imply gap closed-loop``, two
-shards) and scores it as the workflow does (:func:`imply.diagnose.closed_loop.score_closed_loop`). The logs are
+shards) and scores it as the workflow does (:func:`imply.realworld.closed_loop.score_closed_loop`). The logs are
 generated once per folder and reused.
 
 Run: python benchmarks/gap_contact_dev.py --out /tmp/contact-dev [--seed 7117] [--set discrepancy_sd=0.3]
@@ -33,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from imply.diagnose.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
+from imply.realworld.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "told_right", "named", "wrong_single",
@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _closed_loop(args: argparse.Namespace, design: dict, options: dict, grid: str, run: Path, sealed: dict) -> int:
     """The closed loop on the development run ``run``'s reports, scored as the workflow scores it."""
-    from imply.diagnose.closed_loop import score_closed_loop
+    from imply.realworld.closed_loop import score_closed_loop
 
     loop = args.out / "closed" / args.name
     cmds = [["imply", "gap", "closed-loop", "--contact-bench-json", json.dumps(design), "--logs", str(args.out / "logs"),

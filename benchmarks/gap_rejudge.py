@@ -4,7 +4,7 @@ Reads the summaries that ``benchmarks/gap_contact_dev.py`` wrote for a run (``--
 judges each log's hypothesis table again with :func:`imply.diagnose.verdict.judge` as if its gap were
 explained wherever it is partly explained (adequacy and identification fully separate; the adequacy
 itself is kept), and scores both readings of the same fits with
-:func:`imply.diagnose.benchmark.score_contact_cases`. Nothing is diagnosed again.
+:func:`imply.realworld.benchmark.score_contact_cases`. Nothing is diagnosed again.
 
 Run: python benchmarks/gap_rejudge.py --out /tmp/cdev-t --name final
 """
@@ -19,8 +19,8 @@ from pathlib import Path
 import yaml
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.benchmark import find_summaries, score_contact_cases
 from imply.diagnose.verdict import Adequacy, judge
+from imply.realworld.benchmark import find_summaries, score_contact_cases
 
 ROOT = Path(__file__).resolve().parents[1]
 METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "told_right", "wrong_single")

@@ -27,7 +27,8 @@ FORBIDDEN = {
     "imply.results": ("imply",),
     "imply.models": ("imply.study", "imply.paper", "imply.diagnose", "imply.cli"),
     "imply.study": ("imply.paper", "imply.diagnose", "imply.cli"),
-    "imply.diagnose": ("imply.study", "imply.paper", "imply.cli"),
+    # the tool a user runs does not hold the study's benchmark (imply.realworld scores it)
+    "imply.diagnose": ("imply.study", "imply.paper", "imply.cli", "imply.realworld"),
     "imply.paper": ("imply.study", "imply.models", "imply.diagnose", "imply.cli"),
 }
 

@@ -31,6 +31,7 @@ from imply.models.encoder import EncoderConfig
 from imply.options import Config, json_schema, option
 from imply.readout import ReadoutConfig
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig
+from imply.realworld.lab import LabBenchmarkConfig
 from imply.score import ScoreConfig
 from imply.sim.scene import SceneConfig
 from imply.study.pixel_model import PixelConfig
@@ -58,6 +59,10 @@ class GapConfig(Config):
     contact_benchmark: ContactBenchmarkConfig = option(
         ContactBenchmarkConfig(), doc="the contact benchmark: other contact models and another engine", required=True
     )
+    lab_benchmark: LabBenchmarkConfig = option(
+        LabBenchmarkConfig(), doc="the lab benchmark: pushes with calibration probes, development and sealed sets by "
+        "engine (imply.realworld.lab)", required=True,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)

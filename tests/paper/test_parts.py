@@ -6,13 +6,13 @@ import json
 
 import pytest
 
-from imply.diagnose.benchmark_report import benchmark_claims
 from imply.paper.latex_tables import table1_tex, table2_tex
 from imply.paper.macros import macros_tex, merge_parts, numbers_json
 from imply.paper.parts import build_part, read_part, stage_numbers, write_part
 from imply.paper.registry import load_registry
 from imply.paper.report import reproduction_frame, reproduction_html, reproduction_md
 from imply.paper.results import read_results, write_result
+from imply.realworld.benchmark_report import benchmark_claims
 from imply.results import NOT_PRODUCED, Claim, UnknownNumberError
 from imply.study.section4.scoring import standin_metrics
 from registry_helpers import fake_results

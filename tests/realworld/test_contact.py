@@ -12,7 +12,7 @@ import pytest
 
 from imply.cli import main
 from imply.realworld import cases as C
-from imply.realworld.contact import CONTACT_KINDS, CONTACT_PARAMETERS, apply_contact
+from imply.realworld.contact import BULLET_EFFECTS, CONTACT_KINDS, CONTACT_PARAMETERS, apply_contact
 from imply.realworld.world import PARAMETERS, WorldPushes, WorldResult, simulate_world
 
 # the world's pushes before the contact parameters existed (commit 3327312, MuJoCo 4.0.0), as float.hex:
@@ -100,7 +100,7 @@ def test_contact_cases_are_drawn_reproducibly_from_the_configured_ranges():
         assert len(c["effects"]) == (0 if c["group"].startswith("null") else 1)
         if c["engine"] == "bullet":
             assert c["contact"] == {"kinds": [], "parameters": {}}
-            assert all(e["name"] in C.BULLET_EFFECTS for e in c["effects"])
+            assert all(e["name"] in BULLET_EFFECTS for e in c["effects"])
             continue
         lo, hi = draw.per_log
         assert lo <= len(c["contact"]["kinds"]) <= hi

@@ -72,3 +72,41 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
             for d in (tmp_path / "results/gap/contact/closed_loop").iterdir()]  # fmt: skip
     assert sum(len(r) for r in rows) == len(loop["rows"])
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md
+
+
+@pytest.mark.slow
+def test_gap_lab_workflow_tiny(tmp_path, repo_root):
+    """The lab benchmark's two sets on every engine, with probes, and each effect log marked."""
+    copy_workflow(tmp_path)
+    target = "results/gap/lab/separability.json"
+    cmd = [sys.executable, "-m", "snakemake", target, "--cores", "2", "--directory", str(tmp_path),
+           "--configfile", str(repo_root / "tests/config/gap_tiny.yaml")]  # fmt: skip
+    run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
+    result = json.loads((tmp_path / target).read_text())["result"]
+    assert set(result["sets"]) == {"development", "sealed"}
+    sealed, dev = result["sets"]["sealed"], result["sets"]["development"]
+    # the engine never used to choose is in the sealed set only
+    assert {m["engine"] for m in sealed["logs"]} == {"mujoco", "bullet", "sapien"}
+    assert {m["engine"] for m in dev["logs"]} == {"mujoco", "bullet"}
+    for m in sealed["logs"] + dev["logs"]:
+        if m["effect"] is None:
+            assert m["null_gap_sd"] > 0
+        else:
+            assert set(m["sets"]) == {"displacement", "stop_time", "pusher_track", "probes"}
+            assert all(-1 <= s["cos"] <= 1 and s["separable"] == (abs(s["cos"]) < 0.95) for s in m["sets"].values())
+    assert sealed["summary"]["all"]["effect_logs"] == 3 and "sapien" in sealed["timing"]
+    md = (tmp_path / "results/gap/lab/separability.md").read_text()
+    assert md.startswith("# Lab benchmark") and "| + probes |" in md
+    # probes where drawn: every probe file names probes of the three kinds, and is read by the diagnostic's reader
+    from imply.diagnose.probes import read_probes
+    from imply.diagnose.pushlog import read_pushlog
+
+    labels = json.loads((tmp_path / "results/gap/lab/sealed/labels.json").read_text())
+    folder = tmp_path / "results/gap/lab/sealed/logs"
+    probed = sorted(p.name.split(".")[0] for p in folder.glob("*.probes.csv"))
+    assert probed == sorted(k for k, lab in labels.items() if lab["probes"])
+    for name in probed:
+        pushlog = read_pushlog(folder / f"{name}.csv")
+        probes = read_probes(folder / f"{name}.probes.csv", objects=pushlog.objects, log_path=pushlog.path)
+        assert probes.free_stroke_speed.size and probes.friction.size and probes.n_added

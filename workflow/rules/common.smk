@@ -11,6 +11,7 @@ from imply.config_check import PAPER_STAGES, validate_workflow_config
 from imply.kernels import environment as kernel_environment
 from imply.models.weights import encoder_weight_files
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig, case_ids
+from imply.realworld.lab import LabBenchmarkConfig
 
 min_version("8.0")
 
@@ -163,6 +164,11 @@ def gap_effects_option():
     return "--effects " + ",".join(candidates) if candidates else ""
 
 
+def gap_lab_set_json(wildcards):
+    """The lab benchmark's config as one set's rule needs it (the other set's seed and logs left out)."""
+    return as_json(LabBenchmarkConfig.set_subset(config["gap"]["lab_benchmark"], wildcards.set))
+
+
 def gap_shard_logs(wildcards):
     k = int(wildcards.shard)
     return [f"results/gap/logs/{c}.csv" for i, c in enumerate(GAP_CASES) if i % len(GAP_SHARDS) == k]
@@ -218,6 +224,7 @@ def final_outputs():
         out += ["results/model/training.png"]
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
+        out += ["results/gap/lab/separability.json", "results/gap/lab/separability.md"]
     if "evaluate" in stages:
         out += [f"results/evaluate/standins/{name}" for name in EVALUATE_REPORT_FILES]
     if "pixel" in stages:

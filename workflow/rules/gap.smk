@@ -246,3 +246,64 @@ rule gap_benchmark:
         " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
         " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop}"
         " --observed-reports {input.observed} --observed-contact-reports {input.contact_observed} > {log} 2>&1"
+
+
+# The lab benchmark: pushes beside calibration probes on MuJoCo contact variants, Bullet and SAPIEN, in a
+# development set and a sealed set (imply.realworld.lab); each effect log marked separable or not from its
+# contact, per observable set, from its label (imply.realworld.separability).
+rule gap_lab_generate:
+    conda:
+        IMPLY_ENV
+    input:
+        table="results/table/table.npz",
+    output:
+        logs=directory("results/gap/lab/{set}/logs"),
+        labels="results/gap/lab/{set}/labels.json",
+        timing="results/gap/lab/{set}/timing.json",
+    params:
+        lab=gap_lab_set_json,
+    wildcard_constraints:
+        set="development|sealed",
+    # one thread: the worlds of other engines step one push at a time
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=40,
+    log:
+        "results/logs/gap_lab_generate_{set}.log",
+    benchmark:
+        "results/benchmarks/gap_lab_generate/{set}.tsv"
+    shell:
+        "imply gap lab-generate --lab-json {params.lab} --set {wildcards.set} --table {input.table}"
+        " --logs {output.logs} --labels {output.labels} --timing {output.timing} --threads {threads} > {log} 2>&1"
+
+
+rule gap_lab_separability:
+    conda:
+        IMPLY_ENV
+    input:
+        development="results/gap/lab/development/labels.json",
+        sealed="results/gap/lab/sealed/labels.json",
+        development_timing="results/gap/lab/development/timing.json",
+        sealed_timing="results/gap/lab/sealed/timing.json",
+    output:
+        result="results/gap/lab/separability.json",
+        markdown=report(
+            "results/gap/lab/separability.md",
+            caption="../report/gap_benchmark.rst",
+            category="Gap diagnostic benchmark",
+            subcategory="Lab benchmark",
+        ),
+    params:
+        lab=as_json(config["gap"]["lab_benchmark"]),
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/gap_lab_separability.log",
+    benchmark:
+        "results/benchmarks/gap_lab_separability/all.tsv"
+    shell:
+        "imply gap separability --lab-json {params.lab} --labels development={input.development}"
+        " sealed={input.sealed} --timing development={input.development_timing} sealed={input.sealed_timing}"
+        " -o {output.result} --markdown {output.markdown} > {log} 2>&1"

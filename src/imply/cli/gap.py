@@ -1,8 +1,10 @@
-"""``imply gap tables|generate|diagnose-many|closed-loop|benchmark``: the diagnostic's benchmark, step by step.
+"""``imply gap tables|generate|lab-generate|diagnose-many|closed-loop|separability|benchmark``: the benchmarks.
 
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
-sealed in a separate file, ``diagnose-many`` runs ``imply diagnose`` on many logs in
+sealed in a separate file, ``lab-generate`` writes one set of the lab benchmark's logs (pushes with
+calibration probes, on several engines) and ``separability`` marks its effect logs separable or not from
+their contact, ``diagnose-many`` runs ``imply diagnose`` on many logs in
 one process, ``closed-loop`` runs the recommended next pushes of the logs with several
 explanations in contention in their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
 document the gap stage's numbers are read from) and writes the benchmark's report.
@@ -85,6 +87,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_diagnose_options(cl)
     cl.set_defaults(func=cmd_closed_loop)
 
+    lab = gsub.add_parser(
+        "lab-generate",
+        help="one set of the lab benchmark's logs: pushes with calibration probes, on MuJoCo contact variants, Bullet "
+        "and SAPIEN (imply.realworld.lab)",
+    )  # fmt: skip
+    lab.add_argument("--lab-json", type=json_arg, required=True,
+                     help="config gap.lab_benchmark (the other set's seed and logs may be left out)")  # fmt: skip
+    lab.add_argument("--set", required=True, choices=("development", "sealed"), help="which set")
+    lab.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the worlds' scene (its numbers are not read)")
+    lab.add_argument("--logs", required=True,
+                     help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)")  # fmt: skip
+    lab.add_argument("--labels", required=True, help="JSON file for the logs' labels")
+    lab.add_argument("--timing", required=True, help="JSON file for each world's time per push")
+    lab.add_argument("--threads", type=int_range(0), default=0)
+    lab.set_defaults(func=cmd_lab_generate)
+
+    sep = gsub.add_parser(
+        "separability",
+        help="mark each lab-benchmark effect log separable or not from its contact, per observable set, from its "
+        "label (a result document and a report)",
+    )  # fmt: skip
+    sep.add_argument("--lab-json", type=json_arg, required=True, help="config gap.lab_benchmark")
+    sep.add_argument("--labels", nargs="+", required=True, metavar="SET=LABELS",
+                     help="each set's labels, as development=PATH sealed=PATH")  # fmt: skip
+    sep.add_argument("--timing", nargs="+", required=True, metavar="SET=TIMING", help="each set's timing, likewise")
+    sep.add_argument("-o", "--output", required=True, help="the result document (JSON)")
+    sep.add_argument("--markdown", required=True, help="the report (Markdown)")
+    sep.set_defaults(func=cmd_separability)
+
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
     b.add_argument("--table", default=DEFAULT_TABLE)
     b.add_argument("--bench-json", type=json_arg, required=True)
@@ -129,9 +160,9 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
 
 
 def cmd_closed_loop(args: argparse.Namespace) -> int:
-    from imply.diagnose.closed_loop import run_closed_loop
     from imply.diagnose.run import prepare
     from imply.realworld.cases import ContactBenchmarkConfig
+    from imply.realworld.closed_loop import run_closed_loop
     from imply.sim import SceneConfig
 
     design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
@@ -186,10 +217,73 @@ def cmd_generate(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_benchmark(args: argparse.Namespace) -> int:
-    from imply.diagnose.benchmark import find_summaries, score_cases, visible_sizes
-    from imply.diagnose.benchmark_report import write_benchmark_markdown
+def _lab_config(args: argparse.Namespace):
+    from imply.realworld.lab import LabBenchmarkConfig
+
+    return config_from_json(LabBenchmarkConfig, args.lab_json, "gap.lab_benchmark")
+
+
+def cmd_lab_generate(args: argparse.Namespace) -> int:
+    from imply.realworld.lab import LabBenchmarkConfig, write_lab_set
+    from imply.sim import SceneConfig
+
+    with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
+        design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
+    table = load_table(args.table)
+    scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
+    timing = write_lab_set(design, scene, logs=Path(args.logs), labels=Path(args.labels), timing=Path(args.timing),
+                           nthread=args.threads, progress=True)  # fmt: skip
+    for engine, t in timing.items():
+        log.info("%s: %d pushes, %.4f s per push", engine, t["pushes"], t["seconds_per_push"])
+    log.info("wrote the %s set's %d logs -> %s (labels in %s)", args.set, design.n_logs, args.logs, args.labels)
+    return 0
+
+
+def _set_paths(values: list[str], option: str) -> dict[str, str]:
+    """``["development=a.json", "sealed=b.json"]`` -> ``{"development": "a.json", ...}``, refusing anything else."""
+    from imply.realworld.lab import SETS
+
+    out: dict[str, str] = {}
+    for value in values:
+        name, sep, path = value.partition("=")
+        if not sep or name not in SETS or not path:
+            raise UserError(f"{option}: {value!r} is not SET=PATH with SET one of {', '.join(SETS)}")
+        if name in out:
+            raise UserError(f"{option}: the {name} set is given twice")
+        out[name] = path
+    return out
+
+
+def cmd_separability(args: argparse.Namespace) -> int:
     from imply.paper.results import write_result
+    from imply.realworld.separability import mark_logs, summarise, write_separability
+
+    design = _lab_config(args)
+    labels, timing = _set_paths(args.labels, "--labels"), _set_paths(args.timing, "--timing")
+    if set(labels) != set(timing):
+        raise UserError("--labels and --timing must name the same sets")
+    result = {"alias_cos": design.alias_cos, "min_size_sd": design.min_size_sd, "sets": {}}
+    for name, path in labels.items():
+        with user_errors(FileNotFoundError, message="--labels: {error}"):
+            with open(path) as fh:
+                marks = mark_logs(json.load(fh), alias_cos=design.alias_cos, min_size_sd=design.min_size_sd,
+                                  crossing_sd=design.crossing_sd)  # fmt: skip
+        with user_errors(FileNotFoundError, message="--timing: {error}"):
+            with open(timing[name]) as fh:
+                times = json.load(fh)
+        result["sets"][name] = {"logs": marks, "summary": summarise(marks), "timing": times}
+        for engine, row in result["sets"][name]["summary"].items():
+            log.info("%s set, %s: %d effect logs; separable with displacement only %d, with probes %d", name, engine,
+                     row["effect_logs"], row["sets"]["displacement"]["separable"], row["sets"]["probes"]["separable"])  # fmt: skip
+    write_result(args.output, mark_logs, result)
+    write_separability(result, args.markdown)
+    return 0
+
+
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    from imply.paper.results import write_result
+    from imply.realworld.benchmark import find_summaries, score_cases, visible_sizes
+    from imply.realworld.benchmark_report import write_benchmark_markdown
 
     table = load_table(args.table)
     config = _benchmark_config(args)
@@ -202,7 +296,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     visible = visible_sizes(labels, table)
     result = score_cases(labels, summaries, visible, config=config, accuracy=accuracy)
     if args.contact_sealed:
-        from imply.diagnose.benchmark import score_contact_cases
+        from imply.realworld.benchmark import score_contact_cases
 
         if args.contact_bench_json is None or not args.contact_reports:
             raise UserError("--contact-sealed needs --contact-bench-json and --contact-reports")
@@ -216,7 +310,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=dict(design.targets),
                                                 min_size_sd=design.min_size_sd)  # fmt: skip
         if args.closed_loop:
-            from imply.diagnose.closed_loop import score_closed_loop
+            from imply.realworld.closed_loop import score_closed_loop
 
             result["contact"]["closed_loop"] = score_closed_loop(
                 contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
@@ -227,7 +321,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
             observed = find_summaries(labels, [Path(r) for r in args.observed_reports])
         result["observed"] = score_cases(labels, observed, visible, config=config, accuracy=accuracy)
         if args.observed_contact_reports and args.contact_sealed:
-            from imply.diagnose.benchmark import score_contact_cases
+            from imply.realworld.benchmark import score_contact_cases
 
             with user_errors(FileNotFoundError, message="--observed-contact-reports: {error}"):
                 seen = find_summaries(contact_labels, [Path(r) for r in args.observed_contact_reports])

@@ -88,7 +88,7 @@ def stage_claims(stage: str) -> ClaimsFunction:
 
         return section5_claims
     if stage == "gap":
-        from imply.diagnose.benchmark_report import benchmark_claims
+        from imply.realworld.benchmark_report import benchmark_claims
 
         return benchmark_claims
     if stage == "evaluate":

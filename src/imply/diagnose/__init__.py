@@ -14,7 +14,6 @@ and :mod:`~imply.diagnose.next_pushes` (with :mod:`~imply.diagnose.model_error` 
 :mod:`~imply.diagnose.estimates` beside them), :mod:`~imply.diagnose.render` (the verdict in words),
 :mod:`~imply.diagnose.records` (the typed results' JSON form), :mod:`~imply.diagnose.report` (summary JSON,
 Markdown report, next_pushes.csv, plots), :mod:`~imply.diagnose.run` (a checked request of push-log files
-diagnosed into report folders), :mod:`~imply.diagnose.benchmark` (scoring against the sealed labels of the
-benchmark's logs, which :mod:`imply.realworld` makes), :mod:`~imply.diagnose.closed_loop` (the next pushes
-run in the benchmark's worlds) and :mod:`~imply.diagnose.benchmark_report` (the benchmark's report and claims).
+diagnosed into report folders). The study's benchmark that scores the diagnostic lives with the worlds that
+make its logs, in :mod:`imply.realworld`.
 """

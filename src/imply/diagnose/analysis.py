@@ -238,6 +238,11 @@ def _observables(problem: Problem) -> tuple[list[str], str]:
         note = "displacement only"
     if unused:
         note += " (the log's " + " and ".join(OBSERVABLE_WORDS[a] for a in unused) + " not used)"
+    probes = problem.log.probes
+    if probes is not None:
+        c = probes.counts()
+        note += (f"; the log's calibration probes ({c['free_stroke']} free strokes, {c['friction']} friction "
+                 f"measurements, {c['added_mass']} added-mass pushes) were read and checked, and no fit uses them")  # fmt: skip
     return used, note
 
 

@@ -230,9 +230,6 @@ def _expected(cand: Problem, name: str, labels: list[str], preds, k: int) -> dic
     return {lab: float(np.exp(p[1][a, k])) for lab, p in zip(labels, preds, strict=True)}
 
 
-PUSH_COLUMNS = ["object_id", "speed", "direction", *SIZE_COLUMNS, "mass"]
-
-
 def next_pushes_frame(design: PushDesign | None, log: PushLog) -> pd.DataFrame:
     """The recommended pushes as push-log columns with each contender's predictions (no rows without a design)."""
     has_size = all(c in log.frame for c in SIZE_COLUMNS)

@@ -29,12 +29,16 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from imply.input_files import InputError, read_table_lines, row_error
 from imply.sim.track import FRACTIONS
+
+if TYPE_CHECKING:
+    from imply.diagnose.probes import Probes
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
@@ -61,6 +65,7 @@ class PushLog:
     pusher_speed: np.ndarray | None = None  # (n,) the pusher's measured mean speed over the stroke (m/s), where logged
     crossing_times: np.ndarray | None = None  # (n, Q) from the box's track: when it covered each of FRACTIONS (s)
     track_path: str | None = None  # the track file they were read from
+    probes: Probes | None = None  # the calibration probes beside the log (imply.diagnose.probes), where it has them
 
     def aux(self, name: str) -> np.ndarray | None:
         """(n,) the log of an observable beside the displacement (``stop_time``, ``pusher_speed``, or one of

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from tqdm.auto import tqdm
@@ -23,6 +23,7 @@ from imply.diagnose.analysis import DiagnosisConfig, Summary, diagnose
 from imply.diagnose.candidates import Candidate, library_effects, needs_across
 from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
+from imply.diagnose.probes import probes_beside, read_probes
 from imply.diagnose.pushlog import PushLog, read_pushlog
 from imply.diagnose.report import REPORT_FILES, write_report
 from imply.diagnose.track_file import read_track, track_beside
@@ -100,10 +101,17 @@ def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable, track: str | os.PathLike | None = None) -> PushLog:
     """A push log checked against the table's ranges (InputError naming the row and column), with the box's
     track from ``track``, or else from the file beside the log named ``<stem>.track.csv`` (or ``.parquet``)
-    where there is one (:mod:`imply.diagnose.track_file`)."""
+    where there is one (:mod:`imply.diagnose.track_file`), and its calibration probes from the file beside it
+    named ``<stem>.probes.csv`` (or ``.parquet``) where there is one (:mod:`imply.diagnose.probes`)."""
     pushlog = read_pushlog(path, table.speed_range, mass_range=table.mass_range, friction_range=table.friction_range)
     track = track or track_beside(path)
-    return read_track(track, pushlog) if track else pushlog
+    pushlog = read_track(track, pushlog) if track else pushlog
+    probes = probes_beside(path)
+    if probes:
+        checked = read_probes(probes, objects=pushlog.objects, log_path=pushlog.path, mass=pushlog.mass,
+                              speed_range=table.speed_range, mass_range=table.mass_range)  # fmt: skip
+        pushlog = replace(pushlog, probes=checked)
+    return pushlog
 
 
 def check_report_folder(folder: str | os.PathLike, force: bool, inputs) -> None:

@@ -37,7 +37,8 @@ the box at every step, the world's formulas), ``carriage_mass``, ``servo_kv``,
 the start of the step, the world's laws), ``torsional`` and ``rolling`` (Bullet's
 spinning and rolling friction, torque = coefficient x normal force at each contact, the
 same units as MuJoCo's) and ``height`` (a taller box of the same mass, the pusher at the
-canonical height). Any other parameter at a value other than its nominal one
+canonical height), and the probes' ``stroke`` and ``free`` (the box 10 m beyond the pusher's
+reach). Any other parameter at a value other than its nominal one
 (``pusher_timeconst``, ``pusher_dampratio``: Bullet's contacts have no solref) raises
 :class:`ValueError` naming it; so does a parameter this module does not know.
 """
@@ -55,16 +56,16 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from imply.options import Config, option
+from imply.realworld.stepped import SteppedPush, run_push
 from imply.realworld.world import WorldPushes, WorldResult, check_track_times
 from imply.sim.scene import SceneConfig
-from imply.sim.track import yaw_of
 
 # the parameters this engine implements (any value); every other one must be nominal
 SUPPORTED = frozenset(
     {
         "tilt", "tilt_azimuth", "viscous", "air_density", "carriage_mass", "servo_kv", "force_limit",
         "aniso", "aniso_axis", "stribeck", "stribeck_speed", "gradient", "gradient_azimuth",
-        "torsional", "rolling", "height",
+        "torsional", "rolling", "height", "stroke", "free",
     }
 )  # fmt: skip
 GRAVITY = 9.81  # m/s^2, MuJoCo's default, unless the scene's extra options name a gravity
@@ -151,22 +152,27 @@ def nominal_parameters(scene: SceneConfig) -> dict[str, float]:
     return {k: float(v[0]) for k, v in one.params.items()}
 
 
-def check_supported(pushes: WorldPushes, scene: SceneConfig) -> None:
-    """Raise ValueError naming every parameter of ``pushes`` that is off its nominal value and not supported here."""
+def check_supported(
+    pushes: WorldPushes, scene: SceneConfig, *, supported: frozenset[str] = SUPPORTED, engine: str = "Bullet"
+) -> None:
+    """Raise ValueError naming every parameter of ``pushes`` that is off its nominal value and not in ``supported``
+    (the parameters ``engine``'s world carries)."""
     nominal = nominal_parameters(scene)
     bad = []
     for name, values in pushes.params.items():
-        if name in SUPPORTED:
+        if name in supported:
             continue
         values = np.asarray(values, float)
         if name not in nominal:
             if np.any(values != 0):
-                bad.append(f"{name} (unknown to the Bullet world)")
+                bad.append(f"{name} (unknown to the {engine} world)")
             continue
         if np.any(~np.isclose(values, nominal[name], rtol=0, atol=1e-12)):
             bad.append(name)
     if bad:
-        raise ValueError(f"the Bullet world does not support the parameter(s) {', '.join(bad)} off their nominal value")
+        raise ValueError(
+            f"the {engine} world does not support the parameter(s) {', '.join(bad)} off their nominal value"
+        )
 
 
 def simulate_bullet(
@@ -181,53 +187,60 @@ def simulate_bullet(
 
     Returns a :class:`WorldResult` of (n,) arrays: travel along and across the push (m),
     stop time (s), ok (finite, stopped before ``max_time``, not tipped, moved forward), the
-    number of steps taken, the stroke time (s) and, at ``track_times``, the box's track.
+    number of steps taken, the stroke time (s), the servo's mean force over the second half
+    of the stroke (N) and, at ``track_times``, the box's track.
     """
     track_times = check_track_times(track_times)
     stepping = stepping or BulletStepping()
     check_supported(pushes, scene)
-    nominal = nominal_parameters(scene)
-    n = pushes.n
-    params = {k: np.broadcast_to(np.asarray(pushes.params.get(k, v), float), (n,)) for k, v in nominal.items()
-              if k in SUPPORTED}  # fmt: skip
-    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time", "stroke_time")}
-    ok = np.zeros(n, bool)
-    steps = np.zeros(n, np.int64)
-    track = None if track_times is None else np.zeros((n, track_times.size, 3))
     pybullet = _pybullet()
     client = pybullet.connect(pybullet.DIRECT)
     try:
-        for i in tqdm(range(n), desc="bullet pushes", unit="push", disable=not progress, leave=False):
-            one = _push(
-                client,
-                scene,
-                stepping,
-                speed=float(pushes.speed[i]),
-                mass=float(pushes.mass[i]),
-                friction=float(pushes.friction[i]),
-                direction=float(pushes.direction[i]),
-                prm={k: float(v[i]) for k, v in params.items()},
-                track_times=track_times,
-            )
-            for f in ("displacement", "lateral", "stop_time", "stroke_time"):
-                out[f][i] = getattr(one, f)
-            ok[i], steps[i] = one.ok, one.steps
-            if track is not None:
-                track[i] = one.track
+        return collect_pushes(
+            pushes, scene, lambda **kw: _push(client, scene, stepping, **kw), supported=SUPPORTED,
+            desc="bullet pushes", progress=progress, track_times=track_times,
+        )  # fmt: skip
     finally:
         pybullet.disconnect(client)
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track)
 
 
-@dataclass(frozen=True)
-class _Push:
-    displacement: float
-    lateral: float
-    stop_time: float
-    ok: bool
-    steps: int
-    stroke_time: float
-    track: np.ndarray | None  # (T, 3)
+def collect_pushes(
+    pushes: WorldPushes,
+    scene: SceneConfig,
+    one_push,
+    *,
+    supported: frozenset[str],
+    desc: str,
+    progress: bool,
+    track_times: np.ndarray | None,
+) -> WorldResult:
+    """Run ``one_push(speed=, mass=, friction=, direction=, prm=, track_times=)`` -> :class:`SteppedPush` for every
+    push of ``pushes`` in turn (``prm``: the parameters in ``supported``), gathered into a :class:`WorldResult`."""
+    nominal = nominal_parameters(scene)
+    n = pushes.n
+    params = {k: np.broadcast_to(np.asarray(pushes.params.get(k, v), float), (n,)) for k, v in nominal.items()
+              if k in supported}  # fmt: skip
+    fields = ("displacement", "lateral", "stop_time", "stroke_time", "drive_force")
+    out = {f: np.zeros(n) for f in fields}
+    ok = np.zeros(n, bool)
+    steps = np.zeros(n, np.int64)
+    track = None if track_times is None else np.zeros((n, track_times.size, 3))
+    for i in tqdm(range(n), desc=desc, unit="push", disable=not progress, leave=False):
+        one = one_push(
+            speed=float(pushes.speed[i]),
+            mass=float(pushes.mass[i]),
+            friction=float(pushes.friction[i]),
+            direction=float(pushes.direction[i]),
+            prm={k: float(v[i]) for k, v in params.items()},
+            track_times=track_times,
+        )
+        for f in fields:
+            out[f][i] = getattr(one, f)
+        ok[i], steps[i] = one.ok, one.steps
+        if track is not None:
+            track[i] = one.track
+    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track,
+                       out["drive_force"])  # fmt: skip
 
 
 def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float]) -> tuple[int, int]:
@@ -236,10 +249,11 @@ def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float
     pybullet.resetSimulation(physicsClientId=client)
     hx, hy, hz = (float(x) for x in scene.box_half_extents)
     bz = hz * (1.0 + prm["height"])  # a taller box; the pusher stays at the rig's height
+    away = 10.0 if prm["free"] else 0.0  # a free stroke: the box waits beyond the pusher's reach
     table_shape = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
     table = pybullet.createMultiBody(0.0, table_shape, physicsClientId=client)
     box_shape = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[hx, hy, bz], physicsClientId=client)
-    box = pybullet.createMultiBody(mass, box_shape, basePosition=[0.0, 0.0, bz], physicsClientId=client)
+    box = pybullet.createMultiBody(mass, box_shape, basePosition=[away, 0.0, bz], physicsClientId=client)
     # the scene's pusher: half-extents (0.01, 0.8 hy, 0.01), its face 0.1 mm behind the box
     pusher_half = 0.01
     pusher_shape = pybullet.createCollisionShape(
@@ -278,6 +292,44 @@ def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float
     return box, pusher
 
 
+class _BulletRig:
+    """The rig's calls (:class:`imply.realworld.stepped.EngineRig`) on a Bullet scene."""
+
+    def __init__(self, client: int, box: int, pusher: int, step: float) -> None:
+        self.pybullet = _pybullet()
+        self.client, self.box, self.pusher = client, box, pusher
+        self.pybullet.setPhysicsEngineParameter(fixedTimeStep=step, physicsClientId=client)
+
+    def pusher_state(self) -> tuple[float, float]:
+        return self.pybullet.getJointState(self.pusher, 0, physicsClientId=self.client)[:2]
+
+    def box_pose(self):
+        return self.pybullet.getBasePositionAndOrientation(self.box, physicsClientId=self.client)
+
+    def box_velocity(self):
+        return self.pybullet.getBaseVelocity(self.box, physicsClientId=self.client)[0]
+
+    def rotation(self, quat) -> np.ndarray:
+        return np.array(self.pybullet.getMatrixFromQuaternion(quat)).reshape(3, 3)
+
+    def push_box(self, force, position) -> None:
+        self.pybullet.applyExternalForce(self.box, -1, force.tolist(), position, self.pybullet.WORLD_FRAME,
+                                         physicsClientId=self.client)  # fmt: skip
+
+    def set_box_friction(self, friction: float) -> None:
+        self.pybullet.changeDynamics(self.box, -1, lateralFriction=friction, physicsClientId=self.client)
+
+    def drive(self, force: float) -> None:
+        self.pybullet.setJointMotorControl2(self.pusher, 0, self.pybullet.TORQUE_CONTROL, force=force,
+                                            physicsClientId=self.client)  # fmt: skip
+
+    def set_step(self, step: float) -> None:
+        self.pybullet.setPhysicsEngineParameter(fixedTimeStep=step, physicsClientId=self.client)
+
+    def step(self) -> None:
+        self.pybullet.stepSimulation(physicsClientId=self.client)
+
+
 def _push(
     client: int,
     scene: SceneConfig,
@@ -289,7 +341,7 @@ def _push(
     direction: float,
     prm: dict[str, float],
     track_times: np.ndarray | None = None,
-) -> _Push:
+) -> SteppedPush:
     """One push, and the box's track at ``track_times`` where given."""
     pybullet = _pybullet()
     box, pusher = _build(client, scene, mass=mass, prm=prm)
@@ -303,114 +355,10 @@ def _push(
     )
     gravity = (g * math.sin(tilt) * math.cos(rel), g * math.sin(tilt) * math.sin(rel), -g * math.cos(tilt))
     pybullet.setGravity(*gravity, physicsClientId=client)
-    pybullet.setPhysicsEngineParameter(
-        fixedTimeStep=st.push_step, numSubSteps=0, numSolverIterations=st.solver_iterations, physicsClientId=client
-    )
+    pybullet.setPhysicsEngineParameter(numSubSteps=0, numSolverIterations=st.solver_iterations, physicsClientId=client)
     hx, hy, hz = (float(x) for x in scene.box_half_extents)
     bz = hz * (1.0 + prm["height"])
     area = (4.0 * hy * bz, 4.0 * hx * bz, 4.0 * hx * hy)  # cross-sections per box axis, for air drag
-    forced = prm["viscous"] != 0 or prm["air_density"] != 0
-    lawful = prm["aniso"] != 0 or prm["stribeck"] != 0 or prm["gradient"] != 0
-    if not lawful:
-        pybullet.changeDynamics(box, -1, lateralFriction=friction, physicsClientId=client)
-    kv, limit = prm["servo_kv"], prm["force_limit"]
-    stroke = float(scene.stroke)
-
-    start = np.array(pybullet.getBasePositionAndOrientation(box, physicsClientId=client)[0])
-    now, n_steps = 0.0, 0
-    command = speed
-    phase = 0  # 0 pushing, 1 release window, 2 sliding
-    window_left = 0
-    h = engine_step = st.push_step
-    stop_time = st.max_time
-    stroke_time = math.nan
-    speed_before = 0.0
-    track = None if track_times is None else np.zeros((track_times.size, 3))
-    frame = 0
-
-    def record() -> None:
-        # a camera frame is taken at the first step that reaches its time (within half a step)
-        nonlocal frame
-        if track is None:
-            return
-        while frame < track_times.size and now >= track_times[frame] - h / 2:
-            p, q = pybullet.getBasePositionAndOrientation(box, physicsClientId=client)
-            track[frame] = (p[0] - start[0], p[1] - start[1], float(yaw_of(np.array([q[3], q[0], q[1], q[2]]))))
-            frame += 1
-
-    record()
-    while True:
-        q, qd = pybullet.getJointState(pusher, 0, physicsClientId=client)[:2]
-        pos, quat = pybullet.getBasePositionAndOrientation(box, physicsClientId=client)
-        vel = pybullet.getBaseVelocity(box, physicsClientId=client)[0]
-        planar = math.hypot(vel[0], vel[1])
-        ending = False
-        if phase == 0:
-            # the stroke ends on the stroke: the last two steps before it share what is left of it.
-            # No step is shorter than half the push step: Bullet's Baumgarte correction of the
-            # contacts' penetration, ERP x depth / step, launches the box on a very short step.
-            left = (stroke - q) / max(qd * st.push_step, 1e-12)
-            h = st.push_step
-            if left <= 0.0:
-                stroke_time = now
-                command, phase = 0.0, 1  # already at the stroke: the servo brakes now
-                window_left = round(st.release_window / st.push_step)
-            elif left < 1.0 or now + st.push_step >= st.max_time:
-                ending = True
-                h = min(max(left, 0.5), 1.0) * st.push_step
-            elif left < 2.0:
-                h = left / 2.0 * st.push_step
-        if forced:
-            f = np.array([-prm["viscous"] * v for v in vel])
-            if prm["air_density"] != 0:
-                rot = np.array(pybullet.getMatrixFromQuaternion(quat)).reshape(3, 3)
-                local = rot.T @ np.asarray(vel)
-                f += rot @ (-0.5 * prm["air_density"] * np.asarray(area) * np.abs(local) * local)
-            pybullet.applyExternalForce(box, -1, f.tolist(), pos, pybullet.WORLD_FRAME, physicsClientId=client)
-        if lawful:
-            theta = (math.atan2(vel[1], vel[0]) if planar > 1e-9 else 0.0) + direction
-            factor = 1.0 + prm["aniso"] * math.cos(2.0 * (theta - prm["aniso_axis"]))
-            factor *= 1.0 + prm["stribeck"] * math.exp(-((planar / prm["stribeck_speed"]) ** 2))
-            grel = prm["gradient_azimuth"] - direction
-            along = (pos[0] - start[0]) * math.cos(grel) + (pos[1] - start[1]) * math.sin(grel)
-            factor *= max(1.0 + prm["gradient"] * along, 0.2)
-            pybullet.changeDynamics(box, -1, lateralFriction=friction * factor, physicsClientId=client)
-        servo = min(max(kv * (command - qd), -limit), limit)
-        pybullet.setJointMotorControl2(pusher, 0, pybullet.TORQUE_CONTROL, force=servo, physicsClientId=client)
-        if h != engine_step:
-            pybullet.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=client)
-            engine_step = h
-        pybullet.stepSimulation(physicsClientId=client)
-        now += h
-        n_steps += 1
-        record()
-        vel = pybullet.getBaseVelocity(box, physicsClientId=client)[0]
-        after = math.hypot(vel[0], vel[1])
-        if phase >= 1:
-            if after < st.stop_speed and stop_time >= st.max_time:
-                # interpolated within the step
-                frac = (speed_before - st.stop_speed) / max(speed_before - after, 1e-300)
-                stop_time = now - h * (1.0 - min(max(frac, 0.0), 1.0))
-            if phase == 2 and (after < st.rest_speed or not math.isfinite(after) or now >= st.max_time):
-                break
-        speed_before = after
-        if ending:
-            stroke_time = now
-            command, phase, h = 0.0, 1, st.push_step  # the servo brakes
-            window_left = round(st.release_window / st.push_step)
-        elif phase == 1:
-            window_left -= 1
-            if window_left <= 0:
-                phase, h = 2, st.slide_step
-        if phase == 0 and now >= st.max_time:
-            break
-    pos, quat = pybullet.getBasePositionAndOrientation(box, physicsClientId=client)
-    disp, lateral = pos[0] - start[0], pos[1] - start[1]
-    # tipped: the box's up axis more than 0.1 rad from the vertical
-    x, y = quat[0], quat[1]
-    tipped = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0)) >= 0.1
-    ok = math.isfinite(disp) and now < st.max_time and stop_time < st.max_time and not tipped and disp > 0
-    if track is not None and frame < track_times.size:
-        # frames due after the box came to rest see it where it stopped
-        track[frame:] = (disp, lateral, float(yaw_of(np.array([quat[3], quat[0], quat[1], quat[2]]))))
-    return _Push(disp, lateral, stop_time, ok, n_steps, stroke_time, track)
+    rig = _BulletRig(client, box, pusher, st.push_step)
+    return run_push(rig, st, speed=speed, friction=friction, direction=direction, prm=prm, stroke=prm["stroke"],
+                    area=area, track_times=track_times)  # fmt: skip

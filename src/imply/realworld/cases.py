@@ -44,12 +44,13 @@ from imply.io import write_csv, write_json
 from imply.options import Config, option
 from imply.realworld.accuracy import measure_error
 from imply.realworld.contact import (
-    BULLET_EFFECTS,
     ContactDraw,
     apply_contact,
     draw_contact,
+    engine_effects,
     no_contact_model,
     simulate_engine,
+    world_engine,
 )
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
 from imply.realworld.world import WorldPushes, WorldStepping
@@ -159,7 +160,7 @@ class BenchmarkConfig(Config):
     )
     noise: NoiseModel = option(NoiseModel(), doc="readout noise of the logs", required=True)
     stepping: WorldStepping = option(WorldStepping(), doc="how the world steps a push")
-    # how the diagnoses are judged (imply.diagnose.benchmark.score_cases)
+    # how the diagnoses are judged (imply.realworld.benchmark.score_cases)
     accuracy: AccuracyCheck = option(AccuracyCheck(), doc="the world's own error, measured by 'imply gap generate'")
     min_size_sd: float = option(
         2.0, doc="effects at least this many noise sd (visible RMS) count for the targets", exclusive_minimum=0
@@ -167,7 +168,7 @@ class BenchmarkConfig(Config):
     targets: dict[str, float] = option(
         {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8, "magnitude_error": 0.10,
          "shrinkage": 0.8},
-        doc="what the diagnostic must reach (imply.diagnose.benchmark.score_cases)", keys=TARGETS,
+        doc="what the diagnostic must reach (imply.realworld.benchmark.score_cases)", keys=TARGETS,
     )  # fmt: skip
 
     def __post_init__(self) -> None:
@@ -229,6 +230,8 @@ class ContactBenchmarkConfig(BenchmarkConfig):
         keys=CONTACT_TARGETS,
     )  # fmt: skip
 
+    groups: ClassVar[tuple[str, ...]] = CONTACT_GROUPS
+
     def __post_init__(self) -> None:
         super().__post_init__()
         lo, hi = self.effect_range
@@ -251,12 +254,12 @@ def _round_robin(names: tuple[str, ...], count: int, rng: np.random.Generator) -
 def _plans(design: BenchmarkConfig, rng: np.random.Generator) -> list[tuple[str, list[str]]]:
     """Every log's group and effects, in the groups' order."""
     if isinstance(design, ContactBenchmarkConfig):
-        on_bullet = set(BULLET_EFFECTS)
-        pools = {"null_contact": (), "single_contact": IDENTIFIABLE, "outside_contact": OUTSIDE, "null_engine": (),
-                 "single_engine": tuple(n for n in IDENTIFIABLE if n in on_bullet),
-                 "outside_engine": tuple(n for n in OUTSIDE if n in on_bullet)}  # fmt: skip
         out: list[tuple[str, list[str]]] = []
-        for group, pool in pools.items():
+        for group in design.groups:
+            kind, world = group.split("_", 1)
+            carried = set(engine_effects(world_engine(world)))
+            pool = {"null": (), "single": tuple(n for n in IDENTIFIABLE if n in carried),
+                    "outside": tuple(n for n in OUTSIDE if n in carried)}[kind]  # fmt: skip
             count = design.logs.get(group, 0)
             if pool:
                 out += [(group, [e]) for e in _round_robin(pool, count, rng)]
@@ -325,7 +328,7 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
 
 def _contact_draw(design: ContactBenchmarkConfig, group: str, rng: np.random.Generator) -> dict:
     """A contact-benchmark log's engine, contact model and push design (four directions: the log's directions)."""
-    engine = "bullet" if group.endswith("_engine") else "mujoco"
+    engine = world_engine(group.split("_", 1)[1])
     out = {"engine": engine, "contact": draw_contact(rng, design.contact) if engine == "mujoco" else no_contact_model(),
            "design": "four" if rng.random() < design.four_share else "random"}  # fmt: skip
     if out["design"] == "four":

@@ -30,6 +30,7 @@ from typing import ClassVar
 import numpy as np
 
 from imply.options import Config, option
+from imply.realworld.effects import EFFECTS
 from imply.realworld.world import WorldPushes, WorldResult, WorldStepping, simulate_world
 from imply.sim.scene import SceneConfig
 
@@ -49,10 +50,27 @@ _LAW = {"table_timeconst": "factor", "table_dampratio": "log", "friction_slope":
         "pusher_impedance": "log", "pusher_friction": "log"}  # fmt: skip
 
 # the physics engines a benchmark world may run on
-ENGINES = ("mujoco", "bullet")
+ENGINES = ("mujoco", "bullet", "sapien")
 # the effects the bullet world (imply.realworld.bullet) can carry; change it with that world
 BULLET_EFFECTS = ("tilt", "viscous", "air_drag", "speed_gain", "speed_offset", "anisotropic", "stribeck",
                   "carriage_mass", "force_limit", "friction_gradient")  # fmt: skip
+# the effects the SAPIEN (PhysX) world (imply.realworld.sapien_world) can carry: Bullet's, on the same rig protocol
+SAPIEN_EFFECTS = BULLET_EFFECTS
+# a benchmark group's world (its name's second part): a MuJoCo contact variant, or an engine's own contact
+# ("engine": Bullet, the contact benchmark's name for it)
+WORLDS = {"contact": "mujoco", "engine": "bullet", "bullet": "bullet", "sapien": "sapien"}
+
+
+def world_engine(world: str) -> str:
+    """The engine of a benchmark group's world (``contact`` -> ``mujoco``; ``engine`` -> ``bullet``)."""
+    if world not in WORLDS:
+        raise ValueError(f"unknown benchmark world {world!r} (known: {', '.join(WORLDS)})")
+    return WORLDS[world]
+
+
+def engine_effects(engine: str) -> tuple[str, ...]:
+    """The world effects (:data:`imply.realworld.effects.EFFECTS` names) ``engine``'s world can carry (MuJoCo: all)."""
+    return {"mujoco": tuple(EFFECTS), "bullet": BULLET_EFFECTS, "sapien": SAPIEN_EFFECTS}[engine]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -143,4 +161,9 @@ def simulate_engine(
         from imply.realworld.bullet import simulate_bullet
 
         return simulate_bullet(pushes, scene, progress=progress, track_times=track_times)
+    if engine == "sapien":
+        # imported here: only its logs need sapien
+        from imply.realworld.sapien_world import simulate_sapien
+
+        return simulate_sapien(pushes, scene, progress=progress, track_times=track_times)
     raise ValueError(f"unknown engine {engine!r} (known: {', '.join(ENGINES)})")

@@ -132,6 +132,9 @@ PARAMETERS: dict[str, float | None] = {
     "torsional": 0.0,  # m, torsional friction coefficient (contact dimension 4)
     "rolling": 0.0,  # m, rolling friction coefficient (contact dimension 6)
     "height": 0.0,  # fraction by which the box is taller than the canonical one
+    # the rig's probes (imply.realworld.probes): a longer stroke (a pull test), and a stroke with no box
+    "stroke": None,  # m the pusher travels (scene.stroke)
+    "free": 0.0,  # 1: the box is moved far away, and the pusher strokes free (a free stroke)
     # the contact model (imply.realworld.contact): ways the world's contact differs from the table's
     "table_timeconst": 1.0,  # factor on the box-table contact's solref time constant (below 1: stiffer)
     "table_dampratio": 1.0,  # factor on the box-table contact's damping ratio
@@ -159,7 +162,7 @@ class WorldPushes:
         speed, mass, friction, direction = (np.asarray(x, float).ravel().copy()
                                             for x in np.broadcast_arrays(speed, mass, friction, direction))  # fmt: skip
         defaults = {"carriage_mass": scene.pusher_mass, "servo_kv": scene.pusher_kv,
-                    "force_limit": scene.pusher_force_limit}  # fmt: skip
+                    "force_limit": scene.pusher_force_limit, "stroke": scene.stroke}  # fmt: skip
         params = {k: np.full(speed.size, float(defaults.get(k, v) if v is None else v)) for k, v in PARAMETERS.items()}
         return cls(speed, mass, friction, direction, params)
 
@@ -189,6 +192,9 @@ class WorldResult:
     track: (n, T, 3) the box's travel along and across the push (m) and its yaw (rad) at
       the ``track_times`` asked for (a frame due after the box stopped holds where it
       stopped); None without track times.
+    drive_force: (n,) N, the servo's mean force over the second half of the stroke (what a
+      pull test's force gauge reads while the box slides steadily); None where the engine
+      did not record it.
     """
 
     displacement: np.ndarray
@@ -198,6 +204,7 @@ class WorldResult:
     steps: np.ndarray
     stroke_time: np.ndarray | None = None
     track: np.ndarray | None = None
+    drive_force: np.ndarray | None = None
 
 
 def _structure_key(p: dict[str, np.ndarray], i: int) -> tuple[float, float, float]:
@@ -243,7 +250,7 @@ def simulate_world(
     stepping = stepping or WorldStepping()
     n = pushes.n
     keys = [_structure_key(pushes.params, i) for i in range(n)]
-    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time", "stroke_time")}
+    out = {f: np.zeros(n) for f in ("displacement", "lateral", "stop_time", "stroke_time", "drive_force")}
     ok = np.zeros(n, bool)
     steps = np.zeros(n, np.int64)
     track = None if track_times is None else np.zeros((n, np.asarray(track_times).size, 3))
@@ -257,7 +264,8 @@ def simulate_world(
         steps[idx] = res.steps
         if track is not None:
             track[idx] = res.track
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track)
+    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track,
+                       out["drive_force"])  # fmt: skip
 
 
 def check_track_times(track_times) -> np.ndarray | None:
@@ -336,10 +344,15 @@ def _run(
     bv = int(model.jnt_dofadr[model.joint("box").id])
     pq = int(model.jnt_qposadr[model.joint("push").id])
     pv = int(model.jnt_dofadr[model.joint("push").id])
+    # a free stroke: the box waits 10 m beyond the pusher's reach
+    free = prm["free"] != 0
+    qpos[free, bq] += 10.0
     start = qpos[:, bq : bq + 3].copy()
     pusher0 = qpos[:, pq].copy()
-    stroke = float(np.asarray(model.numeric("stroke").data)[0])
+    stroke = prm["stroke"]
     ctrl[:, servo] = p.speed
+    force = b.bind("actuator_force")
+    impulse, impulse_time = np.zeros(n), np.zeros(n)
 
     # which pushes need forces or friction laws at every step
     forced = (prm["viscous"] != 0) | (prm["air_density"] != 0)
@@ -383,7 +396,7 @@ def _run(
         pushing = active[phase[active] == 0]
         ending = np.zeros(0, np.int64)
         if pushing.size:
-            left = (stroke - (qpos[pushing, pq] - pusher0[pushing])) / np.maximum(
+            left = (stroke[pushing] - (qpos[pushing, pq] - pusher0[pushing])) / np.maximum(
                 qvel[pushing, pv] * fine[pushing], 1e-12
             )
             ends = (left < 1.0) | (now[pushing] + fine[pushing] >= st.max_time)
@@ -430,6 +443,11 @@ def _run(
         b.step(ids=active, nstep=1)
         steps[active] += 1
         record(active)
+        if pushing.size:
+            # the servo's force over the second half of the stroke (a pull test's gauge)
+            late = pushing[qpos[pushing, pq] - pusher0[pushing] > stroke[pushing] / 2]
+            impulse[late] += force[late, servo] * timestep[late]
+            impulse_time[late] += timestep[late]
         # -- phase changes
         if ending.size:
             stroke_time[ending] = now[ending]
@@ -472,4 +490,5 @@ def _run(
         final = np.stack([disp, lateral, yaw_of(qpos[:, bq + 3 : bq + 7])], 1)
         late = np.arange(track_times.size)[None, :] >= next_frame[:, None]
         track = np.where(late[:, :, None], final[:, None, :], track)
-    return WorldResult(disp, lateral, stop_time, ok, steps, stroke_time, track)
+    drive_force = np.where(impulse_time > 0, impulse / np.maximum(impulse_time, 1e-300), np.nan)
+    return WorldResult(disp, lateral, stop_time, ok, steps, stroke_time, track, drive_force)

@@ -10,7 +10,7 @@ direction), run the same way. :func:`run_closed_loop` writes both arms' logs and
 :func:`score_closed_loop` scores them against the sealed labels: how often the true effect
 is then stated as the one cause with its magnitude within the target's tolerance (one-effect
 logs; beside it, how often the true effect's own hypothesis has its magnitude within that
-whatever the verdict, :func:`imply.diagnose.benchmark.told_error`), how often a null log
+whatever the verdict, :func:`imply.realworld.benchmark.told_error`), how often a null log
 states no library effect, and how often an effect outside the library is stated as a library
 mechanism's one cause.
 """
@@ -26,7 +26,10 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.benchmark import (
+from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
+from imply.diagnose.verdict import Identification
+from imply.io import write_csv, write_json
+from imply.realworld.benchmark import (
     CONTACT_NULL,
     CONTACT_OUTSIDE,
     CONTACT_SINGLE,
@@ -34,9 +37,6 @@ from imply.diagnose.benchmark import (
     stated_error,
     told_within,
 )
-from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
-from imply.diagnose.verdict import Identification
-from imply.io import write_csv, write_json
 from imply.realworld.cases import ContactBenchmarkConfig, draw_cases, extra_pushes, object_names
 from imply.sim.scene import SceneConfig
 
@@ -103,7 +103,7 @@ def _one_cause_right(label: dict, s: Summary, within: float) -> bool:
 def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: float, min_size_sd: float) -> dict:
     """The closed loop's figures from the sealed ``labels`` and the closed-loop ``folders`` (each with
     ``closed_loop.json`` and ``reports/``); a one-effect log counts where its effect is at least ``min_size_sd``
-    noise sds on its contact (:func:`imply.diagnose.benchmark.effect_size_on_contact`)."""
+    noise sds on its contact (:func:`imply.realworld.benchmark.effect_size_on_contact`)."""
     rows = []
     for folder in folders:
         with open(folder / "closed_loop.json") as fh:

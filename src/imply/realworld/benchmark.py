@@ -40,8 +40,6 @@ from imply.diagnose.estimates import AcceptedEffect
 from imply.diagnose.verdict import Identification
 from imply.realworld.cases import BenchmarkConfig
 
-LIBRARY_GROUPS = ("single", "double", "single_unidentifiable")
-
 
 def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float:
     """RMS log d of the noise-free log ``what`` ("all" or one effect's name) after each object's baseline fit."""

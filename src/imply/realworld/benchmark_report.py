@@ -1,7 +1,7 @@
 """The benchmark's report (Markdown) and the gap stage's claims.
 
 The gap stage's numbers are read by the registry (:mod:`imply.paper.registry`) from the
-result of :func:`imply.diagnose.benchmark.score_cases`; :func:`benchmark_claims` checks
+result of :func:`imply.realworld.benchmark.score_cases`; :func:`benchmark_claims` checks
 the targets (config ``gap.benchmark.targets``) on that result.
 """
 
@@ -15,7 +15,7 @@ from typing import Any
 from imply.io import write_text
 from imply.results import Claim, Values
 
-RESULT = "imply.diagnose.benchmark.score_cases"
+RESULT = "imply.realworld.benchmark.score_cases"
 
 
 def _f(x, spec: str = ".3f") -> str:
@@ -55,7 +55,7 @@ def benchmark_claims(v: Values, results: Mapping[str, Any]) -> list[Claim]:
 
 
 def claims_of(r: dict) -> list[Claim]:
-    """The claims on a :func:`imply.diagnose.benchmark.score_cases` result (its ``targets`` and ``world_error``)."""
+    """The claims on a :func:`imply.realworld.benchmark.score_cases` result (its ``targets`` and ``world_error``)."""
     targets = r["targets"]
     w = r["world_error"]
     world_ok = (w["max"] is not None and w["table_max"] is not None and w["max"] <= w["table_max"]

@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import pandas as pd
 
-from imply.diagnose.benchmark import told_error, wrong_share
+from imply.realworld.benchmark import told_error, wrong_share
 
 
 def test_two_false_alarms_in_forty_meet_a_five_percent_target():

@@ -1,0 +1,280 @@
+"""The gap benchmark as a lab would run it: pushes with calibration probes, on engines never used to choose.
+
+A lab's session (:class:`LabBenchmarkConfig`) is the contact benchmark's
+(:class:`imply.realworld.cases.ContactBenchmarkConfig`: boxes pushed at several speeds, a
+contact model that is not the table's, no effect, one library effect or one outside it),
+and beside the pushes the calibration probes of :mod:`imply.realworld.probes` (written for
+a share ``probe_share`` of the logs). Its groups name their world: ``*_contact`` a MuJoCo
+contact variant, ``*_bullet`` the Bullet world, ``*_sapien`` the SAPIEN (PhysX) world.
+
+Two sets, by engine: the **development** set (``development_seed``,
+``development_logs``: MuJoCo contact variants and Bullet) is the one any choice may be
+made on; the **sealed** set (``seed``, ``logs``) adds the SAPIEN world, which no choice
+was made on, beside fresh MuJoCo-variant and Bullet logs, and is scored once per design.
+
+Every log's label holds, beside the contact benchmark's, the noise-free observables of
+its pushes and probes in five worlds: ``all`` (the log's world), ``contact`` (the same
+world without the effect; effect logs), and the nominal MuJoCo world (the table's
+physics, converged) at the objects' true masses and frictions (``table``) and at each
+one raised by a factor exp(``JACOBIAN_STEP``) (``log_mass``, ``log_friction``): what
+:mod:`imply.realworld.separability` needs to mark each effect log separable or not from
+its contact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from imply.io import write_csv, write_json
+from imply.options import option
+from imply.realworld.cases import (
+    ContactBenchmarkConfig,
+    _pushes_in_world,
+    draw_cases,
+    log_track,
+    make_log,
+    object_names,
+    push_layout,
+)
+from imply.realworld.contact import simulate_engine
+from imply.realworld.probes import ProbeDesign, ProbeLayout, probe_layout, probe_observables, probe_pushes, probe_rows
+from imply.realworld.sapien_world import SapienStepping
+from imply.realworld.world import WorldPushes, WorldResult
+from imply.sim.scene import SceneConfig
+from imply.sim.track import crossing_times, pusher_speed, track_frame_times
+
+log = logging.getLogger("imply.realworld")
+
+LAB_GROUPS = tuple(f"{kind}_{world}" for world in ("contact", "bullet", "sapien")
+                   for kind in ("null", "single", "outside"))  # fmt: skip
+SETS = ("development", "sealed")
+JACOBIAN_STEP = 0.05  # log units: the per-object fit's directions, by finite differences in the nominal world
+# the runs of every log: its world, its world without the effect, the nominal world and its two derivatives
+RUNS = ("all", "contact", "table", "log_mass", "log_friction")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LabBenchmarkConfig(ContactBenchmarkConfig):
+    """The lab benchmark (config ``gap.lab_benchmark``): pushes and calibration probes from worlds whose contact is
+    not the table's, in a development set (MuJoCo variants, Bullet) and a sealed set (those and SAPIEN)."""
+
+    config_key: ClassVar[str] = "gap.lab_benchmark"
+    groups: ClassVar[tuple[str, ...]] = LAB_GROUPS
+
+    seed: int = option(8181, doc="seed of the sealed set's draws", required=True)
+    logs: dict[str, int] = option(
+        {"null_contact": 6, "single_contact": 8, "outside_contact": 4, "null_bullet": 4, "single_bullet": 6,
+         "outside_bullet": 2, "null_sapien": 8, "single_sapien": 12, "outside_sapien": 6},
+        doc="the sealed set's logs per group (*_contact: MuJoCo contact variants; *_bullet, *_sapien: those engines)",
+        required=True, keys=LAB_GROUPS, items={"minimum": 0},
+    )  # fmt: skip
+    development_seed: int = option(2727, doc="seed of the development set's draws", required=True)
+    development_logs: dict[str, int] = option(
+        {"null_contact": 8, "single_contact": 12, "outside_contact": 4, "null_bullet": 6, "single_bullet": 10,
+         "outside_bullet": 4},
+        doc="the development set's logs per group (no sapien: no choice is made on that engine)",
+        required=True, keys=LAB_GROUPS, items={"minimum": 0},
+    )  # fmt: skip
+    probe_share: float = option(0.5, doc="share of logs written with calibration probes", minimum=0, maximum=1)
+    probes: ProbeDesign = option(ProbeDesign(), doc="the calibration probes", required=True)
+    sapien: SapienStepping = option(SapienStepping(), doc="how the SAPIEN world steps a push")
+    alias_cos: float = option(
+        0.95, doc="|cos| of an effect's and its contact's signatures (after the per-object fit) at or above which "
+        "the effect is not separable from the contact", exclusive_minimum=0, maximum=1,
+    )  # fmt: skip
+    crossing_sd: float = option(
+        0.02, doc="sd of the log of a track's crossing times (the separability's weight of the track)",
+        exclusive_minimum=0,
+    )  # fmt: skip
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.development_logs.get("null_sapien", 0) + self.development_logs.get("single_sapien", 0) + \
+                self.development_logs.get("outside_sapien", 0):  # fmt: skip
+            raise ValueError("development_logs: the sapien world is never used to choose; give it no logs here")
+
+    @staticmethod
+    def set_subset(config: dict, name: str) -> dict:
+        """The keys of a ``gap.lab_benchmark`` config dict that set ``name`` depends on (the other set's seed and
+        logs left out, so that a change to one set does not remake the other)."""
+        other = {"development": ("seed", "logs"), "sealed": ("development_seed", "development_logs")}
+        if name not in other:
+            raise ValueError(f"unknown set {name!r} (known: {', '.join(SETS)})")
+        return {k: v for k, v in config.items() if k not in other[name]}
+
+    @classmethod
+    def of_subset(cls, subset: dict, name: str) -> LabBenchmarkConfig:
+        """The design of set ``name`` from its :meth:`set_subset`."""
+        if name == "development":
+            subset = {**subset, "seed": subset.get("development_seed", 0), "logs": subset.get("development_logs", {})}
+        return cls.from_dict(subset, "gap.lab_benchmark").of_set(name)
+
+    def of_set(self, name: str) -> LabBenchmarkConfig:
+        """The design of set ``name`` (``development`` or ``sealed``): its seed and logs."""
+        if name == "sealed":
+            return self
+        if name == "development":
+            return dataclasses.replace(self, seed=self.development_seed, logs=dict(self.development_logs))
+        raise ValueError(f"unknown set {name!r} (known: {', '.join(SETS)})")
+
+
+def draw_lab_cases(design: LabBenchmarkConfig) -> list[dict]:
+    """Every log's draw (:func:`imply.realworld.cases.draw_cases`), and whether it is written with probes."""
+    cases = draw_cases(design)
+    for case in cases:
+        rng = np.random.default_rng([design.seed, 77, int(case["noise_seed"])])
+        case["probes"] = bool(rng.random() < design.probe_share)
+    return cases
+
+
+def lab_probe_layout(case: dict, design: LabBenchmarkConfig) -> ProbeLayout:
+    """The probes of ``case``: laid out by its objects' true masses, each object's probes in its first push's
+    direction."""
+    obj, _ = push_layout(case, design)
+    first = np.searchsorted(obj, np.arange(design.n_objects))
+    return probe_layout(np.asarray(case["mass"], float), np.asarray(design.speeds),
+                        np.asarray(case["direction"])[first], design.probes)  # fmt: skip
+
+
+def _probe_pushes(case: dict, design: LabBenchmarkConfig, scene: SceneConfig, world: dict,
+                  effects: list[dict]) -> WorldPushes:  # fmt: skip
+    """The probes of ``case`` as pushes of ``world`` (the case, or a nominal world of other masses and frictions)."""
+    layout = lab_probe_layout(case, design)
+    p = _pushes_in_world(world, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, effects)
+    return probe_pushes(layout, p, design.probes)
+
+
+def _runs(case: dict, design: LabBenchmarkConfig, scene: SceneConfig) -> list[tuple[str, str, WorldPushes, int]]:
+    """(what, engine, pushes and probes as one batch, how many of them are pushes) of every run of ``case``."""
+    obj, v = push_layout(case, design)
+    phi = np.asarray(case["direction"], float)
+    m0, mu0 = np.asarray(case["mass"], float), np.asarray(case["friction"], float)
+    engine = case.get("engine", "mujoco")
+    step = np.exp(JACOBIAN_STEP)
+    out = []
+    worlds = [("all", engine, case["effects"], False, m0, mu0)]
+    if case["effects"]:
+        worlds.append(("contact", engine, [], False, m0, mu0))
+    worlds += [("table", "mujoco", [], True, m0, mu0), ("log_mass", "mujoco", [], True, m0 * step, mu0),
+               ("log_friction", "mujoco", [], True, m0, mu0 * step)]  # fmt: skip
+    for what, eng, effects, nominal, m, mu in worlds:
+        world = {**case, "mass": list(m), "friction": list(mu)}
+        if nominal:
+            world.pop("contact", None)
+        pushes = _pushes_in_world(world, obj, v, phi, scene, effects)
+        probes = _probe_pushes(case, design, scene, world, effects)
+        out.append((what, eng, WorldPushes.concat([pushes, probes]), pushes.n))
+    return out
+
+
+def simulate_lab_cases(
+    cases: list[dict], design: LabBenchmarkConfig, scene: SceneConfig, *, nthread: int = 0, chunk: int = 2400,
+    progress: bool = False,
+) -> tuple[dict[str, dict], dict[str, dict]]:  # fmt: skip
+    """Noise-free observables of every run (:data:`RUNS`) of every case, and each engine's time per push.
+
+    Returns ``{case id: {run: {displacement, stop_time, ok, pusher_speed, track (the log's world only),
+    log_c (n, Q) log crossing times, probes: probe observables}}}`` and ``{engine: {pushes, seconds,
+    seconds_per_push}}``."""
+    runs = [(case["id"], *r) for case in cases for r in _runs(case, design, scene)]
+    times = track_frame_times(design.noise.track_rate)
+    out: dict[str, dict] = {}
+    timing: dict[str, dict] = {}
+    layouts = {case["id"]: lab_probe_layout(case, design) for case in cases}
+    masses = {case["id"]: np.asarray(case["mass"], float) for case in cases}
+    for engine in dict.fromkeys(r[2] for r in runs):
+        mine = [r for r in runs if r[2] == engine]
+        allp = WorldPushes.concat([r[3] for r in mine])
+        bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
+        fields = ("displacement", "stop_time", "stroke_time", "drive_force")
+        res = {f: np.zeros(allp.n) for f in fields}
+        ok = np.zeros(allp.n, bool)
+        track = np.zeros((allp.n, times.size, 3), np.float32)
+        # the engines that step one push at a time are timed per push; MuJoCo's batches on the threads given
+        t0 = time.perf_counter()
+        for a in tqdm(range(0, allp.n, chunk), desc=f"{engine} world pushes", unit="batch", disable=not progress):
+            idx = np.arange(a, min(a + chunk, allp.n))
+            r = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread,
+                                track_times=times)  # fmt: skip
+            for f in fields:
+                res[f][idx] = getattr(r, f)
+            ok[idx] = r.ok
+            track[idx] = r.track
+        seconds = time.perf_counter() - t0
+        timing[engine] = {"pushes": int(allp.n), "seconds": seconds, "seconds_per_push": seconds / max(allp.n, 1)}
+        for k, (cid, what, _, _, n_push) in enumerate(mine):
+            sl = slice(bounds[k], bounds[k] + n_push)
+            psl = slice(bounds[k] + n_push, bounds[k + 1])
+            okp = ok[sl] & np.isfinite(res["stroke_time"][sl]) & (res["stroke_time"][sl] > 0)
+            cross = crossing_times(times, track[sl, :, 0], res["displacement"][sl])
+            entry = {"displacement": res["displacement"][sl], "stop_time": res["stop_time"][sl], "ok": okp,
+                     "pusher_speed": pusher_speed(scene.stroke, res["stroke_time"][sl]),
+                     "log_c": np.log(np.where(cross > 0, cross, np.nan))}  # fmt: skip
+            if what == "all":
+                entry["track"] = track[sl]
+            probe_res = WorldResult(res["displacement"][psl], np.zeros(psl.stop - psl.start), res["stop_time"][psl],
+                                    ok[psl], np.zeros(psl.stop - psl.start, np.int64), res["stroke_time"][psl],
+                                    drive_force=res["drive_force"][psl])  # fmt: skip
+            mass = masses[cid] * (np.exp(JACOBIAN_STEP) if what == "log_mass" else 1.0)
+            entry["probes"] = probe_observables(layouts[cid], probe_res, mass, scene.stroke)
+            out.setdefault(cid, {})[what] = entry
+    return {case["id"]: out[case["id"]] for case in cases}, timing
+
+
+def _jsonable(entry: dict) -> dict:
+    return {"log_c": np.asarray(entry["log_c"]).tolist(), "probes": entry["probes"]}
+
+
+def write_lab_set(
+    design: LabBenchmarkConfig,
+    scene: SceneConfig,
+    *,
+    logs: Path,
+    labels: Path,
+    timing: Path,
+    nthread: int = 0,
+    progress: bool = True,
+) -> dict:
+    """Simulate every log of one set into ``logs/<id>.csv`` (with ``<id>.track.csv``, and ``<id>.probes.csv`` for
+    logs with probes), its labels into ``labels`` and each engine's time per push into ``timing``. Returns the
+    timing."""
+    cases = draw_lab_cases(design)
+    log.info("simulating %d logs (%d objects x %d speeds each, with probes) on %s", len(cases), design.n_objects,
+             len(design.speeds), ", ".join(dict.fromkeys(c.get("engine", "mujoco") for c in cases)))  # fmt: skip
+    sims, times = simulate_lab_cases(cases, design, scene, nthread=nthread, progress=progress)
+    out = {}
+    logs.mkdir(parents=True, exist_ok=True)
+    nm = design.noise
+    for case in cases:
+        sim = sims[case["id"]]
+        frame, label = make_log(case, sim, design, scene)
+        write_csv(logs / f"{case['id']}.csv", frame)
+        write_csv(logs / f"{case['id']}.track.csv", log_track(case, sim, label, design))
+        layout = lab_probe_layout(case, design)
+        if case["probes"]:
+            rows = probe_rows(
+                sim["all"]["probes"], layout, object_names(design.n_objects), design=design.probes,
+                replicates=design.replicates, sd=nm.sd, stop_time_sd=nm.stop_time_sd,
+                pusher_speed_sd=nm.pusher_speed_sd, with_stop_time=case["stop_time"],
+                rng=np.random.default_rng([case["noise_seed"], 3]),
+            )  # fmt: skip
+            write_csv(logs / f"{case['id']}.probes.csv", rows)
+        label["probes"] = case["probes"]
+        label["noise"]["track_sd"] = nm.track_sd
+        label["noise"]["friction_sd"] = design.probes.friction_sd
+        label["replicates"] = design.replicates
+        label["free_strokes"] = design.probes.free_strokes
+        for what, entry in sim.items():
+            label["noise_free"][what].update(_jsonable(entry))
+        out[case["id"]] = label
+    write_json(labels, out)
+    write_json(timing, times)
+    return times
