@@ -277,7 +277,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         'else "$PY" -m imply.cli "$@"; fi; }\n'
     )
     blocks = bash_blocks(DOCS / "tutorials" / "diagnose.md")
-    assert len(blocks) == 5
+    assert len(blocks) == 6
     proc = subprocess.run(["bash", "-c", prelude + "\n".join(blocks)], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((tmp_path / "gap-report" / "summary.json").read_text())
@@ -294,3 +294,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert (tmp_path / "filmed.track.csv").is_file()
     assert filmed["observables"][-3:] == ["crossing_25", "crossing_50", "crossing_75"], filmed["observables"]
     assert filmed["verdict"]["effects"] == ["tilt"], filmed["verdict"]
+    probes = (tmp_path / "probed.probes.csv").read_text().splitlines()
+    assert {line.split(",")[0] for line in probes[1:]} == {"free_stroke", "friction", "added_mass"}
+    probed = json.loads((tmp_path / "gap-report-probed" / "summary.json").read_text())
+    assert "calibration probes" in probed["observables_note"]

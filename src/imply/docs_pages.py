@@ -472,6 +472,8 @@ FORMATS: tuple[Format, ...] = (
            "what a robot records: one row per push"),
     Format("The box's track beside a push log (`imply diagnose --track`)", "imply.diagnose.track_file",
            ("REQUIRED", "OPTIONAL_NUMERIC"), "where each pushed box was over time, one row per frame"),
+    Format("Calibration probes beside a push log (`<log>.probes.csv`, `imply sim pushes --probes`)",
+           "imply.diagnose.probes", ("KINDS", "NUMERIC"), "what a lab measures besides its pushes, one row per probe"),
     Format("Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"),
     Format("Rollouts to score (`imply score`)", "imply.score_file", ("ROLES", "SCORE_COLUMNS"),
            "a model's rollouts read as slides, and the scores written back"),

@@ -36,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="simulate pushes and write a push log",
         description=(
             "Reads PUSHES (object_id,speed and optional mass,friction,size_x,size_y,size_z) and writes a push "
-            "log object_id,speed,displacement,stop_time plus the physics used. With --model, the pushes run "
+            "log object_id,speed,displacement,stop_time plus the physics used (with --track-rate the boxes' tracks, "
+            "with --probes the calibration probes, each in a file beside it). With --model, the pushes run "
             "on that MJCF (it must name body/geom 'box' with a free joint, slide joint 'push', velocity "
             "actuator 'servo', and <custom><numeric name='stroke'>)."
         ),
@@ -49,6 +50,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--track-rate", type=positive_float, default=None, metavar="HZ",
         help="also film each push: the box's track at HZ frames per second, written beside the log as "
         "<output stem>.track.csv (where `imply diagnose` finds it)",
+    )  # fmt: skip
+    pu.add_argument(
+        "--probes", action="store_true",
+        help="also run the calibration probes a lab would (a free stroke at every speed, a pull test of every object's "
+        "friction, every object pushed with a load of half its mass at its lowest and highest speed), written beside "
+        "the log as <output stem>.probes.csv (where `imply diagnose` finds it; format: the formats reference)",
     )  # fmt: skip
     pu.add_argument("--threads", type=int_range(0), default=0)
     pu.set_defaults(func=cmd_pushes)
@@ -94,6 +101,7 @@ def cmd_export_xml(args: argparse.Namespace) -> int:
 def cmd_pushes(args: argparse.Namespace) -> int:
     from imply.input_files import InputError
     from imply.io import write_csv
+    from imply.realworld.probes import simulate_probe_table
     from imply.sim.push_file import load_push_model, read_pushes, simulate_push_table
 
     output = output_file(args.output, [args.pushes, args.model, getattr(args, "config", None)])
@@ -105,6 +113,12 @@ def cmd_pushes(args: argparse.Namespace) -> int:
     with user_errors(KeyError, ValueError, message="cannot simulate on this model: {error}"), user_errors(InputError):
         log_frame, track = simulate_push_table(pushes, model=model, scene=scene, nthread=args.threads, progress=True,
                                                track_rate=args.track_rate)  # fmt: skip
+    if args.probes:
+        probes_path = output.with_name(f"{output.stem}.probes.csv")
+        with user_errors(KeyError, ValueError, message="cannot run the probes on this model: {error}"):
+            probes = simulate_probe_table(pushes, log_frame, model=model, scene=scene, nthread=args.threads)
+        write_csv(probes_path, probes)
+        log.info("%d calibration probes -> %s", len(probes), probes_path)
     if track is not None:
         track_path = output.with_name(f"{output.stem}.track.csv")
         write_csv(track_path, track)

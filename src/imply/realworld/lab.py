@@ -189,7 +189,6 @@ def simulate_lab_cases(
     out: dict[str, dict] = {}
     timing: dict[str, dict] = {}
     layouts = {case["id"]: lab_probe_layout(case, design) for case in cases}
-    masses = {case["id"]: np.asarray(case["mass"], float) for case in cases}
     for engine in dict.fromkeys(r[2] for r in runs):
         mine = [r for r in runs if r[2] == engine]
         allp = WorldPushes.concat([r[3] for r in mine])
@@ -210,7 +209,7 @@ def simulate_lab_cases(
             track[idx] = r.track
         seconds = time.perf_counter() - t0
         timing[engine] = {"pushes": int(allp.n), "seconds": seconds, "seconds_per_push": seconds / max(allp.n, 1)}
-        for k, (cid, what, _, _, n_push) in enumerate(mine):
+        for k, (cid, what, _, batch, n_push) in enumerate(mine):
             sl = slice(bounds[k], bounds[k] + n_push)
             psl = slice(bounds[k] + n_push, bounds[k + 1])
             okp = ok[sl] & np.isfinite(res["stroke_time"][sl]) & (res["stroke_time"][sl] > 0)
@@ -223,8 +222,8 @@ def simulate_lab_cases(
             probe_res = WorldResult(res["displacement"][psl], np.zeros(psl.stop - psl.start), res["stop_time"][psl],
                                     ok[psl], np.zeros(psl.stop - psl.start, np.int64), res["stroke_time"][psl],
                                     drive_force=res["drive_force"][psl])  # fmt: skip
-            mass = masses[cid] * (np.exp(JACOBIAN_STEP) if what == "log_mass" else 1.0)
-            entry["probes"] = probe_observables(layouts[cid], probe_res, mass, scene.stroke)
+            probes = batch.subset(np.arange(n_push, batch.n))
+            entry["probes"] = probe_observables(layouts[cid], probe_res, probes, scene.stroke)
             out.setdefault(cid, {})[what] = entry
     return {case["id"]: out[case["id"]] for case in cases}, timing
 

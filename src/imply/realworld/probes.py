@@ -21,7 +21,10 @@ alone leave entangled with the contact:
 :func:`probe_pushes` lays the probes of a log out as world pushes (its contact model
 and effects applied, as to its pushes), :func:`probe_observables` reads what each
 probe measured from the simulation, and :func:`probe_rows` writes the rows a lab
-records, with noise (:mod:`imply.diagnose.probes` reads them).
+records, with noise (:mod:`imply.diagnose.probes` reads them). :func:`simulate_probe_table`
+runs the same probes on a user's push model, beside a push log ``imply sim pushes`` wrote
+(the free strokes and pull tests stepped by the world's code path, the added-mass pushes by
+the simulator of the log's own pushes; no noise added).
 """
 
 from __future__ import annotations
@@ -29,11 +32,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+import mujoco
 import numpy as np
 import pandas as pd
 
 from imply.options import Config, option
-from imply.realworld.world import WorldPushes, WorldResult
+from imply.realworld.world import PARAMETERS, WorldPushes, WorldResult, WorldStepping, run_model
+from imply.sim.push_file import simulate_push_table
+from imply.sim.scene import SceneConfig, build_xml
 from imply.sim.track import pusher_speed
 
 GRAVITY = 9.81  # m/s^2: the pull test's reading is its force over m g, as a lab computes it
@@ -118,19 +124,26 @@ def probe_pushes(layout: ProbeLayout, pushes: WorldPushes, design: ProbeDesign) 
     return p
 
 
-def probe_observables(layout: ProbeLayout, res: WorldResult, mass: np.ndarray, stroke: float) -> dict[str, list]:
+def probe_observables(layout: ProbeLayout, res: WorldResult, pushes: WorldPushes, stroke: float) -> dict[str, list]:
     """What each probe measured, noise-free: ``log_p`` the pusher's mean speed (free strokes, added-mass pushes),
     ``reading`` the pull test's friction, ``log_d``, ``log_t`` (added-mass pushes), ``ok``; (n,) lists each, NaN
-    where a probe does not measure it."""
+    where a probe does not measure it. ``pushes``: the probes as simulated (:func:`probe_pushes`).
+
+    The pull test's gauge sits between the drive and the box: it reads the drive's force less what holds the test
+    drive's own mass on its rail (a tilted table pulls it along too; the lab tares the gauge on its rail), over the
+    weighed box's weight."""
+    g = GRAVITY
+    rail = g * np.sin(pushes.params["tilt"]) * np.cos(pushes.params["tilt_azimuth"] - pushes.direction)
+    gauge = res.drive_force + pushes.params["carriage_mass"] * rail
+    obj_mass = np.asarray(pushes.mass, float)
     n = layout.n
     free = layout.kind == "free_stroke"
     pull = layout.kind == "friction"
     added = layout.kind == "added_mass"
-    obj_mass = np.where(layout.obj >= 0, np.asarray(mass, float)[np.maximum(layout.obj, 0)], np.nan)
     speed = pusher_speed(stroke, res.stroke_time)
     with np.errstate(divide="ignore", invalid="ignore"):
         log_p = np.where(free | added, np.log(speed), np.nan)
-        reading = np.where(pull, res.drive_force / (obj_mass * GRAVITY), np.nan)
+        reading = np.where(pull, gauge / (obj_mass * g), np.nan)
         log_d = np.where(added, np.log(np.maximum(res.displacement, 1e-9)), np.nan)
         log_t = np.where(added, np.log(np.maximum(res.stop_time, 1e-9)), np.nan)
     ok = np.zeros(n, bool)
@@ -186,3 +199,105 @@ def probe_rows(
             if ok[j]:
                 rows.append(row)
     return pd.DataFrame(rows, columns=PROBE_COLUMNS)
+
+
+def model_pushes(model: mujoco.MjModel, speed, mass, friction, direction) -> WorldPushes:
+    """Pushes of a push model (a user's MJCF, with the names :mod:`imply.sim.scene` requires) at its own carriage,
+    servo and stroke."""
+    speed, mass, friction, direction = (np.asarray(x, float).ravel().copy()
+                                        for x in np.broadcast_arrays(speed, mass, friction, direction))  # fmt: skip
+    servo = model.actuator("servo").id
+    own = {"carriage_mass": float(model.body("pusher").mass[0]), "servo_kv": float(model.actuator_gainprm[servo, 0]),
+           "force_limit": float(model.actuator_forcerange[servo, 1]),
+           "stroke": float(np.asarray(model.numeric("stroke").data)[0])}  # fmt: skip
+    params = {k: np.full(speed.size, own[k] if v is None else float(v)) for k, v in PARAMETERS.items()}
+    return WorldPushes(speed, mass, friction, direction, params)
+
+
+def simulate_model_probes(
+    model: mujoco.MjModel,
+    objects: pd.DataFrame,
+    speeds: np.ndarray,
+    design: ProbeDesign,
+    *,
+    simulate_added,
+    nthread: int = 0,
+) -> pd.DataFrame:
+    """Probe rows (:data:`PROBE_COLUMNS`, noise-free) for a push model: a free stroke at every speed of ``speeds``
+    and a pull test of every object of ``objects`` (``object_id,mass,friction``) stepped by the benchmark world's
+    code path (:func:`imply.realworld.world.run_model`), and each object pushed with its load at the lowest and
+    highest speed by ``simulate_added(object_ids, speeds, masses)`` -> (displacement, stop_time, pusher_speed, ok),
+    the simulator that made the log's pushes."""
+    names = objects["object_id"].tolist()
+    mass = objects["mass"].to_numpy(float)
+    layout = probe_layout(mass, speeds, np.zeros(len(names)), design)
+    friction = objects["friction"].to_numpy(float)
+    obj = np.maximum(layout.obj, 0)
+    world = probe_pushes(layout, model_pushes(model, layout.speed, mass[obj], friction[obj], 0.0), design)
+    tool = ~np.asarray(layout.kind == "added_mass")
+    res = run_model(model, world.subset(np.flatnonzero(tool)), WorldStepping(), nthread=nthread)
+    full = {f: np.full(layout.n, np.nan) for f in ("displacement", "stop_time", "stroke_time", "drive_force")}
+    ok = np.zeros(layout.n, bool)
+    for f in full:
+        full[f][tool] = getattr(res, f)
+    ok[tool] = res.ok
+    stroke = float(np.asarray(model.numeric("stroke").data)[0])
+    result = WorldResult(full["displacement"], np.zeros(layout.n), full["stop_time"], ok, np.zeros(layout.n, np.int64),
+                         full["stroke_time"], drive_force=full["drive_force"])  # fmt: skip
+    observed = probe_observables(layout, result, world, stroke)
+    added = np.flatnonzero(layout.kind == "added_mass")
+    rows = []
+    for j in np.flatnonzero(tool & np.asarray(observed["ok"], bool)):
+        row = {**dict.fromkeys(PROBE_COLUMNS, ""), "probe": str(layout.kind[j])}
+        if layout.kind[j] == "free_stroke":
+            row.update(speed=layout.speed[j], pusher_speed=float(np.exp(observed["log_p"][j])))
+        else:
+            row.update(object_id=names[layout.obj[j]], friction=observed["reading"][j], friction_sd=design.friction_sd)
+        rows.append(row)
+    if added.size:
+        d, t, p, good = simulate_added([names[k] for k in layout.obj[added]], layout.speed[added],
+                                       mass[layout.obj[added]] + layout.added_mass[added])  # fmt: skip
+        for k, j in enumerate(added):
+            if good[k]:
+                rows.append({**dict.fromkeys(PROBE_COLUMNS, ""), "probe": "added_mass",
+                             "object_id": names[layout.obj[j]], "speed": layout.speed[j],
+                             "added_mass": layout.added_mass[j], "displacement": d[k], "stop_time": t[k],
+                             "pusher_speed": p[k]})  # fmt: skip
+    return pd.DataFrame(rows, columns=PROBE_COLUMNS)
+
+
+def simulate_probe_table(
+    pushes: pd.DataFrame,
+    log_frame: pd.DataFrame,
+    *,
+    model: mujoco.MjModel | None = None,
+    scene: SceneConfig | None = None,
+    design: ProbeDesign | None = None,
+    nthread: int = 0,
+) -> pd.DataFrame:
+    """The probe rows for the objects of ``pushes`` (as :func:`imply.sim.push_file.read_pushes` returns it) on
+    ``model`` or the built-in ``scene``; ``log_frame`` is their push log (the added-mass pushes keep its box)."""
+    design = design or ProbeDesign()
+    scene = scene or SceneConfig()
+    compiled = model if model is not None else mujoco.MjModel.from_xml_string(build_xml(scene))
+    box = compiled.geom("box").id
+    first = pushes.drop_duplicates("object_id")
+    objects = pd.DataFrame({
+        "object_id": first["object_id"].to_numpy(),
+        "mass": first["mass"].to_numpy(float) if "mass" in first else np.full(len(first), compiled.body("box").mass[0]),
+        "friction": (first["friction"].to_numpy(float) if "friction" in first
+                     else np.full(len(first), compiled.geom_friction[box, 0])),
+    })  # fmt: skip
+    if "size_x" in pushes:
+        raise ValueError("probes need the model's own box; a pushes file with size columns varies it")
+
+    def simulate_added(ids: list[str], speeds: np.ndarray, masses: np.ndarray):
+        row = {o: i for i, o in enumerate(objects["object_id"])}
+        frame = pd.DataFrame({"object_id": ids, "speed": speeds, "mass": masses,
+                              "friction": objects["friction"].to_numpy()[[row[o] for o in ids]]})  # fmt: skip
+        out, _ = simulate_push_table(frame, model=model, scene=None if model is not None else scene, nthread=nthread)
+        return (out["displacement"].to_numpy(), out["stop_time"].to_numpy(), out["pusher_speed"].to_numpy(),
+                out["ok"].to_numpy(bool))  # fmt: skip
+
+    speeds = np.unique(log_frame["speed"].to_numpy(float))
+    return simulate_model_probes(compiled, objects, speeds, design, simulate_added=simulate_added, nthread=nthread)

@@ -138,10 +138,10 @@ class _SapienRig:
         self.x0 = float(pusher.pose.p[0])
 
     def pusher_state(self) -> tuple[float, float]:
-        return float(self.pusher.pose.p[0]) - self.x0, float(self.pusher.linear_velocity[0])
+        return float(self.pusher.entity_pose.p[0]) - self.x0, float(self.pusher.linear_velocity[0])
 
     def box_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        pose = self.box.pose
+        pose = self.box.entity_pose
         w, x, y, z = (float(c) for c in pose.q)
         return np.asarray(pose.p, float), np.array([x, y, z, w])
 
@@ -164,7 +164,7 @@ class _SapienRig:
         self.material.set_dynamic_friction(friction)
 
     def drive(self, force: float) -> None:
-        self.pusher.add_force_at_point(np.array([force, 0.0, 0.0], np.float32), np.asarray(self.pusher.pose.p))
+        self.pusher.add_force_at_point(np.array([force, 0.0, 0.0], np.float32), np.asarray(self.pusher.entity_pose.p))
 
     def set_step(self, step: float) -> None:
         self.scene.set_timestep(step)

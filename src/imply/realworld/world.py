@@ -268,6 +268,17 @@ def simulate_world(
                        out["drive_force"])  # fmt: skip
 
 
+def run_model(model: mujoco.MjModel, pushes: WorldPushes, stepping: WorldStepping | None = None, *,
+              nthread: int = 0) -> WorldResult:  # fmt: skip
+    """Pushes on a compiled push model (a user's MJCF, with the names :mod:`imply.sim.scene` requires) stepped by the
+    world's code path at the model's own integrator; the structural parameters (torsional, rolling, height) must be
+    nominal."""
+    for name in ("torsional", "rolling", "height"):
+        if np.any(pushes.params[name] != 0):
+            raise ValueError(f"{name} changes the model's structure; edit the MJCF instead")
+    return _run(model, pushes, stepping or WorldStepping(), nthread=nthread, progress=False)
+
+
 def check_track_times(track_times) -> np.ndarray | None:
     """``track_times`` as a float array (None stays None); ValueError unless increasing, non-negative, two or more."""
     if track_times is None:
