@@ -2,8 +2,10 @@
 
 The sim-to-real diagnostic (:mod:`imply.diagnose`) reads the push table and effect
 tables built by :mod:`imply.sim.pushes`. A benchmark that made its "real" pushes the
-same way would share the diagnostic's numerical mistakes. This package does not import
-:mod:`imply.diagnose`, reads no table and interpolates nothing:
+same way would share the diagnostic's numerical mistakes. Its worlds do not import
+:mod:`imply.diagnose`, read no table and interpolate nothing (only the modules that score
+the diagnoses read them: :mod:`~imply.realworld.benchmark`,
+:mod:`~imply.realworld.benchmark_report` and :mod:`~imply.realworld.closed_loop`):
 
 - :mod:`~imply.realworld.world` steps the push scene with MuJoCo's ``RK4`` integrator on
   uniform steps (no shortened slide steps, no travel correction: the table's
@@ -22,6 +24,13 @@ same way would share the diagnostic's numerical mistakes. This package does not 
   sealed label;
 - :mod:`~imply.realworld.bullet` simulates the same pushes in a second physics engine
   (Bullet), for logs whose contact model is not MuJoCo's;
+- :mod:`~imply.realworld.sapien_world` simulates them in a third engine (PhysX, through
+  SAPIEN), on the rig protocol :mod:`~imply.realworld.stepped` shares with Bullet;
+- :mod:`~imply.realworld.probes` runs the calibration probes a lab would (free strokes,
+  pull tests of friction, pushes with an added mass) in any of these worlds;
+- :mod:`~imply.realworld.lab` draws and writes the lab benchmark's development and sealed
+  sets, and :mod:`~imply.realworld.separability` marks each of their effect logs separable or
+  not from its contact;
 - :mod:`~imply.realworld.accuracy` measures the world's own numerical error against a
   much finer run of itself and against :mod:`imply.sim.reference`.
 """
