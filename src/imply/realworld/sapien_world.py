@@ -135,7 +135,7 @@ class _SapienRig:
 
     def __init__(self, scene, material, box, pusher) -> None:
         self.scene, self.material, self.box, self.pusher = scene, material, box, pusher
-        self.x0 = float(pusher.pose.p[0])
+        self.x0 = float(pusher.entity_pose.p[0])
 
     def pusher_state(self) -> tuple[float, float]:
         return float(self.pusher.entity_pose.p[0]) - self.x0, float(self.pusher.linear_velocity[0])
