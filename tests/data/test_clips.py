@@ -119,7 +119,7 @@ def test_cli_refuses_bad_input_with_one_line(tmp_path, capsys):
 
     out = tmp_path / "x.npz"
     rc = main(["clips", "render", "--split", "bogus", "--clips-json", "{}", "--score-json", "{}",
-               "--out-npz", str(out), "--out-csv", str(tmp_path / "x.csv")])  # fmt: skip
+               "-o", str(out)])  # fmt: skip
     assert rc == 2 and "--split" in capsys.readouterr().err and not out.exists()
     frames = tmp_path / "f.npz"
     np.savez(frames, frames=np.zeros((1, 2, 16, 16, 3), np.uint8), clip_id=np.zeros(1, np.int64))

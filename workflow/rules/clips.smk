@@ -33,7 +33,7 @@ rule clips_render:
         "results/benchmarks/clips_render/{clip_split}.tsv"
     shell:
         "imply clips render --split {wildcards.clip_split} --clips-json {params.clips} --score-json {params.score}"
-        " --scene-json {params.scene} --threads {threads} --out-npz {output.npz} --out-csv {output.csv}"
+        " --scene-json {params.scene} --threads {threads} -o {output.npz}"
         " > {log} 2>&1"
 
 

@@ -1,19 +1,20 @@
 """The ``imply`` command line: one module per top-level command group, each handler a thin wrapper.
 
 Groups (modules of this package, each with ``register(subparsers)``): ``score``,
-``table``, ``sim``, ``diagnose`` (what a user runs), and the study's steps, one group
-per stage of the workflow: ``section4``, ``clips``, ``encoder``, ``readout``,
-``model``, ``section5``, ``gap``, ``pixel`` (the pixel-space model beyond the paper), ``paper``,
-``suite`` (the evaluation suite). A
-handler parses its options, calls one library function and writes its outputs; the
-logic lives in the library.
+``table``, ``sim``, ``diagnose``, ``suite``, ``evaluate`` (what a user runs), and the
+study's steps, one group per stage of the workflow: ``section4``, ``clips``, ``encoder``,
+``readout``, ``model``, ``section5``, ``gap``, ``pixel`` (the pixel-space model beyond the
+paper), ``paper``. A handler parses its options, calls one library function and writes
+its outputs; the logic lives in the library.
 
-A user error (bad input, bad option, an output that would overwrite an input) is a
-:class:`~imply.cli.common.UserError`, raised by a handler or turned from the library's
-own error types by :func:`~imply.cli.common.user_errors`; :func:`main` alone prints it
-in one line and exits with status 2, leaving no output file. Command groups share code
-only through :mod:`imply.cli.common`. Registering a group imports
-nothing heavy: each command imports what it needs when it runs, so ``imply score``
+One convention for every command: outputs are ``-o/--output``; every command, option and
+positional has help text, and a command without a description of its own shows its help;
+every refusal, a usage error or a user error, is one line ``imply <command>: error: ...``
+on standard error with exit status 2, and leaves no output file. A user error is a
+:class:`~imply.cli.common.UserError`, raised by a handler or turned from the library's own
+error types by :func:`~imply.cli.common.user_errors`; :func:`main` alone prints it.
+Command groups share code only through :mod:`imply.cli.common`. Registering a group
+imports nothing heavy: each command imports what it needs when it runs, so ``imply score``
 never loads torch or matplotlib.
 """
 
@@ -34,14 +35,38 @@ GROUPS: list[str] = [
 ]  # fmt: skip
 
 
+DESCRIPTION = (
+    "Vet world-model rollouts against physics, and diagnose the gap between a push simulator and a robot. "
+    "What you run: 'imply score' (a rollouts file's anchored disagreement), 'imply evaluate' (a world model on "
+    "the frozen suite), 'imply diagnose' (a robot's push log against the push table), 'imply sim' (pushes "
+    "simulated on the built-in scene or your MJCF), 'imply table' and 'imply suite' (what those read). The other "
+    "commands are the study's workflow steps, run by 'snakemake --cores 2'. 'imply COMMAND --help' says what each "
+    "reads and writes."
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = Parser(prog="imply", description=__doc__.splitlines()[0])
+    parser = Parser(prog="imply", description=DESCRIPTION)
     parser.add_argument("--log", help="also write the log to this file")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="group", required=True, metavar="COMMAND")
     for name in GROUPS:
         importlib.import_module(f"imply.cli.{name}").register(sub)
+    _describe(parser)
     return parser
+
+
+def _describe(parser: argparse.ArgumentParser) -> None:
+    """Give every command without a description of its own its help as one, and every group's commands the
+    metavar COMMAND (so a usage error names what is missing in words)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            action.metavar = action.metavar or "COMMAND"
+            helps = {choice.dest: choice.help for choice in action._choices_actions}
+            for name, sub in action.choices.items():
+                if not sub.description and helps.get(name):
+                    sub.description = helps[name][0].upper() + helps[name][1:] + "."
+                _describe(sub)
 
 
 def _terminate(signum: int, frame: Any) -> None:
@@ -61,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     np.seterr(all="ignore")
-    name = " ".join(x for x in (args.command, getattr(args, f"{args.command}_command", None)) if x)
+    name = " ".join(x for x in (args.group, getattr(args, f"{args.group}_command", None)) if x)
     prefix = f"imply {name}: error:"
     try:
         return int(args.func(args) or 0)

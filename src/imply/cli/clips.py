@@ -20,8 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--score-json", type=json_arg, required=True, help="calibration_speeds and query_speeds as JSON")
     r.add_argument("--scene-json", type=json_arg, help="config section 'scene' as JSON")
     r.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
-    r.add_argument("--out-npz", required=True)
-    r.add_argument("--out-csv", required=True)
+    r.add_argument("-o", "--output", required=True,
+                   help="the split's frames (.npz); its pushes' table is written beside it, with the suffix .csv")  # fmt: skip
     r.set_defaults(func=cmd_render)
 
 
@@ -32,11 +32,11 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     if args.split not in SPLITS:
         raise UserError(f"--split {args.split!r} is not one of {', '.join(SPLITS)}")
-    if Path(args.out_npz).suffix != ".npz" or Path(args.out_csv).suffix != ".csv":
-        raise UserError("--out-npz must end in .npz and --out-csv in .csv")
+    if Path(args.output).suffix != ".npz":
+        raise UserError(f"-o {args.output}: the frames file must end in .npz (its .csv is written beside it)")
     cfg = config_from_json(ClipsConfig, args.clips_json, "--clips-json")
     speeds = config_from_json(ScoreConfig, args.score_json, "--score-json")
     scene = config_from_json(SceneConfig, args.scene_json, "--scene-json")
     frames, meta = render_split(cfg, args.split, scene=scene, speeds=speeds, nthread=args.threads)
-    save_split(args.out_npz, args.out_csv, frames=frames, meta=meta, cfg=cfg)
+    save_split(args.output, Path(args.output).with_suffix(".csv"), frames=frames, meta=meta, cfg=cfg)
     return 0

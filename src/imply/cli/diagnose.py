@@ -24,12 +24,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "PUSHLOG (CSV or parquet): object_id,speed,displacement (m/s, m) and optional direction (rad), "
             "stop_time, pusher_speed, size_x,size_y,size_z, mass, friction (measured mass/friction are held fixed "
-            "instead of fitted), push (numbers the tracks refer to); the boxes' tracks in a second file (--track). "
-            "Writes REPORT_DIR/summary.json, report.md, residuals.csv and plots into a new (or empty) "
-            "folder; with --force, into a folder holding an earlier report, whose files alone are replaced."
+            "instead of fitted), push (numbers the tracks refer to); the boxes' tracks in a second file (--track, or "
+            "<log>.track.csv beside it) and the calibration probes in a third (<log>.probes.csv beside it). "
+            "Writes into the report folder (new or empty; with --force, one holding an earlier report, whose files "
+            "alone are replaced): report.md (the verdict first), summary.json (every number), residuals.csv, "
+            "next_pushes.csv (the pushes that would best tell the leading explanations apart), and the figures "
+            "residuals_vs_speed.png, before_after.png, ranking.png and hypotheses.png."
         ),
     )
-    d.add_argument("pushlog")
+    d.add_argument("pushlog", help="the push log (CSV or parquet; a .track.csv and a .probes.csv beside it are read "
+                   "with it)")  # fmt: skip
     d.add_argument("-o", "--output", required=True, help="report folder to write (new or empty)")
     d.add_argument(
         "--track", help="the boxes' tracks (CSV or parquet, rows object_id,push,t,x,y[,yaw]; default: "

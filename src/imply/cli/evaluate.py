@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import shutil
 import sys
 from pathlib import Path
 
@@ -27,7 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="score world models on a suite: tracking, error, self and anchored disagreement, selection",
         description="Asks each model for its rollouts of the suite's held-out pushes (own calibration, another "
         "object's, none), reads them with a readout fitted on the suite's real clips (never on the rollouts), and "
-        "writes one report comparing the models: results.json, report.md, figures. A model is MODULE:FACTORY "
+        "writes one report folder comparing the models: report.md, results.json (every number), per_object.csv, and "
+        "the figures slides.png/.pdf, scores.png/.pdf and, where a model has a selection, selection.png/.pdf; with "
+        "--command also REPORT.package, REPORT.videos and REPORT.command.log beside it. A model is MODULE:FACTORY "
         "(an importable module or a .py file) whose factory returns an object with kind and rollout(request); "
         "see the tutorial docs/tutorials/evaluate.md.",
     )
@@ -66,98 +67,44 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
 
-def _checked_videos(folders: list[str], suite, conditions: tuple[str, ...]) -> list:
-    """Every --videos folder checked and read as rollouts; every problem of every folder is printed (one line per
-    kind) before the command stops with status 2."""
-    from imply.evaluate.video_package import VideoFolderError, read_videos
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from imply.evaluate.config import EvaluateConfig, parse_conditions
+    from imply.evaluate.interface import ModelError
+    from imply.evaluate.request import EvaluateRequest, run_request
+    from imply.evaluate.rollouts_file import RolloutsFileError
+    from imply.evaluate.suite import SuiteError
+    from imply.evaluate.video_package import CommandError, VideoFolderError
+    from imply.io import OutputError
+    from imply.table import OutOfRangeError
 
-    out, problems = [], []
-    for folder in folders:
-        try:
-            out.append(read_videos(folder, suite, conditions))
-        except VideoFolderError as exc:
-            problems += exc.problems
-    if problems:
-        for line in problems[:-1]:
-            print(f"error: {line}", file=sys.stderr)
-        raise UserError(problems[-1] + " (nothing scored)")
-    return out
-
-
-def _generate(args: argparse.Namespace, suite, conditions: tuple[str, ...], out: Path) -> Path:
-    """Export the suite beside the report (once), run the --command for the cases not generated yet, and return
-    the videos folder (named by --name)."""
-    from imply.evaluate.video_package import CommandError, export_package, read_manifest, run_command
-
-    package = out.with_name(out.name + ".package")
-    videos = out.with_name(out.name + ".videos") / args.name
-    made = None
-    if package.exists():
-        with user_errors(ValueError):
-            made = read_manifest(package)
-    if made is None or made["suite"] != suite.checksum or made["conditions"] != list(conditions):
-        if package.exists():
-            shutil.rmtree(package)
-        with user_errors(ValueError):
-            export_package(suite, package, conditions=conditions)
+    out = output_dir(args.output) if args.output else None
+    with user_errors(ValueError, message="--conditions: {error}"):
+        settings = EvaluateConfig(
+            conditions=parse_conditions(args.conditions), samples=args.samples, bootstrap=args.bootstrap,
+            seed=args.seed, static_limit=args.static_limit,
+        )  # fmt: skip
+    with user_errors(ValueError):
+        request = EvaluateRequest(
+            suite=Path(args.suite), output=out, settings=settings, models=tuple(args.model),
+            rollouts=tuple(Path(f) for f in args.rollouts), videos=tuple(Path(f) for f in args.videos),
+            command=args.command, name=args.name, check=args.check, force=args.force,
+            cache=Path(args.cache) if args.cache else None, keep_cache=not args.no_cache,
+            progress=not args.no_progress,
+        )  # fmt: skip
     try:
-        n = run_command(args.command, package=package, videos=videos, log_path=out.with_name(out.name + ".command.log"))
+        with user_errors(SuiteError, message="--suite: {error}"):
+            evaluations = run_request(request)
+    except VideoFolderError as exc:
+        for line in exc.problems[:-1]:
+            print(f"imply evaluate: error: {line}", file=sys.stderr)
+        raise UserError(exc.problems[-1]) from None
     except CommandError as exc:
         first, *rest = str(exc).splitlines()
         for line in rest:  # the command's own last lines, as it printed them
             print(line, file=sys.stderr)
         raise UserError(first) from None
-    log.info("--command generated %d case(s) -> %s", n, videos)
-    return videos
-
-
-def cmd_evaluate(args: argparse.Namespace) -> int:
-    from imply.evaluate.config import EvaluateConfig
-    from imply.evaluate.harness import evaluate
-    from imply.evaluate.interface import ModelError
-    from imply.evaluate.report import check_report_folder, write_report
-    from imply.evaluate.rollouts_file import RolloutsFileError
-    from imply.evaluate.suite import SuiteError, load_suite
-    from imply.io import OutputError
-    from imply.table import OutOfRangeError
-
-    if not args.model and not args.rollouts and not args.videos and not args.command:
-        raise UserError("give at least one --model MODULE:FACTORY, --rollouts FILE, --videos FOLDER or --command")
-    if args.check and not args.videos:
-        raise UserError("--check checks --videos folders: give at least one")
-    if not args.check and not args.output:
-        raise UserError("give the report folder: -o REPORT")
-    out = output_dir(args.output) if args.output else None
-    conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
-    with user_errors(ValueError, message="--conditions: {error}"):
-        settings = EvaluateConfig(
-            conditions=conditions, samples=args.samples, bootstrap=args.bootstrap, seed=args.seed,
-            static_limit=args.static_limit,
-        )  # fmt: skip
-    inputs = [Path(f) for f in args.rollouts + args.videos]
-    if not args.check:
-        with user_errors(OutputError):
-            check_report_folder(out, force=args.force, inputs=inputs)
-    with user_errors(SuiteError, message="--suite: {error}"):
-        suite = load_suite(args.suite)
-    if args.command:
-        if out is None:
-            raise UserError("--command needs the report folder: -o REPORT")
-        args.videos = [*args.videos, str(_generate(args, suite, settings.conditions, out))]
-    videos = _checked_videos(args.videos, suite, settings.conditions)  # always before any scoring
-    if args.check:
-        log.info("%d folder(s) of videos checked: nothing wrong", len(videos))
-        return 0
-    cache = None if args.no_cache else Path(args.cache) if args.cache else out.with_name(out.name + ".cache")
-    with user_errors(ModelError, RolloutsFileError, SuiteError, OutOfRangeError):
-        evaluations = evaluate(
-            args.model, suite=suite, rollouts=[*args.rollouts, *videos], settings=settings, cache_dir=cache,
-            progress=not args.no_progress,
-        )  # fmt: skip
-    with user_errors(OutputError, ValueError):
-        write_report(evaluations, out, force=args.force, inputs=inputs)
-    if cache is not None and args.cache is None and cache.exists():
-        shutil.rmtree(cache, ignore_errors=True)
+    except (ModelError, RolloutsFileError, OutOfRangeError, OutputError, ValueError) as exc:
+        raise UserError(str(exc)) from exc
     for ev in evaluations:
         far = sum(d.unphysical for d in ev.degenerate)
         if far:
@@ -166,5 +113,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         own = ev.condition("own") or ev.conditions[0]
         log.info("%s (%s, %s readout): %s tracking r %s, log error %s", ev.model, ev.kind, ev.readout.name,
                  own.condition, own.track.format(".2f"), own.error.format(".3f"))  # fmt: skip
-    log.info("report -> %s", out)
+    if evaluations:
+        log.info("report -> %s", out)
     return 0

@@ -42,17 +42,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "diagnose-many",
         help="run 'imply diagnose' on several push logs in one process (one report folder per log, by file stem)",
     )
-    dm.add_argument("pushlogs", nargs="+")
+    dm.add_argument(
+        "pushlogs",
+        nargs="+",
+        help="the push logs to diagnose (each with its .track.csv and .probes.csv where beside it)",
+    )
     dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
     add_diagnose_options(dm)
     dm.set_defaults(func=cmd_diagnose_many)
 
     t = gsub.add_parser("tables", help="build (or find) the effect tables in a folder, with a manifest")
-    t.add_argument("--table", default=DEFAULT_TABLE)
-    t.add_argument("--effect-grid-json", type=json_arg)
+    t.add_argument("--table", default=DEFAULT_TABLE, help="the push table (default results/table/table.npz)")
+    t.add_argument("--effect-grid-json", type=json_arg, help="the effect tables' grids (config gap.effect_grid)")
     t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
     t.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
-    t.add_argument("--threads", type=int_range(0), default=0)
+    t.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
     t.add_argument("-o", "--output", required=True,
                    help="folder of the effect tables (an effect-table cache) and their manifest.json")  # fmt: skip
     t.set_defaults(func=cmd_tables)
@@ -72,7 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
     gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
     gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
-    gen.add_argument("--threads", type=int_range(0), default=0)
+    gen.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
     gen.set_defaults(func=cmd_generate)
 
     cl = gsub.add_parser(
@@ -100,7 +104,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)")  # fmt: skip
     lab.add_argument("--labels", required=True, help="JSON file for the logs' labels")
     lab.add_argument("--timing", required=True, help="JSON file for each world's time per push")
-    lab.add_argument("--threads", type=int_range(0), default=0)
+    lab.add_argument(
+        "--threads",
+        type=int_range(0),
+        default=0,
+        help="MuJoCo's simulation threads (0: all CPUs; the other engines use one)",
+    )
     lab.set_defaults(func=cmd_lab_generate)
 
     sep = gsub.add_parser(
@@ -117,9 +126,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     sep.set_defaults(func=cmd_separability)
 
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
-    b.add_argument("--table", default=DEFAULT_TABLE)
-    b.add_argument("--bench-json", type=json_arg, required=True)
-    b.add_argument("--sealed", required=True)
+    b.add_argument("--table", default=DEFAULT_TABLE, help="the push table (default results/table/table.npz)")
+    b.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark (its targets)")
+    b.add_argument("--sealed", required=True, help="the sealed labels of 'imply gap generate'")
     b.add_argument("--accuracy", required=True, help="the world's measured numerical error (from 'gap generate')")
     b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
     b.add_argument("-o", "--output", required=True, help="the benchmark's result document (JSON)")

@@ -66,15 +66,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--derangement-seed", type=int_range(0), default=default_of(ModelConfig, "derangement_seed"),
                     help="which validation object's calibration each object gets in the swap context")  # fmt: skip
     tr.add_argument("--history", help="also write the per-epoch losses and validation metrics here (.json)")
-    tr.add_argument("--threads", type=int_range(1), default=2)
+    tr.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
     tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
     tr.add_argument("--device", default=default_of(ModelConfig, "device"), help="torch device (cpu, cuda)")
-    tr.add_argument("-o", "--output", required=True)
+    tr.add_argument("-o", "--output", required=True, help="the trained predictor to write (.pt)")
     tr.set_defaults(func=cmd_train)
 
     rd = msub.add_parser("readout", help="fit the ridge readout on layer-normed last-frame tokens")
-    rd.add_argument("--features", type=existing_file, required=True)
-    rd.add_argument("--clips", type=existing_file, required=True)
+    rd.add_argument(
+        "--features",
+        type=existing_file,
+        required=True,
+        help="the encoder's features of the training clips (results/features/train.npz)",
+    )
+    rd.add_argument(
+        "--clips", type=existing_file, required=True, help="the training clips' table (results/clips/train.csv)"
+    )
     rd.add_argument(
         "--heldout",
         nargs=2,
@@ -90,16 +97,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     rd.set_defaults(func=cmd_readout)
 
     ro = msub.add_parser("rollout", help="deterministic latent rollouts of held-out objects, read out to displacement")
-    ro.add_argument("--model", type=existing_file, required=True)
-    ro.add_argument("--features", type=existing_file, required=True)
-    ro.add_argument("--clips", type=existing_file, required=True)
-    ro.add_argument("--readout", type=existing_file, required=True)
+    ro.add_argument(
+        "--model", type=existing_file, required=True, help="the trained predictor (.pt of imply model train)"
+    )
+    ro.add_argument("--features", type=existing_file, required=True, help="the held-out clips' encoder features (.npz)")
+    ro.add_argument("--clips", type=existing_file, required=True, help="the held-out clips' table (.csv)")
+    ro.add_argument(
+        "--readout", type=existing_file, required=True, help="the latent readout (.npz of imply model readout)"
+    )
     ro.add_argument("--contexts", default="own,swap,none", help="comma-separated: own, swap, none")
-    ro.add_argument("--derangement-seed", type=int_range(0), default=default_of(ModelConfig, "derangement_seed"))
+    ro.add_argument(
+        "--derangement-seed",
+        type=int_range(0),
+        default=default_of(ModelConfig, "derangement_seed"),
+        help="which object's calibration each object gets in the swap context",
+    )
     ro.add_argument("--rest-state", type=float, default=None, help="default: the model's training value")
-    ro.add_argument("--batch-size", type=int_range(1), default=default_of(ModelConfig, "rollout_batch"))
-    ro.add_argument("--threads", type=int_range(1), default=2)
-    ro.add_argument("-o", "--output", required=True)
+    ro.add_argument(
+        "--batch-size",
+        type=int_range(1),
+        default=default_of(ModelConfig, "rollout_batch"),
+        help="objects rolled out per batch",
+    )
+    ro.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
+    ro.add_argument("-o", "--output", required=True, help="the rollouts to write (.npz)")
     ro.set_defaults(func=cmd_rollout)  # fmt: skip
 
     pl = msub.add_parser("plot", help="plot the per-epoch validation of trained predictors")

@@ -28,11 +28,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = psub.add_parser("part", help="a stage's registered numbers and checked claims (results/paper/parts/STAGE.json)")
     p.add_argument("stage", help="section4 | clips | section5 | gap")
     p.add_argument("results", nargs="+", type=existing_file, help="the stage's result documents")
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("-o", "--output", required=True, help="the stage's part to write (results/paper/parts/STAGE.json)")
     p.set_defaults(func=cmd_part)
 
     t = psub.add_parser("tables", help="the paper's tables as booktabs LaTeX, from a stage's part")
-    t.add_argument("--part", type=existing_file, required=True)
+    t.add_argument(
+        "--part", type=existing_file, required=True, help="the stage's part (results/paper/parts/STAGE.json)"
+    )
     t.add_argument("--table1", help="Table 1 (.tex; from the section4 part)")
     t.add_argument("--table2", help="Table 2 (.tex; from the section4 part)")
     t.add_argument("--table3", help="Table 3 (.tex; from the section5 part)")
@@ -41,15 +43,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     f1 = psub.add_parser("figure1", help="Figure 1 as PDF and PNG")
     f1.add_argument("--scores", type=existing_file, required=True, help="results/section4/scores.csv")
     f1.add_argument("--noise", type=existing_file, required=True, help="results/section4/noise.json")
-    f1.add_argument("--pdf", required=True)
-    f1.add_argument("--png", required=True)
+    f1.add_argument("--pdf", required=True, help="the figure to write as PDF")
+    f1.add_argument("--png", required=True, help="the figure to write as PNG")
     f1.set_defaults(func=cmd_figure1)
 
     f2 = psub.add_parser("figure2", help="Figure 2 as PDF and PNG")
     f2.add_argument("--per-object", type=existing_file, required=True, help="results/section5/per_object.csv")
     f2.add_argument("--seed", type=int_range(0), default=None, help="data-order seed shown (default: the smallest)")
-    f2.add_argument("--pdf", required=True)
-    f2.add_argument("--png", required=True)
+    f2.add_argument("--pdf", required=True, help="the figure to write as PDF")
+    f2.add_argument("--png", required=True, help="the figure to write as PNG")
     f2.set_defaults(func=cmd_figure2)
 
     m = psub.add_parser(

@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--recipe-json", type=json_arg, default={}, help="the recipe (config pixel.recipe)")
     tr.add_argument("--variant", choices=("calib", "nocalib"), required=True,
                     help="calib: the object's two calibration pushes in context; nocalib: none")  # fmt: skip
-    tr.add_argument("--threads", type=int_range(1), default=2)
+    tr.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
     tr.add_argument("--history", help="also write the per-epoch losses and seconds here (.json)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     tr.add_argument("-o", "--output", required=True, help="the checkpoint to write (.pt)")
@@ -43,9 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     sc = psub.add_parser("score", help="the result document of both variants' imply evaluate reports")
     sc.add_argument("--calib", required=True, help="the calibrated variant's report folder (conditions own, other)")
     sc.add_argument("--nocalib", required=True, help="the report folder of the variant without calibration (none)")
-    sc.add_argument("--calib-history", type=existing_file, required=True)
-    sc.add_argument("--nocalib-history", type=existing_file, required=True)
-    sc.add_argument("-o", "--output", required=True)
+    sc.add_argument(
+        "--calib-history", type=existing_file, required=True, help="the calibrated variant's training history (.json)"
+    )
+    sc.add_argument(
+        "--nocalib-history", type=existing_file, required=True, help="the other variant's training history (.json)"
+    )
+    sc.add_argument("-o", "--output", required=True, help="the result document to write (results/pixel/metrics.json)")
     sc.set_defaults(func=cmd_score)
 
     fg = psub.add_parser("figure", help="Figure 3 as PDF and PNG")
@@ -55,8 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     fg.add_argument("--nocalib", type=existing_file, required=True, help="the other variant's per_object.csv")
     fg.add_argument("--suite", required=True, help="the suite folder both were evaluated on")
     fg.add_argument("--objects", type=int_range(1, 8), default=2, help="objects shown in panel (a)")
-    fg.add_argument("--pdf", required=True)
-    fg.add_argument("--png", required=True)
+    fg.add_argument("--pdf", required=True, help="the figure to write as PDF")
+    fg.add_argument("--png", required=True, help="the figure to write as PNG")
     fg.set_defaults(func=cmd_figure)
 
 

@@ -25,6 +25,26 @@ if TYPE_CHECKING:
 log = logging.getLogger("imply.section4")
 
 
+# what each step reads and writes (results/section4/ in the workflow)
+STEP_FILES = {
+    "table": "the push table (results/table/table.npz)",
+    "objects": "the drawn objects (results/section4/objects.csv)",
+    "truth": "the objects' true pushes (results/section4/truth.csv)",
+    "rollouts": "the stand-ins' rollouts (results/section4/rollouts.csv)",
+    "scores": "every stand-in's scores (results/section4/scores.csv)",
+    "choices": "the selection's choices, one row per object and rule, to write (.csv)",
+}
+STEP_OUTPUTS = {
+    "objects": "the objects to write (.csv)",
+    "truth": "the true pushes to write (.csv)",
+    "standins": "the rollouts to write (.csv)",
+    "scores": "the scores to write (.csv)",
+    "metrics": "the result document to write (.json)",
+    "noise": "the result document to write (.json)",
+    "selection": "the result document to write (.json)",
+}
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     s4 = sub.add_parser("section4", help="the controlled validation (paper Section 4), step by step")
     ssub = s4.add_subparsers(dest="section4_command", required=True)
@@ -32,12 +52,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     def step(name: str, help_: str, func, inputs: list[str], outputs: list[str], options: list[str]) -> None:
         p = ssub.add_parser(name, help=help_)
         for flag in inputs:
-            p.add_argument(f"--{flag}", required=True, type=existing_file)
+            p.add_argument(f"--{flag}", required=True, type=existing_file, help=STEP_FILES[flag])
         for flag in outputs:
             if flag == "output":
-                p.add_argument("-o", "--output", required=True)
+                p.add_argument("-o", "--output", required=True, help=STEP_OUTPUTS[name])
             else:
-                p.add_argument(f"--{flag}", required=True)
+                p.add_argument(f"--{flag}", required=True, help=STEP_FILES[flag])
         for opt in options:
             if opt == "threads":
                 p.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")

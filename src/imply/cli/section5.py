@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="an imply evaluate report of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
     s5.add_argument("--suite", action="append", required=True, metavar="MODEL:FOLDER",
                     help="the suite the model's reports were scored on (calib and nocalib)")  # fmt: skip
-    s5.add_argument("--table", type=existing_file, required=True)
+    s5.add_argument("--table", type=existing_file, required=True, help="the push table (results/table/table.npz)")
     s5.add_argument(
         "--train-clips",
         type=existing_file,
@@ -34,7 +34,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="results/clips/train.csv: the training slides that define the object-blind baseline",
     )
     s5.add_argument("--score-json", type=json_arg, required=True, help="the config's score section (grid, floor)")
-    s5.add_argument("--selection-seed", type=int_range(0), default=default_of(ModelConfig, "selection_seed"))
+    s5.add_argument(
+        "--selection-seed",
+        type=int_range(0),
+        default=default_of(ModelConfig, "selection_seed"),
+        help="seed of the random selection rule",
+    )
     s5.add_argument("--metrics", required=True, help="the result document (results/section5/metrics.json)")
     s5.add_argument("--per-object", required=True, help="per-object scores (results/section5/per_object.csv)")
     s5.set_defaults(func=cmd_section5)

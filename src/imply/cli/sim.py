@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     ex.add_argument("object", nargs="*", metavar="OBJECT", help="key=value settings of the box")
     add_scene_options(ex)
-    ex.add_argument("-o", "--output", required=True)
+    ex.add_argument("-o", "--output", required=True, help="the MJCF file to write (.xml)")
     ex.set_defaults(func=cmd_export_xml)
 
     pu = ssub.add_parser(
@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     pu.add_argument("pushes", help="CSV of pushes to simulate")
     pu.add_argument("--model", help="user MJCF file (default: the built-in scene)")
     add_scene_options(pu)
-    pu.add_argument("-o", "--output", required=True)
+    pu.add_argument("-o", "--output", required=True,
+                    help="the push log to write (.csv); --track-rate and --probes write files beside it")  # fmt: skip
     pu.add_argument(
         "--track-rate", type=positive_float, default=None, metavar="HZ",
         help="also film each push: the box's track at HZ frames per second, written beside the log as "
@@ -57,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "friction, every object pushed with a load of half its mass at its lowest and highest speed), written beside "
         "the log as <output stem>.probes.csv (where `imply diagnose` finds it; format: the formats reference)",
     )  # fmt: skip
-    pu.add_argument("--threads", type=int_range(0), default=0)
+    pu.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
     pu.set_defaults(func=cmd_pushes)
 
 

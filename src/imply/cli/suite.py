@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from imply.cli.common import UserError, config_from_json, int_range, json_arg, output_dir, positive_float, user_errors
+from imply.cli.common import config_from_json, int_range, json_arg, output_dir, positive_float, user_errors
 
 log = logging.getLogger("imply")
 
@@ -24,7 +24,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument("--table", required=True, help="the push table (.npz of imply table build), copied into the suite")
     b.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
-    b.add_argument("-o", "--out", required=True, help="the suite folder (a previous suite there is replaced)")
+    b.add_argument("-o", "--output", required=True,
+                   help="the suite folder to write: manifest.json, suite.npz, truth.npz, table.npz, README.md "
+                   "(a previous suite there is replaced)")  # fmt: skip
     b.set_defaults(func=cmd_build)
     e = ssub.add_parser(
         "export",
@@ -32,7 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "PNG), cases.csv and cases.json naming the video each case must produce; never the truth",
     )
     e.add_argument("suite", help="the suite folder")
-    e.add_argument("-o", "--out", required=True, help="the package folder (new or empty)")
+    e.add_argument("-o", "--output", required=True,
+                   help="the package folder to write (new or empty): manifest.json, cases.csv, cases.json, the context "
+                   "frames and calibration videos")  # fmt: skip
     e.add_argument("--size", type=_size, help="HEIGHTxWIDTH of the exported frames (default: the suite's camera)")
     e.add_argument("--fps", type=positive_float, default=30.0, help="frame rate of the videos (default %(default)g)")
     e.add_argument("--conditions", default="own,other,none",
@@ -50,7 +54,7 @@ def cmd_build(args: argparse.Namespace) -> int:
     from imply.score import ScoreConfig
     from imply.sim import SceneConfig
 
-    out = output_dir(args.out)
+    out = output_dir(args.output)
     cfg = config_from_json(SuiteConfig, args.suite_json, "--suite-json")
     clips = config_from_json(ClipsConfig, args.clips_json, "--clips-json")
     speeds = config_from_json(ScoreConfig, args.score_json, "--score-json")
@@ -74,20 +78,18 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from imply.evaluate.config import CONDITIONS
+    from imply.evaluate.config import parse_conditions
     from imply.evaluate.suite import SuiteError, load_suite
     from imply.evaluate.video_package import export_package
 
-    conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
-    bad = [c for c in conditions if c not in CONDITIONS]
-    if bad or not conditions:
-        raise UserError(f"--conditions: {', '.join(bad) or 'none given'} (known: {', '.join(CONDITIONS)})")
+    with user_errors(ValueError, message="--conditions: {error}"):
+        conditions = parse_conditions(args.conditions)
     with user_errors(SuiteError, message="{error}"):
         suite = load_suite(args.suite)
     with user_errors(ValueError):
-        m = export_package(suite, output_dir(args.out), conditions=conditions, size=args.size, fps=args.fps)
+        m = export_package(suite, output_dir(args.output), conditions=conditions, size=args.size, fps=args.fps)
     log.info("exported %d cases (%dx%d px, %g fps) -> %s", m["n_cases"], m["size"]["height"], m["size"]["width"],
-             m["fps"], args.out)  # fmt: skip
+             m["fps"], args.output)  # fmt: skip
     return 0
 
 

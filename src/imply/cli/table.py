@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     tb = tsub.add_parser("build", help="simulate every cell and write the table")
     add_scene_options(tb)
     tb.add_argument("--grid-json", type=json_arg, help="table axes as JSON (config key 'table')")
-    tb.add_argument("-o", "--output", required=True)
+    tb.add_argument("-o", "--output", required=True, help="the push table to write (.npz)")
     tb.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
     tb.add_argument(
         "--check-json",

@@ -10,6 +10,15 @@ from imply.options import Config, option
 CONDITIONS: tuple[str, ...] = ("own", "other", "none")
 
 
+def parse_conditions(text: str) -> tuple[str, ...]:
+    """``"own, other"`` -> ``("own", "other")``; ValueError naming the unknown ones (or none given)."""
+    conditions = tuple(c.strip() for c in text.split(",") if c.strip())
+    bad = [c for c in conditions if c not in CONDITIONS]
+    if bad or not conditions:
+        raise ValueError(f"{', '.join(bad) or 'none given'} (known: {', '.join(CONDITIONS)})")
+    return conditions
+
+
 @dataclass(frozen=True, kw_only=True)
 class EvaluateConfig(Config):
     """Config section ``evaluate``: what ``imply evaluate`` asks and how it scores (the study's runs use it too)."""

@@ -77,7 +77,9 @@ SUITE_VERSION = 1
 
 SUITE_SPLITS = ("heldout_calib", "heldout_nocalib")
 FILES = ("suite.npz", "truth.npz", "table.npz")
-REBUILD = "rebuild it with `imply suite build` (or `snakemake results/suite/manifest.json`)"
+REBUILD = "rebuild it with `snakemake --cores 2 results/suite/manifest.json` (or `imply suite build`)"
+BUILD = "build one with `snakemake --cores 2 results/suite/manifest.json` (or `imply suite build`)"
+EXPORT = "write one with `imply suite export SUITE -o FOLDER`"
 # the clips keys a build reads (what the workflow rule passes)
 CLIPS_KEYS = (
     "seed", "masses", "frictions", "size_scale", "train_speed", "n_train_episodes", "n_heldout_calib",
@@ -517,20 +519,24 @@ def _check_file(folder: Path, manifest: dict[str, Any], name: str) -> Path:
     return path
 
 
-def read_manifest(path: str | Path) -> dict[str, Any]:
-    """The manifest of the suite folder ``path``, its format and version checked (no checksums)."""
+def read_manifest(path: str | Path, *, kind: str = SUITE_FORMAT, what: str = "suite") -> dict[str, Any]:
+    """The manifest.json of folder ``path``, of format ``kind`` (a suite's, or ``imply suite export``'s package's),
+    read and its format checked (:class:`SuiteError` naming the file); a suite's version and file list too (no
+    checksums)."""
     folder = Path(path)
     if not folder.is_dir():
-        raise SuiteError(f"{folder}: no suite here (not a folder)")
+        raise SuiteError(f"{folder}: no {what} here (not a folder); {BUILD if kind == SUITE_FORMAT else EXPORT}")
     file = folder / "manifest.json"
     if not file.is_file():
-        raise SuiteError(f"{folder}: manifest.json is missing (not a suite, or an unfinished one)")
+        raise SuiteError(f"{folder}: manifest.json is missing (not a {what}, or an unfinished one)")
     try:
         manifest = json.loads(file.read_text())
     except (ValueError, UnicodeDecodeError) as exc:
         raise SuiteError(f"{file}: not valid JSON ({exc})") from exc
-    if not isinstance(manifest, dict) or manifest.get("format") != SUITE_FORMAT:
-        raise SuiteError(f"{folder}: manifest.json is not an {SUITE_FORMAT} manifest")
+    if not isinstance(manifest, dict) or manifest.get("format") != kind:
+        raise SuiteError(f"{folder}: manifest.json is not an {kind} manifest")
+    if kind != SUITE_FORMAT:
+        return manifest
     if manifest.get("version") != SUITE_VERSION:
         raise SuiteError(
             f"{folder}: suite version {manifest.get('version')}; this imply reads version {SUITE_VERSION}; {REBUILD}"

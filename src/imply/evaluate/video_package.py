@@ -33,7 +33,6 @@ folder into the same rollouts a ``--rollouts`` file gives (:class:`RolloutsFile`
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +42,7 @@ import pandas as pd
 
 from imply.evaluate.rollouts_file import RolloutsFile
 from imply.evaluate.suite import Suite
+from imply.evaluate.suite import read_manifest as read_folder_manifest
 from imply.io import write_csv, write_folder, write_json, write_text
 
 PACKAGE_FORMAT = "imply-video-package"
@@ -385,15 +385,9 @@ def read_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...], *
 
 
 def read_manifest(path: str | Path) -> dict:
-    """A package's manifest (ValueError naming the file when it is not one)."""
-    path = Path(path) / "manifest.json"
-    try:
-        m = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
-    if m.get("format") != PACKAGE_FORMAT:
-        raise ValueError(f"{path}: not an imply video package")
-    return m
+    """A package's manifest (:class:`imply.evaluate.suite.SuiteError`, a ValueError, naming the file when it is not
+    one), read by the suite's manifest reader."""
+    return read_folder_manifest(path, kind=PACKAGE_FORMAT, what="video package")
 
 
 class CommandError(RuntimeError):
