@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import html
 import importlib
 import json
 import math
@@ -42,28 +43,60 @@ FIGURES = "figures"  # the site folder that figures copied from results/ go to
 # -- small Markdown helpers ---------------------------------------------------------
 
 
+# A code span: a run of backticks, text, the same run again (CommonMark's rule).
+_CODE_SPAN = re.compile(r"(?<!`)(`+)(?!`)(.+?)(?<!`)\1(?!`)", re.S)
+
+
+def escape_html(text: Any) -> str:
+    """Text with ``&``, ``<`` and ``>`` as entities, except inside code spans (Markdown escapes those itself).
+
+    Generated text comes from docstrings, help strings and docs that mean ``<stem>.json`` as
+    words; unescaped, a browser would take ``<stem>`` for a tag and show nothing.
+    """
+    s, out, pos = str(text), [], 0
+    for m in _CODE_SPAN.finditer(s):
+        out += [html.escape(s[pos : m.start()], quote=False), m.group(0)]
+        pos = m.end()
+    return "".join([*out, html.escape(s[pos:], quote=False)])
+
+
 def cell(text: Any) -> str:
-    """Text for a Markdown table cell: one line, pipes and angle brackets escaped."""
-    s = " ".join(str(text).split())
-    return s.replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
+    """Text for a Markdown table cell: one line, pipes escaped, ``&<>`` escaped outside code spans."""
+    return escape_html(" ".join(str(text).split())).replace("|", "\\|")
 
 
 def code(text: Any) -> str:
-    """Text as an inline code span inside a table cell (pipes escaped)."""
+    """Text as an inline code span inside a table cell (pipes escaped; Markdown escapes ``&<>`` in it)."""
     s = " ".join(str(text).split()).replace("|", "\\|")
     tick = "``" if "`" in s else "`"
-    return f"{tick}{s}{tick}" if s else ""
+    pad = " " if s.startswith("`") or s.endswith("`") else ""
+    return f"{tick}{pad}{s}{pad}{tick}" if s else ""
+
+
+def _escape_markdown(markdown: str) -> str:
+    """Markdown with ``&<>`` escaped outside fenced blocks and code spans (one paragraph per line)."""
+    out, fenced = [], False
+    for line in markdown.split("\n"):
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+            out.append(line)
+        else:
+            out.append(line if fenced else escape_html(line))
+    return "\n".join(out)
 
 
 _ROLE = re.compile(r":(?:[a-z]+:)+`~?([^`<]*?)(?:\s*<([^`>]*)>)?`")
 
 
-def rst_to_markdown(text: str) -> str:
+def rst_to_markdown(text: str, escape: bool = False) -> str:
     """A docstring (the reStructuredText subset the package writes) as Markdown.
 
     Roles (``:func:`x```) become code spans, double backticks single ones, ``::`` blocks
     fenced code, definition lists (a term, then its indented text) Markdown's, bullets
-    Markdown's (nested by indent); paragraphs are joined into one line each.
+    Markdown's (nested by indent); paragraphs are joined into one line each. With ``escape``,
+    ``&``, ``<`` and ``>`` outside code spans and fenced blocks become entities, so that a
+    docstring's ``<stem>.json`` shows as written rather than as an unknown HTML tag (the
+    reference pages' text; a caption that ends up in an attribute or a title wants it unescaped).
     """
     text = _ROLE.sub(lambda m: f"`{(m.group(1) or m.group(2)).strip()}`", textwrap.dedent(text).strip("\n"))
     text = re.sub(r"``([^`]+?)``", r"`\1`", text)
@@ -85,8 +118,8 @@ def rst_to_markdown(text: str) -> str:
             j -= 1
         return j
 
-    def safe(paragraph: str) -> str:
-        return "\\" + paragraph if paragraph[:1] in (">", "#", "+") else paragraph
+    def safe(paragraph: str) -> str:  # escaped, a leading '>' is &gt; and no quote already
+        return "\\" + paragraph if paragraph[:1] in (("#", "+") if escape else (">", "#", "+")) else paragraph
 
     bullets: list[int] = []  # indents of the open bullet levels
     i = 0
@@ -141,7 +174,8 @@ def rst_to_markdown(text: str) -> str:
         else:
             out.append(safe(paragraph))
         i = j
-    return re.sub(r"\n{3,}", "\n\n", "\n".join(out)).strip() + "\n"
+    markdown = re.sub(r"\n{3,}", "\n\n", "\n".join(out)).strip()
+    return (_escape_markdown(markdown) if escape else markdown) + "\n"
 
 
 # -- the config reference ----------------------------------------------------------
@@ -320,11 +354,12 @@ def config_reference() -> str:
         hint = hints[f.name]
         section = [k for k in keys if k.key == f.name or k.key.startswith(f.name + ".")]
         doc = f.metadata.get("doc", "")
-        out += [f"## `{f.name}`", "", doc[:1].upper() + doc[1:] + "."]
+        out += [f"## `{f.name}`", "", escape_html(doc[:1].upper() + doc[1:] + ".")]
         nested = [a for a in (hint, *typing.get_args(hint)) if _is_settings(a)]
         if nested and nested[0].__doc__:
             first = " ".join(nested[0].__doc__.strip().split("\n\n")[0].split())
-            out += ["", f"{rst_to_markdown(first).strip()} (`{nested[0].__module__}.{nested[0].__name__}`)"]
+            where = f"`{nested[0].__module__}.{nested[0].__name__}`"
+            out += ["", f"{rst_to_markdown(first, escape=True).strip()} ({where})"]
         out += ["", "| key | type | default | bounds | doc |", "|---|---|---|---|---|"]
         for k in section:
             out.append(f"| {code(k.key)} | {cell(k.type)} | {code(k.default)} | {cell(k.bounds)} | {cell(k.doc)} |")
@@ -369,14 +404,61 @@ def walk_commands(node: Command) -> list[Command]:
     return [node, *(c for child in node.children for c in walk_commands(child))]
 
 
+# A settings default named in a help string: ``(default: TableCheckConfig.cells)``.
+_DEFAULT_REF = re.compile(r"\b(default:?\s+)([A-Z]\w*)\.([a-z_]\w*)\b")
+
+
+def settings_classes() -> dict[str, type]:
+    """Every settings class (a subclass of :class:`imply.options.Config`) by name, the study's and their own."""
+    import imply.workflow_config  # noqa: F401  (imports every settings class the study names)
+    from imply.options import Config
+
+    out: dict[str, type] = {}
+    todo = [Config]
+    while todo:
+        cls = todo.pop()
+        for sub in cls.__subclasses__():
+            out.setdefault(sub.__name__, sub)
+            todo.append(sub)
+    return out
+
+
+_NO_DEFAULT = object()
+
+
+def settings_default(class_name: str, name: str) -> Any:
+    """The default of field ``name`` of settings class ``class_name``, or ``_NO_DEFAULT`` (no such class or field)."""
+    from imply.options import default_of
+
+    cls = settings_classes().get(class_name)
+    if cls is None or name not in {f.name for f in dataclasses.fields(cls)}:
+        return _NO_DEFAULT
+    try:
+        return default_of(cls, name)
+    except ValueError:  # a required field
+        return _NO_DEFAULT
+
+
+def _shown(value: Any) -> str:
+    """A default as the page shows it: a text as itself, anything else as JSON."""
+    return value if isinstance(value, str) else _json(value)
+
+
 def _help(action: argparse.Action, parser: argparse.ArgumentParser) -> str:
+    """An option's help: ``%(default)s`` and the like filled in, a settings default it names
+    (``TableCheckConfig.cells``) replaced by its value (a code span)."""
     text = action.help or ""
     if "%(" in text:
         try:
             text = text % {**vars(action), "prog": parser.prog}
         except (KeyError, TypeError, ValueError):
             pass
-    return text
+
+    def value(m: re.Match) -> str:
+        found = settings_default(m.group(2), m.group(3))
+        return m.group(0) if found is _NO_DEFAULT else m.group(1) + code(_shown(found)).replace("\\|", "|")
+
+    return _DEFAULT_REF.sub(value, text)
 
 
 def _usage(parser: argparse.ArgumentParser) -> str:
@@ -398,11 +480,16 @@ def options_of(parser: argparse.ArgumentParser) -> list[argparse.Action]:
 
 
 def _default(action: argparse.Action) -> str:
+    """An option's default (a code span): its parser's, else the settings default its help names, else none."""
     if action.required or isinstance(action, argparse._StoreTrueAction | argparse._StoreFalseAction):
         return ""
-    if action.default is None or action.default is argparse.SUPPRESS:
+    if action.default is argparse.SUPPRESS:
         return ""
-    return code(action.default if isinstance(action.default, str) else _json(action.default))
+    if action.default is None:
+        m = _DEFAULT_REF.search(action.help or "")
+        found = settings_default(m.group(2), m.group(3)) if m else _NO_DEFAULT
+        return "" if found is _NO_DEFAULT or found is None else code(_shown(found))
+    return code(_shown(action.default))
 
 
 def cli_reference() -> str:
@@ -422,9 +509,10 @@ def cli_reference() -> str:
         out += [f"{level} `{node.name}`", ""]
         text = node.parser.description if node.words else node.help
         if node.help and node.words:
-            out += [node.help[:1].upper() + node.help[1:] + ("" if node.help.endswith(".") else "."), ""]
+            sentence = node.help[:1].upper() + node.help[1:] + ("" if node.help.endswith(".") else ".")
+            out += [escape_html(sentence), ""]
         if text and text != node.help:
-            out += [rst_to_markdown(text).strip(), ""]
+            out += [rst_to_markdown(text, escape=True).strip(), ""]
         out += ["```text", _usage(node.parser), "```", ""]
         actions = options_of(node.parser)
         if node.children:
@@ -505,8 +593,9 @@ def formats_reference() -> str:
     ]
     for fmt in FORMATS:
         module = importlib.import_module(fmt.module)
-        out += [f"## {fmt.title}", "", f"*Module `{fmt.module}`*" + (f": {fmt.what}." if fmt.what else "."), ""]
-        out += [rst_to_markdown(module.__doc__ or "(no docstring)"), ""]
+        what = f": {escape_html(fmt.what)}." if fmt.what else "."
+        out += [f"## {escape_html(fmt.title)}", "", f"*Module `{fmt.module}`*{what}", ""]
+        out += [rst_to_markdown(module.__doc__ or "(no docstring)", escape=True), ""]
         for name in fmt.names:
             value = getattr(module, name)
             shown = ", ".join(f"`{v}`" for v in value) if isinstance(value, list | tuple) else f"`{value}`"
