@@ -612,11 +612,49 @@ def _when(path: Path) -> str:
     return datetime.fromtimestamp(path.stat().st_mtime, UTC).strftime("%Y-%m-%d %H:%M UTC")
 
 
+def snapshot_note(stamp: dict, page: str) -> str:
+    """The admonition that says a page shows the committed snapshot, not this checkout's run."""
+    from imply.paper.snapshot import label
+
+    return (f"!!! info \"A snapshot of one run\"\n    This checkout has not run the study, so this shows the snapshot "
+            f"committed with the documentation: {escape_html(label(stamp))}. Run the study "
+            f"([tutorial]({_relative(page, 'tutorials/reproduce.md')})) and build the site again to see your own.")  # fmt: skip
+
+
+def _snapshot(root: Path) -> tuple[Path, dict] | None:
+    """The committed snapshot's folder and stamp (:mod:`imply.paper.snapshot`), or None."""
+    from imply.paper.snapshot import SNAPSHOT_DIR, read_stamp
+
+    folder = root / SNAPSHOT_DIR
+    stamp = read_stamp(folder)
+    return None if stamp is None else (folder, stamp)
+
+
+def result_file(root: Path, rel: str) -> tuple[Path, dict | None] | None:
+    """``rel`` (a path under ``results/``) from this checkout's run, or else from the snapshot (with its stamp), or
+    None."""
+    if (root / rel).is_file():
+        return root / rel, None
+    snap = _snapshot(root)
+    if snap is not None and (snap[0] / rel).is_file():
+        return snap[0] / rel, snap[1]
+    return None
+
+
 def status_page(root: Path = ROOT) -> str:
-    """The reproduction status: ``results/paper/reproduction.md`` as the last run wrote it, or why there is none."""
-    report = root / "results" / "paper" / "reproduction.md"
-    numbers = root / "results" / "paper" / "numbers.json"
+    """The reproduction status: ``results/paper/reproduction.md`` as the last run wrote it, else the snapshot's, or
+    why there is none."""
+    found = result_file(root, "results/paper/reproduction.md")
+    report = found[0] if found else root / "results" / "paper" / "reproduction.md"
+    numbers = report.with_name("numbers.json")
     out = ["# Reproduction status", ""]
+    if found is not None and found[1] is not None:
+        stamp = found[1]
+        c = stamp["claims"]
+        body = re.sub(r"^# .*\n", "", report.read_text(), count=1)
+        body = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", body, flags=re.M)
+        return "\n".join([*out, snapshot_note(stamp, "status.md"), "",
+                          f"In that run {c['hold']} of {c['checked']} claims hold.", "", body])  # fmt: skip
     if not report.is_file():
         return "\n".join([*out,
             "!!! note \"The study has not run in this checkout\"",
@@ -679,14 +717,18 @@ def _figure_site_path(path: str) -> str:
 
 
 def figure_files(docs_dir: Path, root: Path = ROOT) -> dict[str, Path]:
-    """Site path -> file under ``results/`` of every figure placeholder in the pages under ``docs_dir`` that exists."""
+    """Site path -> file of every figure placeholder in the pages under ``docs_dir``: under ``results/`` where the
+    run wrote it, else the snapshot's."""
     out = {}
     for page in sorted(docs_dir.rglob("*.md")):
+        if "snapshot" in page.relative_to(docs_dir).parts:
+            continue
         for m in _PLACEHOLDER.finditer(page.read_text()):
             if m.group(1) == "figure":
                 path = m.group(2).partition("|")[0].strip()
-                if (root / path).is_file():
-                    out[_figure_site_path(path)] = root / path
+                found = result_file(root, path)
+                if found is not None:
+                    out[_figure_site_path(path)] = found[0]
     return out
 
 
@@ -697,21 +739,24 @@ def ph_figure(ctx: Context, page: str, arg: str) -> str:
     if caption.startswith("@"):  # the caption the workflow's own report gives it: workflow/report/<name>.rst
         rst = (ctx.root / "workflow" / "report" / f"{caption[1:]}.rst").read_text()
         caption = " ".join(rst_to_markdown(rst).split())
-    source = ctx.root / path
-    if source.is_file():
+    found = result_file(ctx.root, path)
+    if found is not None:
         site = _figure_site_path(path)
-        return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, as the last run here wrote it.)"
+        if found[1] is None:
+            return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, as the last run here wrote it.)"
+        from imply.paper.snapshot import label
+
+        return (f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}` from the snapshot committed with the "
+                f"docs: {escape_html(label(found[1]))}; run the study to see your own.)")  # fmt: skip
     return (f"!!! note \"Figure: {caption}\"\n    `{path}` appears here once it has been built "
             f"(`snakemake --cores 2 {path}`), and the site rebuilt.")  # fmt: skip
 
 
 def rule_stages(root: Path = ROOT) -> dict[str, str]:
-    """Rule name -> its stage (the rules file it is in, ``workflow/rules/<stage>.smk``)."""
-    out = {}
-    for smk in sorted((root / "workflow" / "rules").glob("*.smk")):
-        for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), re.M):
-            out[name] = smk.stem
-    return out
+    """Rule name -> its stage (:func:`imply.paper.timings.rule_stages`)."""
+    from imply.paper.timings import rule_stages as stages_of
+
+    return stages_of(root)
 
 
 def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
@@ -719,6 +764,9 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
     from imply.paper.timings import by_rule, read_benchmarks
 
     jobs = read_benchmarks(ctx.root / "results" / "benchmarks")
+    snap = _snapshot(ctx.root)
+    if not jobs and snap is not None and snap[1]["stage_times"]["stages"]:
+        return _snapshot_stage_times(snap[1], page)
     if not jobs:
         return ("!!! note \"Times per stage\"\n    The time each stage took appears here after a run: every rule "
                 "writes `results/benchmarks/<rule>/<wildcards>.tsv` (wall and CPU seconds, peak memory) and the "
@@ -740,6 +788,35 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
                       "so the whole study takes less than the sum.*"])  # fmt: skip
 
 
+def _snapshot_stage_times(stamp: dict, page: str) -> str:
+    """The stage-times table of the snapshot's run."""
+    times = stamp["stage_times"]
+    out = [snapshot_note(stamp, page), "",
+           "| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for row in times["stages"]:
+        out.append(f"| {row['stage']} | {', '.join(row['rules'])} | {row['jobs']} | {row['seconds']:.0f} | "
+                   f"{row['longest']:.0f} | {row['cpu_seconds']:.0f} |")  # fmt: skip
+    return "\n".join([*out, "", f"*{times['jobs']} jobs; the whole run took {times['wall_seconds'] / 60:.0f} min from "
+                      "the first job's start to the last one's end. Jobs of different stages run side by side on the "
+                      "cores, so the whole study takes less than the sum.*"])  # fmt: skip
+
+
+def ph_snapshot(ctx: Context, page: str, arg: str) -> str:
+    """``{{ snapshot }}``: one sentence on the last run shown: this checkout's, or the committed snapshot's (its
+    claims that hold, its wall time, its commit and machine)."""
+    report = ctx.root / "results" / "paper" / "reproduction.md"
+    if report.is_file():
+        return (f"This checkout's last run wrote its [reproduction report]({_relative(page, 'status.md')}) on "
+                f"{_when(report)}.")  # fmt: skip
+    snap = _snapshot(ctx.root)
+    if snap is None:
+        return "The study has not run here, and no snapshot of a run is committed."
+    from imply.paper.snapshot import readme_line
+
+    return (f"{escape_html(readme_line(snap[1]))} Its figures and numbers are shown throughout these pages until you "
+            f"run the study yourself ([reproduction status]({_relative(page, 'status.md')})).")  # fmt: skip
+
+
 def _fmt(value: Any, spec: str) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "n/a"
@@ -748,7 +825,8 @@ def _fmt(value: Any, spec: str) -> str:
 
 def ph_standins(ctx: Context, page: str, arg: str) -> str:
     """``{{ standins }}``: Section 4's stand-ins through ``imply evaluate``, from ``results/evaluate/standins.json``."""
-    path = ctx.root / "results" / "evaluate" / "standins.json"
+    found = result_file(ctx.root, "results/evaluate/standins.json")
+    path = found[0] if found else ctx.root / "results" / "evaluate" / "standins.json"
     if not path.is_file():
         return ("!!! note \"The stand-ins' known answers\"\n    A table of the four stand-ins (tracking r, log error, "
                 "self and anchored disagreement, AUROC against the oracle, static sets) appears here once "
@@ -762,7 +840,10 @@ def ph_standins(ctx: Context, page: str, arg: str) -> str:
                    f"{_fmt(s['self'], '.3f')} | {_fmt(s['anchored'], '.3f')} | {_fmt(s.get('auroc_self'), '.2f')} | "
                    f"{_fmt(s.get('auroc_anchored'), '.2f')} | {_fmt(s['static_share'], '.0%')} |")  # fmt: skip
     ro = result["readout"]
-    return "\n".join([*out, "", f"*From `results/evaluate/standins.json` ({_when(path)}): {result['n_objects']} "
+    if found[1] is not None:
+        out = [snapshot_note(found[1], page), "", *out]
+    when = _when(path) if found[1] is None else f"the snapshot's run of {found[1]['date']}"
+    return "\n".join([*out, "", f"*From `results/evaluate/standins.json` ({when}): {result['n_objects']} "
                       f"objects, condition {next(iter(result['standins'].values()))['condition']}, sample set 0; the "
                       f"{ro['name']} readout's R² on real check clips {ro['r2_check']:.3f}, mean absolute log error "
                       f"{ro['error_check']:.3f}. Every number with its interval is in "
@@ -773,6 +854,7 @@ PLACEHOLDERS: dict[str, Callable[[Context, str, str], str]] = {
     "config": ph_config,
     "figure": ph_figure,
     "stage_times": ph_stage_times,
+    "snapshot": ph_snapshot,
     "standins": ph_standins,
 }
 _PLACEHOLDER = re.compile(r"\{\{\s*(\w+)\s*(.*?)\s*\}\}")

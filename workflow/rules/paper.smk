@@ -174,3 +174,23 @@ rule paper_merge:
         "imply paper merge {input} --macros {output.macros} --numbers {output.numbers}"
         " --report-md {output.report_md} --report-csv {output.report_csv} --report-html {output.report_html}"
         " --benchmarks {params.benchmarks} > {log} 2>&1"
+
+
+# The documentation's snapshot of this run (`snakemake --cores 2 snapshot`, not part of the default target: it
+# writes into docs/, which is committed): what the site shows before anything has run, stamped with the commit
+# and the machine (imply.paper.snapshot).
+rule snapshot:
+    localrule: True
+    conda:
+        IMPLY_ENV
+    input:
+        final_outputs(),
+    output:
+        "docs/snapshot/snapshot.json",
+    params:
+        kernels=config.get("kernels", {}).get("pin", "avx2"),
+        folder=lambda wildcards, output: folder_of(output),
+    log:
+        "results/logs/snapshot.log",
+    shell:
+        "imply paper snapshot --root . --kernels {params.kernels} -o {params.folder} > {log} 2>&1"

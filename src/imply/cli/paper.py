@@ -70,6 +70,31 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "time per rule and the jobs it waited on join the report")  # fmt: skip
     m.set_defaults(func=cmd_merge)
 
+    sn = psub.add_parser(
+        "snapshot",
+        help="copy a finished run's results that the documentation shows into a committed snapshot folder",
+        description="Copies from ROOT/results the reproduction report, numbers.json, the stand-ins' known answers "
+        "and every figure a documentation page names, with each stage's times, into the snapshot folder, and stamps "
+        "it (snapshot.json: commit, date, machine, wall time, claims that hold); fills the README's snapshot line. "
+        "The site shows the snapshot wherever results/ lacks a file.",
+    )  # fmt: skip
+    sn.add_argument("--root", default=".", help="the checkout whose results/ to take (default: here)")
+    sn.add_argument("--kernels", help="the numerical kernels the run pinned (config kernels.pin)")
+    sn.add_argument("-o", "--output", default="docs/snapshot",
+                    help="the snapshot folder to write: snapshot.json and results/... (default %(default)s)")  # fmt: skip
+    sn.set_defaults(func=cmd_snapshot)
+
+
+def cmd_snapshot(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from imply.paper.snapshot import label, write_snapshot
+
+    with user_errors(FileNotFoundError, message="--root {error}"):
+        stamp = write_snapshot(Path(args.root), Path(args.output), kernels=args.kernels)
+    log.info("snapshot of %s -> %s", label(stamp), args.output)
+    return 0
+
 
 def stage_claims(stage: str) -> ClaimsFunction:
     """The function that checks a stage's claims: the one place that ties a stage to its claims' module.

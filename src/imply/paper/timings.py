@@ -12,6 +12,7 @@ of the DAG).
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,3 +116,12 @@ def markdown(jobs: list[Job]) -> list[str]:
               "the jobs that ran alone longest, what the run waited on:", "", "| job | s alone |", "|---|---|"]  # fmt: skip
     lines += [f"| {name} | {sec:.1f} |" for name, sec in list(solo.items())[:8]]
     return lines + [""]
+
+
+def rule_stages(root: str | Path) -> dict[str, str]:
+    """Rule name -> its stage (the rules file it is in, ``workflow/rules/<stage>.smk``) of the workflow at ``root``."""
+    out = {}
+    for smk in sorted((Path(root) / "workflow" / "rules").glob("*.smk")):
+        for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), re.M):
+            out[name] = smk.stem
+    return out

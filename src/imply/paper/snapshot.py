@@ -1,0 +1,158 @@
+"""A snapshot of one study run, committed with the documentation: real results before anything has run.
+
+``imply paper snapshot`` (the workflow's ``snapshot`` rule) copies what the documentation
+shows from a finished run's ``results/`` into ``docs/snapshot/`` (paths kept, under
+``docs/snapshot/results/``): the reproduction report and ``numbers.json``, the stand-ins'
+known answers, every figure a documentation page names in a ``{{ figure ... }}``
+placeholder, and each stage's times (the benchmark files' wall and CPU seconds, which a
+git checkout cannot keep as file times). It stamps them in ``docs/snapshot/snapshot.json``:
+the commit whose code made the results, the date, the machine (CPU model, the widest
+vector instruction set it has, the numerical kernels the run pinned), the run's wall time
+(from the first job's start to the last job's end) and the claims that hold.
+
+The site shows the snapshot wherever ``results/`` lacks a file, labelled with its commit
+and machine (:mod:`imply.docs_pages`). A snapshot is stale when the study code at HEAD
+reports other numbers than the snapshot holds (a test compares ``numbers.json``'s names with
+the registry's); refresh it with ``snakemake --cores 2 snapshot`` after a run.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from imply.io import write_json, write_text
+
+SNAPSHOT_DIR = Path("docs") / "snapshot"
+STAMP = "snapshot.json"
+# results the documentation reads besides the figures its pages name
+FILES = ("results/paper/reproduction.md", "results/paper/numbers.json", "results/evaluate/standins.json")
+_FIGURE = re.compile(r"\{\{\s*figure\s+(results/[^|}\s]+)")
+README_START, README_END = "<!-- snapshot -->", "<!-- /snapshot -->"
+
+
+def figure_paths(docs_dir: Path) -> list[str]:
+    """Every ``results/...`` path a page under ``docs_dir`` names in a figure placeholder."""
+    out: set[str] = set()
+    for page in sorted(docs_dir.rglob("*.md")):
+        if SNAPSHOT_DIR.name in page.parts:
+            continue
+        out.update(_FIGURE.findall(page.read_text()))
+    return sorted(out)
+
+
+def machine(kernels: str | None = None) -> dict[str, Any]:
+    """The CPU model, the widest of AVX-512 / AVX2 it has, its logical cores, and the kernels the run pinned."""
+    model, flags = platform.processor() or platform.machine(), set()
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        found = re.search(r"^model name\s*:\s*(.+)$", text, re.M)
+        model = found.group(1).strip() if found else model
+        found = re.search(r"^flags\s*:\s*(.+)$", text, re.M)
+        flags = set(found.group(1).split()) if found else set()
+    except OSError:
+        pass
+    isa = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "neither AVX2 nor AVX-512"
+    return {"cpu": model, "instruction_set": isa, "cores": os.cpu_count(), "kernels": kernels}
+
+
+def _commit(root: Path) -> str | None:
+    try:
+        run = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return run.stdout.strip()
+
+
+def _claims(parts: Path) -> dict[str, int]:
+    claims = [c for p in sorted(parts.glob("*.json")) for c in json.loads(p.read_text()).get("claims", [])]
+    return {"checked": len(claims), "hold": sum(bool(c.get("holds")) for c in claims)}
+
+
+def stage_times(root: Path) -> dict[str, Any]:
+    """Each stage's rules, jobs, wall seconds (jobs summed), longest job and CPU seconds, and the run's span."""
+    from imply.paper.timings import by_rule, read_benchmarks, rule_stages
+
+    jobs = read_benchmarks(root / "results" / "benchmarks")
+    if not jobs:
+        return {"jobs": 0, "stages": [], "wall_seconds": None}
+    stages = rule_stages(root)
+    rows: dict[str, list] = {}
+    for r in by_rule(jobs):
+        rows.setdefault(stages.get(r.rule, "other"), []).append(r)
+    table = [{"stage": stage, "rules": [r.rule for r in rs], "jobs": sum(r.jobs for r in rs),
+              "seconds": sum(r.seconds for r in rs), "longest": max(r.longest for r in rs),
+              "cpu_seconds": sum(r.cpu_seconds for r in rs)}
+             for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1]))]  # fmt: skip
+    span = max(j.end for j in jobs) - min(j.start for j in jobs)
+    return {"jobs": len(jobs), "stages": table, "wall_seconds": span,
+            "ended": datetime.fromtimestamp(max(j.end for j in jobs), UTC).strftime("%Y-%m-%d")}  # fmt: skip
+
+
+def write_snapshot(root: Path, out: Path, *, commit: str | None = None, kernels: str | None = None) -> dict:
+    """Copy what the documentation shows from ``root/results`` into ``out`` and stamp it (``out/snapshot.json``);
+    fill the README's snapshot line. Returns the stamp. FileNotFoundError naming a missing result."""
+    root, out = Path(root), Path(out)
+    wanted = [*FILES, *figure_paths(root / "docs")]
+    missing = [p for p in wanted if not (root / p).is_file()]
+    if missing:
+        raise FileNotFoundError(f"the run lacks {', '.join(missing)}: run `snakemake --cores 2` first")
+    if (out / "results").exists():
+        shutil.rmtree(out / "results")
+    for rel in wanted:
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(root / rel, out / rel)
+    numbers = json.loads((root / "results/paper/numbers.json").read_text())
+    times = stage_times(root)
+    stamp = {
+        "commit": commit or _commit(root),
+        "date": times.get("ended") or datetime.now(UTC).strftime("%Y-%m-%d"),
+        "machine": machine(kernels),
+        "wall_seconds": times["wall_seconds"],
+        "claims": _claims(root / "results/paper/parts"),
+        "numbers": sorted(numbers),
+        "stage_times": times,
+        "files": wanted,
+    }
+    write_json(out / STAMP, stamp)
+    readme = root / "README.md"
+    if readme.is_file() and README_START in readme.read_text():
+        write_text(readme, fill_readme(readme.read_text(), stamp))
+    return stamp
+
+
+def read_stamp(snapshot: Path) -> dict | None:
+    """The stamp of the snapshot folder ``snapshot`` (None where there is none)."""
+    path = Path(snapshot) / STAMP
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def label(stamp: dict) -> str:
+    """One line naming a snapshot's run: commit, date, machine, wall time."""
+    m = stamp["machine"]
+    wall = stamp.get("wall_seconds")
+    took = f", {wall / 60:.0f} min from the first job to the last on {m['cores']} cores" if wall else ""
+    return (f"commit {(stamp.get('commit') or 'unknown')[:7]}, run on {stamp['date']} on an {m['cpu']} "
+            f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'}){took}")  # fmt: skip
+
+
+def readme_line(stamp: dict) -> str:
+    """The README's line on the last snapshot: its wall time and how many claims hold."""
+    c = stamp["claims"]
+    wall = stamp.get("wall_seconds")
+    took = f"took {wall / 60:.0f} minutes" if wall else "ran"
+    return (f"The last snapshot of the study in the docs ({label(stamp)}) {took}, and {c['hold']} of its "
+            f"{c['checked']} claims hold.")  # fmt: skip
+
+
+def fill_readme(text: str, stamp: dict) -> str:
+    """``text`` with the part between the snapshot markers replaced by :func:`readme_line`."""
+    start, end = text.index(README_START) + len(README_START), text.index(README_END)
+    return text[:start] + "\n" + readme_line(stamp) + "\n" + text[end:]
