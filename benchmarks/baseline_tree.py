@@ -19,8 +19,11 @@ def baseline_tree(revision: str) -> Iterator[Path]:
     """A detached git worktree of ``revision`` in a temporary folder, removed afterwards."""
     with tempfile.TemporaryDirectory() as tmp:
         tree = Path(tmp) / "baseline"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision], check=True,
-                       capture_output=True)  # fmt: skip
+        subprocess.run(
+            ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision],
+            check=True,
+            capture_output=True,
+        )
         try:
             yield tree
         finally:
@@ -29,9 +32,15 @@ def baseline_tree(revision: str) -> Iterator[Path]:
 
 def imply_command(src: Path, *args: str) -> list[str]:
     """``imply ARGS`` run with the package under ``src`` imported ahead of the installed one."""
-    return [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); import imply; "
-            "assert imply.__file__.startswith(sys.argv[1]), imply.__file__; from imply.cli import main; "
-            "sys.exit(main(sys.argv[2:]))", str(src), *args]  # fmt: skip
+    return [
+        sys.executable,
+        "-c",
+        "import sys; sys.path.insert(0, sys.argv[1]); import imply; "
+        "assert imply.__file__.startswith(sys.argv[1]), imply.__file__; from imply.cli import main; "
+        "sys.exit(main(sys.argv[2:]))",
+        str(src),
+        *args,
+    ]
 
 
 def timed_imply(src: Path, args: list[str], candidates: list[str] | None = None) -> float:

@@ -52,8 +52,10 @@ def main() -> None:
         ref = simulate_bullet(pushes, scene, base)
         times.append(time.perf_counter() - t0)
     best = min(times)
-    print(f"speed: {pushes.n} pushes in {best:.2f} s (best of {args.repeats}: {', '.join(f'{t:.2f}' for t in times)}),"
-          f" {pushes.n / best:.0f} pushes/s, {ref.steps.sum()} steps, all ok {bool(ref.ok.all())}")  # fmt: skip
+    print(
+        f"speed: {pushes.n} pushes in {best:.2f} s (best of {args.repeats}: {', '.join(f'{t:.2f}' for t in times)}),"
+        f" {pushes.n / best:.0f} pushes/s, {ref.steps.sum()} steps, all ok {bool(ref.ok.all())}"
+    )
 
     variants = {
         "every step / 2": base.finer(2),
@@ -68,8 +70,10 @@ def main() -> None:
         r = simulate_bullet(pushes, scene, st)
         dd = np.log(r.displacement / ref.displacement)
         dt = r.stop_time - ref.stop_time
-        print(f"convergence, {name}: max |d log d| {np.abs(dd).max():.4f} (mean {dd.mean():+.4f}),"
-              f" max |d stop time| {np.abs(dt).max() * 1e3:.2f} ms, all ok {bool(r.ok.all())}")  # fmt: skip
+        print(
+            f"convergence, {name}: max |d log d| {np.abs(dd).max():.4f} (mean {dd.mean():+.4f}),"
+            f" max |d stop time| {np.abs(dt).max() * 1e3:.2f} ms, all ok {bool(r.ok.all())}"
+        )
 
     if args.table:
         from imply.table import PushTable
@@ -79,17 +83,23 @@ def main() -> None:
         V, M, MU = (a.ravel() for a in np.meshgrid(v, m, mu, indexing="ij"))
         r = simulate_bullet(WorldPushes.nominal(V, M, MU, 0.0, scene), scene, base)
         gap = np.log(r.displacement) - table.log_displacement(V, M, MU)
-        print(f"gap, bullet - table in log d over {V.size} nominal pushes (all ok {bool(r.ok.all())}): mean"
-              f" {gap.mean():+.3f}, sd {gap.std():.3f}, range [{gap.min():+.3f}, {gap.max():+.3f}]")  # fmt: skip
+        print(
+            f"gap, bullet - table in log d over {V.size} nominal pushes (all ok {bool(r.ok.all())}): mean"
+            f" {gap.mean():+.3f}, sd {gap.std():.3f}, range [{gap.min():+.3f}, {gap.max():+.3f}]"
+        )
         df = pd.DataFrame({"speed": V, "mass": M, "friction": MU, "gap": gap})
         for k in ("speed", "mass", "friction"):
             print(f"gap by {k}:\n" + df.groupby(k).gap.agg(["mean", "min", "max"]).round(3).T.to_string())
-        print("gap by mass (rows) and friction (columns), mean over speeds:\n"
-              + df.pivot_table(index="mass", columns="friction", values="gap").round(3).to_string())  # fmt: skip
+        print(
+            "gap by mass (rows) and friction (columns), mean over speeds:\n"
+            + df.pivot_table(index="mass", columns="friction", values="gap").round(3).to_string()
+        )
         X = np.column_stack([np.ones_like(V), np.log(V), np.log(M), np.log(MU)])
         coef = np.linalg.lstsq(X, gap, rcond=None)[0]
-        print(f"gap ~ {coef[0]:+.3f} {coef[1]:+.3f} log v {coef[2]:+.3f} log m {coef[3]:+.3f} log mu,"
-              f" residual sd {(gap - X @ coef).std():.3f}")  # fmt: skip
+        print(
+            f"gap ~ {coef[0]:+.3f} {coef[1]:+.3f} log v {coef[2]:+.3f} log m {coef[3]:+.3f} log mu,"
+            f" residual sd {(gap - X @ coef).std():.3f}"
+        )
 
 
 if __name__ == "__main__":

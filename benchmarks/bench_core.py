@@ -77,25 +77,37 @@ def main() -> None:
     speeds, masses, frictions = grid.axes()
     rng = np.random.default_rng(0)
     bare = bare_rollout_steps_per_second(scene, rng.choice(speeds, 2000), args.threads)
-    print(f"table: {n_cells} pushes on {args.threads} threads in {batched_s:.1f} s, {steps / 1e6:.2f} M MuJoCo "
-          f"steps ({steps / n_cells:.0f} a push), {steps / batched_s / 1e3:.0f} k steps/s; bare mujoco.rollout "
-          f"on {args.threads} threads: {bare / 1e3:.0f} k steps/s; ratio {steps / batched_s / bare:.2f}")  # fmt: skip
+    print(
+        f"table: {n_cells} pushes on {args.threads} threads in {batched_s:.1f} s, {steps / 1e6:.2f} M MuJoCo "
+        f"steps ({steps / n_cells:.0f} a push), {steps / batched_s / 1e3:.0f} k steps/s; bare mujoco.rollout "
+        f"on {args.threads} threads: {bare / 1e3:.0f} k steps/s; ratio {steps / batched_s / bare:.2f}"
+    )
 
     settings = TableCheckConfig(cells=args.check_cells)
     t0 = time.perf_counter()
     nodes, ref = reference_at_nodes(table, settings, nthread=args.threads)
     ref_s = time.perf_counter() - t0
     now = error_against(table, table.log_d[nodes], nodes, ref, settings.seed)
-    old_scene = replace(scene, push_substeps=1, release_window=0.0, slide_steps=0, slow_push_speed=0.0,
-                        option={**scene.option, "integrator": "implicitfast"})  # fmt: skip
+    old_scene = replace(
+        scene,
+        push_substeps=1,
+        release_window=0.0,
+        slide_steps=0,
+        slow_push_speed=0.0,
+        option={**scene.option, "integrator": "implicitfast"},
+    )
     i, j, k = nodes
     old = simulate_pushes(speeds[i], masses[j], frictions[k], scene=old_scene, nthread=args.threads)
     before = error_against(table, np.log(old.displacement), nodes, ref, settings.seed)
     for name, e in (("this table", now), ("old stepping (1 ms, implicitfast)", before)):
-        print(f"convergence, {name}: max |delta log d| {e['max_abs_log_d']:.4f}, RMS {e['rms_log_d']:.4f} "
-              f"over {e['cells']} grid nodes")  # fmt: skip
-    print(f"  reference: uniform {ref.step * 1e6:.4g} us step ({ref_s:.0f} s); its own error estimate max "
-          f"{now['reference_error_max']:.4f}, RMS {now['reference_error_rms']:.4f}")  # fmt: skip
+        print(
+            f"convergence, {name}: max |delta log d| {e['max_abs_log_d']:.4f}, RMS {e['rms_log_d']:.4f} "
+            f"over {e['cells']} grid nodes"
+        )
+    print(
+        f"  reference: uniform {ref.step * 1e6:.4g} us step ({ref_s:.0f} s); its own error estimate max "
+        f"{now['reference_error_max']:.4f}, RMS {now['reference_error_rms']:.4f}"
+    )
 
     query = np.array(cfg["score"]["query_speeds"])
     calib = np.array(cfg["score"]["calibration_speeds"])
@@ -120,14 +132,17 @@ def main() -> None:
         for speeds_n, logs, out in ((query, y[n], ls_self), (both_v, np.concatenate([yc[n], y[n]]), ls_anch)):
             fit = least_squares(
                 lambda th, s=speeds_n, lg=logs: table.log_displacement(s, np.exp(th[0]), np.exp(th[1])) - lg,
-                (lo + hi) / 2, bounds=(lo, hi),
-            )  # fmt: skip
+                (lo + hi) / 2,
+                bounds=(lo, hi),
+            )
             out.append(np.sqrt(2 * fit.cost / logs.size))
     base_s = (time.perf_counter() - t0) / args.sample * n_sets
     worse = np.mean(np.array(ls_self) > scores.self_disagreement[: args.sample] + 1e-4)
-    print(f"scoring: {n_sets} sets (K={query.size}, 2 calibration) in {ours_s:.2f} s; per-set least_squares "
-          f"{base_s:.1f} s scaled from {args.sample} sets; ratio {base_s / ours_s:.0f}x; least_squares found a "
-          f"worse self fit (local minimum) in {worse:.0%} of sets")  # fmt: skip
+    print(
+        f"scoring: {n_sets} sets (K={query.size}, 2 calibration) in {ours_s:.2f} s; per-set least_squares "
+        f"{base_s:.1f} s scaled from {args.sample} sets; ratio {base_s / ours_s:.0f}x; least_squares found a "
+        f"worse self fit (local minimum) in {worse:.0%} of sets"
+    )
     model = build_model(scene)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)

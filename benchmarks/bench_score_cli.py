@@ -129,12 +129,14 @@ def make_rollouts(table: PushTable, n_objects: int, path: Path, seed: int = 0) -
     speeds = np.tile(CALIB + QUERY, n_objects)
     log_d = table.log_displacement(speeds, np.repeat(m, per), np.repeat(mu, per))
     log_d += rng.normal(0.0, 0.05, log_d.size)
-    frame = pd.DataFrame({
-        "object_id": np.repeat([f"obj{i:06d}" for i in range(n_objects)], per),
-        "role": np.tile(["calibration"] * len(CALIB) + ["rollout"] * len(QUERY), n_objects),
-        "speed": speeds,
-        "displacement": np.exp(log_d),
-    })  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "object_id": np.repeat([f"obj{i:06d}" for i in range(n_objects)], per),
+            "role": np.tile(["calibration"] * len(CALIB) + ["rollout"] * len(QUERY), n_objects),
+            "speed": speeds,
+            "displacement": np.exp(log_d),
+        }
+    )
     frame.to_csv(path, index=False, float_format="%.6g")
     return len(frame)
 
@@ -159,8 +161,10 @@ STARTUP_NEW = (
 def startup(code: str, repeats: int, env: dict | None = None) -> float:
     """Seconds to import what a command imports before its work, in a fresh interpreter."""
     probe = f"import time; t0 = time.perf_counter(); {code}; print(time.perf_counter() - t0)"
-    return min(float(subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True,
-                                    env=env).stdout) for _ in range(repeats))  # fmt: skip
+    return min(
+        float(subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, env=env).stdout)
+        for _ in range(repeats)
+    )
 
 
 def cli_seconds(args: list[str], repeats: int, env: dict | None = None) -> float:
@@ -193,8 +197,11 @@ def main() -> None:
         tmp = Path(tmp)
         table_path = Path(args.table) if args.table else tmp / "table.npz"
         if not args.table:
-            subprocess.run([sys.executable, "-m", "imply.cli", "table", "build", "--grid-json", TINY_GRID, "-o",
-                            str(table_path)], check=True, capture_output=True)  # fmt: skip
+            subprocess.run(
+                [sys.executable, "-m", "imply.cli", "table", "build", "--grid-json", TINY_GRID, "-o", str(table_path)],
+                check=True,
+                capture_output=True,
+            )
         table = PushTable.load(table_path)
         src = tmp / "rollouts.csv"
         n_rows = make_rollouts(table, args.objects, src)

@@ -54,8 +54,19 @@ def main() -> int:
     (work / "results/table").mkdir(parents=True, exist_ok=True)
     shutil.copy(table, work / "results/table/table.npz")
     (work / "only_s4.yaml").write_text("paper:\n  stages: [section4]\n")
-    cmd = [sys.executable, "-m", "snakemake", *TARGETS, "--cores", str(args.cores), "--directory", str(work),
-           "--configfile", str(work / "config.yaml"), str(work / "only_s4.yaml")]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        *TARGETS,
+        "--cores",
+        str(args.cores),
+        "--directory",
+        str(work),
+        "--configfile",
+        str(work / "config.yaml"),
+        str(work / "only_s4.yaml"),
+    ]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=work, capture_output=True, text=True)
     wall = time.perf_counter() - t0

@@ -33,8 +33,20 @@ def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, base
     """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
     gap = config["gap"]
     options = {k: v for k, v in gap["diagnose"].items() if not (baseline and k in NEWER_OPTIONS)}
-    args = ["gap", "tables", "--table", str(table), "--effect-grid-json", json.dumps(gap["effect_grid"]),
-            "--options-json", json.dumps(options), "--threads", str(threads), "-o", str(out)]  # fmt: skip
+    args = [
+        "gap",
+        "tables",
+        "--table",
+        str(table),
+        "--effect-grid-json",
+        json.dumps(gap["effect_grid"]),
+        "--options-json",
+        json.dumps(options),
+        "--threads",
+        str(threads),
+        "-o",
+        str(out),
+    ]
     wall = timed_imply(src, args, gap.get("candidates"))
     # the children's ru_maxrss is the largest of any child so far: a smaller later build reads as the earlier peak
     return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
@@ -52,8 +64,9 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp, baseline_tree(args.baseline) as tree:
         for r, which in ab_rounds(args.repeats):
             src = tree / "src" if which == "baseline" else ROOT / "src"
-            wall, peak = build(src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}",
-                               baseline=which == "baseline")  # fmt: skip
+            wall, peak = build(
+                src, args.table, config, args.threads, Path(tmp) / f"{which}-{r}", baseline=which == "baseline"
+            )
             times[which].append(wall)
             print(f"round {r + 1} {which:8s} {wall:7.1f} s  (peak RSS of any build so far {peak:.0f} MiB)")
     print_medians(times, args.baseline)

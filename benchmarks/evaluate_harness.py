@@ -91,11 +91,15 @@ def main() -> None:
         t0 = time.perf_counter()
         scorer.score(suite.query_speeds, d, suite.calibration_speeds, calib)
         t_score = time.perf_counter() - t0
-    print(f"suite: {suite.n_objects} objects x {suite.n_speeds} speeds x {len(settings.conditions)} conditions "
-          f"x {args.samples} sample sets = {n_rollouts} rollouts")  # fmt: skip
+    print(
+        f"suite: {suite.n_objects} objects x {suite.n_speeds} speeds x {len(settings.conditions)} conditions "
+        f"x {args.samples} sample sets = {n_rollouts} rollouts"
+    )
     print(f"baseline, the scorer alone on {n_sets} sets: {t_score:.2f} s ({n_rollouts / t_score:,.0f} rollouts/s)")
-    print(f"{'kind':<14} {'evaluate s':>10} {'rollouts/s':>11} {'+report s':>10} {'rollouts/s':>11} "
-          f"{'x scorer':>9} {'adds to 5 ms':>12}")  # fmt: skip
+    print(
+        f"{'kind':<14} {'evaluate s':>10} {'rollouts/s':>11} {'+report s':>10} {'rollouts/s':>11} "
+        f"{'x scorer':>9} {'adds to 5 ms':>12}"
+    )
     for model in (ConstantSlides(), StillFrames(), ProjectedFrames(suite.frame_shape)):
         t0 = time.perf_counter()
         (ev,) = evaluate([model], suite=suite, settings=settings)
@@ -104,8 +108,10 @@ def main() -> None:
             write_report([ev], Path(tmp) / "report")
         t_all = time.perf_counter() - t0
         added = (t_all / n_rollouts) * 1e3 / MODEL_MS
-        print(f"{model.kind:<14} {t_eval:>10.2f} {n_rollouts / t_eval:>11,.0f} {t_all:>10.2f} "
-              f"{n_rollouts / t_all:>11,.0f} {t_eval / t_score:>9.1f} {added:>11.1%}")  # fmt: skip
+        print(
+            f"{model.kind:<14} {t_eval:>10.2f} {n_rollouts / t_eval:>11,.0f} {t_all:>10.2f} "
+            f"{n_rollouts / t_all:>11,.0f} {t_eval / t_score:>9.1f} {added:>11.1%}"
+        )
 
 
 if __name__ == "__main__":

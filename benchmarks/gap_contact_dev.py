@@ -36,8 +36,16 @@ import yaml
 from imply.realworld.benchmark import find_summaries, score_cases, score_contact_cases, visible_sizes
 
 ROOT = Path(__file__).resolve().parents[1]
-METRICS = ("null_no_library", "among_named", "one_cause", "single_right", "told_right", "named", "wrong_single",
-           "wrong_mechanism")  # fmt: skip
+METRICS = (
+    "null_no_library",
+    "among_named",
+    "one_cause",
+    "single_right",
+    "told_right",
+    "named",
+    "wrong_single",
+    "wrong_mechanism",
+)
 MAIN_METRICS = {
     "false_alarm": "n_null",
     "top1_big": "n_big",
@@ -88,17 +96,52 @@ def main(argv: list[str] | None = None) -> int:
 
     logs, labels = args.out / "logs", args.out / "labels.json"
     if not labels.exists():
-        subprocess.run(["imply", "gap", "generate", "--table", str(args.table),
-                        "--bench-json" if args.main else "--contact-bench-json",
-                        json.dumps(design), "--logs", str(logs), "--sealed", str(labels), "--accuracy",
-                        str(args.out / "accuracy.json"), "--threads", "2"], check=True)  # fmt: skip
+        subprocess.run(
+            [
+                "imply",
+                "gap",
+                "generate",
+                "--table",
+                str(args.table),
+                "--bench-json" if args.main else "--contact-bench-json",
+                json.dumps(design),
+                "--logs",
+                str(logs),
+                "--sealed",
+                str(labels),
+                "--accuracy",
+                str(args.out / "accuracy.json"),
+                "--threads",
+                "2",
+            ],
+            check=True,
+        )
     files = sorted(str(p) for p in logs.glob("*.csv") if not p.name.endswith(".track.csv"))
     run = args.out / "runs" / args.name
     t0 = time.perf_counter()
-    cmds = [["imply", "gap", "diagnose-many", *part, "--table", str(args.table), "--effect-grid-json", grid,
-             "--options-json", json.dumps(options), "--cache-dir", str(args.effect_tables), "--threads", "1",
-             "--force", "-o", str(run / f"shard{k}")] + (["--ignore-measured"] if args.ignore_measured else [])
-            for k, part in enumerate((files[::2], files[1::2]))]  # fmt: skip
+    cmds = [
+        [
+            "imply",
+            "gap",
+            "diagnose-many",
+            *part,
+            "--table",
+            str(args.table),
+            "--effect-grid-json",
+            grid,
+            "--options-json",
+            json.dumps(options),
+            "--cache-dir",
+            str(args.effect_tables),
+            "--threads",
+            "1",
+            "--force",
+            "-o",
+            str(run / f"shard{k}"),
+        ]
+        + (["--ignore-measured"] if args.ignore_measured else [])
+        for k, part in enumerate((files[::2], files[1::2]))
+    ]
     if not run_shards(cmds):
         return 1
     seconds = time.perf_counter() - t0
@@ -109,10 +152,14 @@ def main(argv: list[str] | None = None) -> int:
     result = score_contact_cases(sealed, summaries, targets=design["targets"], min_size_sd=design["min_size_sd"])
     print(f"{args.name}: {len(files)} development logs (seed {args.seed}), diagnosed in {seconds:.0f} s")
     for key in METRICS:
-        print(f"  {key:18s} {result[key]:.3f} (n {result['n_' + key]}); MuJoCo contact "
-              f"{result[key + '_mujoco']:.2f}, Bullet {result[key + '_bullet']:.2f}")  # fmt: skip
-    print(f"  contenders         mean {result['contenders_mean']:.2f}, largest {result['contenders_max']}; one cause "
-          f"right {result['one_cause_right']:.3f} (n {result['n_one_cause_right']})")  # fmt: skip
+        print(
+            f"  {key:18s} {result[key]:.3f} (n {result['n_' + key]}); MuJoCo contact "
+            f"{result[key + '_mujoco']:.2f}, Bullet {result[key + '_bullet']:.2f}"
+        )
+    print(
+        f"  contenders         mean {result['contenders_mean']:.2f}, largest {result['contenders_max']}; one cause "
+        f"right {result['one_cause_right']:.3f} (n {result['n_one_cause_right']})"
+    )
     if args.cases:
         frame = pd.DataFrame(result["cases"])
         cols = ["case", "group", "engine", "effects", "identification", "causes", "contenders"]
@@ -127,19 +174,49 @@ def _closed_loop(args: argparse.Namespace, design: dict, options: dict, grid: st
     from imply.realworld.closed_loop import score_closed_loop
 
     loop = args.out / "closed" / args.name
-    cmds = [["imply", "gap", "closed-loop", "--contact-bench-json", json.dumps(design), "--logs", str(args.out / "logs"),
-             "--reports", str(run / f"shard{k}"), "-o", str(loop / f"shard{k}"), "--table", str(args.table),
-             "--cache-dir", str(args.effect_tables), "--effect-grid-json", grid, "--options-json", json.dumps(options),
-             "--threads", "1", "--no-plots", "--force"] for k in range(2)]  # fmt: skip
+    cmds = [
+        [
+            "imply",
+            "gap",
+            "closed-loop",
+            "--contact-bench-json",
+            json.dumps(design),
+            "--logs",
+            str(args.out / "logs"),
+            "--reports",
+            str(run / f"shard{k}"),
+            "-o",
+            str(loop / f"shard{k}"),
+            "--table",
+            str(args.table),
+            "--cache-dir",
+            str(args.effect_tables),
+            "--effect-grid-json",
+            grid,
+            "--options-json",
+            json.dumps(options),
+            "--threads",
+            "1",
+            "--no-plots",
+            "--force",
+        ]
+        for k in range(2)
+    ]
     if not run_shards(cmds):
         return 1
-    result = score_closed_loop(sealed, [loop / "shard0", loop / "shard1"], within=design["targets"]["magnitude_within"],
-                               min_size_sd=design["min_size_sd"])  # fmt: skip
+    result = score_closed_loop(
+        sealed,
+        [loop / "shard0", loop / "shard1"],
+        within=design["targets"]["magnitude_within"],
+        min_size_sd=design["min_size_sd"],
+    )
     for arm in ("next", "random"):
         r = result[arm]
-        print(f"  closed loop, {arm:6s} one cause right {r['one_cause_right']:.3f} (n {r['n_single']}), told the "
-              f"cause {r['told_right']:.3f}; null logs clear {r['null_no_library']:.3f} (n {r['n_null']}); outside "
-              f"stated {r['wrong_single']:.3f} (n {r['n_outside']}); contenders {r['contenders_mean']:.2f}")  # fmt: skip
+        print(
+            f"  closed loop, {arm:6s} one cause right {r['one_cause_right']:.3f} (n {r['n_single']}), told the "
+            f"cause {r['told_right']:.3f}; null logs clear {r['null_no_library']:.3f} (n {r['n_null']}); outside "
+            f"stated {r['wrong_single']:.3f} (n {r['n_outside']}); contenders {r['contenders_mean']:.2f}"
+        )
     return 0
 
 

@@ -30,9 +30,24 @@ OBSERVED = {"use_pusher_speed": True, "use_track": True}
 def diagnose(src: Path, logs: list[Path], options: dict, config: dict, out: Path) -> float:
     """Wall seconds of one ``imply gap diagnose-many`` of ``logs`` with the package under ``src``."""
     gap = config["gap"]
-    args = ["gap", "diagnose-many", *map(str, logs), "--table", str(ROOT / "results/table/table.npz"),
-            "--effect-grid-json", json.dumps(gap["effect_grid"]), "--options-json", json.dumps(options),
-            "--cache-dir", str(ROOT / "results/gap/effect_tables"), "--threads", "1", "--no-plots", "-o", str(out)]  # fmt: skip
+    args = [
+        "gap",
+        "diagnose-many",
+        *map(str, logs),
+        "--table",
+        str(ROOT / "results/table/table.npz"),
+        "--effect-grid-json",
+        json.dumps(gap["effect_grid"]),
+        "--options-json",
+        json.dumps(options),
+        "--cache-dir",
+        str(ROOT / "results/gap/effect_tables"),
+        "--threads",
+        "1",
+        "--no-plots",
+        "-o",
+        str(out),
+    ]
     return timed_imply(src, args, gap.get("candidates"))
 
 

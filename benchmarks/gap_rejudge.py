@@ -44,8 +44,10 @@ def main(argv: list[str] | None = None) -> int:
     design = yaml.safe_load((ROOT / "config.yaml").read_text())["gap"]["contact_benchmark"]
     labels = json.loads((args.out / "labels.json").read_text())
     summaries = find_summaries(labels, sorted((args.out / "runs" / args.name).glob("shard*")))
-    for title, judged in (("as judged", summaries), ("causes stated when partly explained",
-                                                     {k: causes_when_partly(s) for k, s in summaries.items()})):  # fmt: skip
+    for title, judged in (
+        ("as judged", summaries),
+        ("causes stated when partly explained", {k: causes_when_partly(s) for k, s in summaries.items()}),
+    ):
         r = score_contact_cases(labels, judged, targets=design["targets"], min_size_sd=design["min_size_sd"])
         print(f"{title}: " + ", ".join(f"{k} {r[k]:.3f} (n {r['n_' + k]})" for k in METRICS))
     return 0

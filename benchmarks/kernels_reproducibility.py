@@ -30,8 +30,14 @@ from pathlib import Path
 from imply.kernels import environment
 
 ROOT = Path(__file__).resolve().parents[1]
-INPUTS = ["results/features/train.npz", "results/clips/train.csv", "results/model/readout_ln.npz",
-          "results/features/validation.npz", "results/clips/validation.csv", "results/table/table.npz"]  # fmt: skip
+INPUTS = [
+    "results/features/train.npz",
+    "results/clips/train.csv",
+    "results/model/readout_ln.npz",
+    "results/features/validation.npz",
+    "results/clips/validation.csv",
+    "results/table/table.npz",
+]
 # an AVX2 machine: every library on its AVX2 code path, as the pin sets it, less MKL's reproducibility mode
 AVX2_MACHINE = {k: v for k, v in environment("avx2").items() if k != "MKL_CBWR"}
 CONDITIONS = [  # (name, kernels.pin, the machine's own choice)
@@ -88,15 +94,32 @@ def run(
     target = f"results/model/{variant}/seed{seed}/training.json"
     env = {k: v for k, v in os.environ.items() if k not in environment("avx2")}
     env.update(outside)
-    cmd = ["snakemake", "-s", str(ROOT / "Snakefile"), "-d", str(work), "--cores", "2", "--quiet", "all",
-           "--allowed-rules", "model_train", "--", target]  # fmt: skip
+    cmd = [
+        "snakemake",
+        "-s",
+        str(ROOT / "Snakefile"),
+        "-d",
+        str(work),
+        "--cores",
+        "2",
+        "--quiet",
+        "all",
+        "--allowed-rules",
+        "model_train",
+        "--",
+        target,
+    ]
     t0 = time.perf_counter()
     subprocess.run(cmd, env=env, check=True, cwd=work)
     wall = time.perf_counter() - t0
     last = json.loads((work / target).read_text())["history"][-1]
-    return {"name": name, "pin": pin, "wall_s": round(wall, 1),
-            "weights": weights_digest(work / f"results/model/{variant}/seed{seed}/model.pt"),
-            "validation": {k: last[k] for k in keys if k in last}}  # fmt: skip
+    return {
+        "name": name,
+        "pin": pin,
+        "wall_s": round(wall, 1),
+        "weights": weights_digest(work / f"results/model/{variant}/seed{seed}/model.pt"),
+        "validation": {k: last[k] for k in keys if k in last},
+    }
 
 
 def main(argv=None) -> int:

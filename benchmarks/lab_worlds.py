@@ -60,8 +60,10 @@ def main() -> None:
     pushes = _pushes(scene)
     layout, probes = _probes(scene)
     base: dict[str, float] = {}
-    print(f"{'world':8} {'s/push':>9} {'ratio':>6} {'s/probe':>9} {'ratio':>6} {'max dlog d (h/2)':>17} "
-          f"{'max dreading (h/2)':>19}")  # fmt: skip
+    print(
+        f"{'world':8} {'s/push':>9} {'ratio':>6} {'s/probe':>9} {'ratio':>6} {'max dlog d (h/2)':>17} "
+        f"{'max dreading (h/2)':>19}"
+    )
     for name, (run, stepping) in engines.items():
         times = {}
         for what, batch in (("push", pushes), ("probe", probes)):
@@ -80,8 +82,10 @@ def main() -> None:
         read_fine = probe_observables(layout, run(probes, fine), probes, scene.stroke)["reading"]
         dd = np.nanmax(np.abs(np.log(fine_d / coarse_d)))
         dr = np.nanmax(np.abs(np.array(read_fine, float) - np.array(read, float)))
-        print(f"{name:8} {times['push']:9.4f} {times['push'] / base['push']:6.2f} {times['probe']:9.4f} "
-              f"{times['probe'] / base['probe']:6.2f} {dd:17.4f} {dr:19.4f}")  # fmt: skip
+        print(
+            f"{name:8} {times['push']:9.4f} {times['push'] / base['push']:6.2f} {times['probe']:9.4f} "
+            f"{times['probe'] / base['probe']:6.2f} {dd:17.4f} {dr:19.4f}"
+        )
 
 
 if __name__ == "__main__":

@@ -40,12 +40,23 @@ SETS = {
     "+ track": ["d", "T", *NAMES[3:]],
     "all": NAMES,
 }
-LIBRARY = {"viscous": 0.25, "air_drag": 150.0, "pusher_softness": 0.03, "slope": 0.015, "torsional": 0.025,
-           "rolling": 0.01, "height": 0.1, "speed_gain": 0.05, "speed_offset": 0.02}  # fmt: skip
-CONTACTS = {"table_compliance": {"table_timeconst": 3.5, "table_dampratio": 0.5},
-            "speed_friction": {"friction_slope": 0.75, "friction_slope_speed": 0.15},
-            "regularised_friction": {"friction_regularisation": 0.2, "friction_rest_share": 0.5},
-            "pusher_contact": {"pusher_impedance": 0.3, "pusher_friction": 0.5}}  # fmt: skip
+LIBRARY = {
+    "viscous": 0.25,
+    "air_drag": 150.0,
+    "pusher_softness": 0.03,
+    "slope": 0.015,
+    "torsional": 0.025,
+    "rolling": 0.01,
+    "height": 0.1,
+    "speed_gain": 0.05,
+    "speed_offset": 0.02,
+}
+CONTACTS = {
+    "table_compliance": {"table_timeconst": 3.5, "table_dampratio": 0.5},
+    "speed_friction": {"friction_slope": 0.75, "friction_slope_speed": 0.15},
+    "regularised_friction": {"friction_regularisation": 0.2, "friction_rest_share": 0.5},
+    "pusher_contact": {"pusher_impedance": 0.3, "pusher_friction": 0.5},
+}
 H = 0.02  # log step for the mass and friction derivatives
 MASS_MEASURED = False  # set by --mass-measured: only the friction is refitted
 
@@ -149,12 +160,18 @@ def main(argv=None) -> int:
     print("| effect | " + " | ".join(sets) + " |")
     print("|---" * (len(sets) + 1) + "|")
     for a in LIBRARY:
-        cells = [f"{out[s]['closest'][a]['cos']:.2f} {out[s]['closest'][a]['with']} ({out[s]['rms'][a]:.1f})"
-                 for s in sets]  # fmt: skip
+        cells = [
+            f"{out[s]['closest'][a]['cos']:.2f} {out[s]['closest'][a]['with']} ({out[s]['rms'][a]:.1f})" for s in sets
+        ]
         print(f"| {a} | " + " | ".join(cells) + " |")
-    print("\nContact models, visible size (noise sds): " + "; ".join(
-        f"{k.split(':')[1]} " + "/".join(f"{out[s]['rms'][k]:.1f}" for s in sets) for k in out[sets[0]]["rms"]
-        if k.startswith("contact:")))  # fmt: skip
+    print(
+        "\nContact models, visible size (noise sds): "
+        + "; ".join(
+            f"{k.split(':')[1]} " + "/".join(f"{out[s]['rms'][k]:.1f}" for s in sets)
+            for k in out[sets[0]]["rms"]
+            if k.startswith("contact:")
+        )
+    )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)

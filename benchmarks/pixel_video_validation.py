@@ -43,8 +43,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sets", type=int, default=16, help="sample sets per object")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="override a PixelVideoConfig field (repeatable), e.g. --set keypoint_sd=0.2")  # fmt: skip
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a PixelVideoConfig field (repeatable), e.g. --set keypoint_sd=0.2",
+    )
     ap.add_argument("--save", default=None, help="save the trained weights here")
     ap.add_argument("--clips", default="results/clips")
     ap.add_argument("--table", default="results/table/table.npz")
@@ -61,8 +66,10 @@ def main(argv: list[str] | None = None) -> int:
     calibrated = args.variant == "calib"
     t0 = time.perf_counter()
     model, _ = train_pixel_video(frames, meta, cfg, calibrated=calibrated, threads=args.threads)
-    print(f"{args.variant} {' '.join(args.set)}: trained {args.epochs} epochs on {len(frames)} training clips in "
-          f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
+    print(
+        f"{args.variant} {' '.join(args.set)}: trained {args.epochs} epochs on {len(frames)} training clips in "
+        f"{time.perf_counter() - t0:.0f} s"
+    )
     if args.save:
         save_pixel_video(args.save, model, [])
     readout = FrameDiffReadout.fit(frames, meta["displacement"].to_numpy())
@@ -80,8 +87,16 @@ def main(argv: list[str] | None = None) -> int:
     other = np.roll(np.arange(n), 1)  # another object's calibration
 
     def rollout(sample: int, calib_of: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        g = generate(model, context=vf[qi, 0], speeds=speeds, sample=sample, calib_first=vf[cal[calib_of], 0],
-                     calib_rest=vf[cal[calib_of], -1], calib_speed=cal_speeds, seed=args.seed)  # fmt: skip
+        g = generate(
+            model,
+            context=vf[qi, 0],
+            speeds=speeds,
+            sample=sample,
+            calib_first=vf[cal[calib_of], 0],
+            calib_rest=vf[cal[calib_of], -1],
+            calib_speed=cal_speeds,
+            seed=args.seed,
+        )
         rest = g[:, :, -1]
         clips = np.stack([vf[qi, 0], rest], 2).reshape(-1, 2, *rest.shape[2:])
         return readout.predict(clips).reshape(n, -1), rest
@@ -95,21 +110,27 @@ def main(argv: list[str] | None = None) -> int:
     mass_ratio = saliency(rest).sum((-2, -1)) / np.maximum(saliency(real_rest).sum((-2, -1)), 1e-9)
     mse = ((rest.astype(float) - real_rest.astype(float)) ** 2).mean((-3, -2, -1))
     psnr = 10 * np.log10(255.0**2 / np.maximum(mse, 1e-12))
-    print(f"  moves with the action: per-object slope of log slide on log speed {slope_gen.mean():.3f} generated, "
-          f"{slope_true.mean():.3f} true (ratio {slope_gen.mean() / slope_true.mean():.3f})")  # fmt: skip
-    print(f"  frames the readout can read: saliency mass of generated rest frames / real, median "
-          f"{np.median(mass_ratio):.3f} (IQR {np.percentile(mass_ratio, 25):.3f}-{np.percentile(mass_ratio, 75):.3f}); "
-          f"PSNR of rest frames median {np.median(psnr):.1f} dB")  # fmt: skip
+    print(
+        f"  moves with the action: per-object slope of log slide on log speed {slope_gen.mean():.3f} generated, "
+        f"{slope_true.mean():.3f} true (ratio {slope_gen.mean() / slope_true.mean():.3f})"
+    )
+    print(
+        f"  frames the readout can read: saliency mass of generated rest frames / real, median "
+        f"{np.median(mass_ratio):.3f} (IQR {np.percentile(mass_ratio, 25):.3f}-{np.percentile(mass_ratio, 75):.3f}); "
+        f"PSNR of rest frames median {np.median(psnr):.1f} dB"
+    )
     print(f"  sample 0: tracking r {_corr(lp.mean(1), lt.mean(1)):.3f}, mean |log error| {np.abs(lp - lt).mean():.3f}")
     if calibrated:
         oth, _ = rollout(0, other)
         lo = np.log(oth)
         s_own = score_sets(table, speeds, own, cal_speeds, cal_d)
         s_oth = score_sets(table, speeds, oth, cal_speeds, cal_d)
-        print(f"  another object's calibration: tracking r {_corr(lo.mean(1), lt.mean(1)):.3f}, mean |log error| "
-              f"{np.abs(lo - lt).mean():.3f}; anchored prefers own on "
-              f"{np.mean(s_own.anchored_disagreement < s_oth.anchored_disagreement):.1%} of {n} objects, self on "
-              f"{np.mean(s_own.self_disagreement < s_oth.self_disagreement):.1%}")  # fmt: skip
+        print(
+            f"  another object's calibration: tracking r {_corr(lo.mean(1), lt.mean(1)):.3f}, mean |log error| "
+            f"{np.abs(lo - lt).mean():.3f}; anchored prefers own on "
+            f"{np.mean(s_own.anchored_disagreement < s_oth.anchored_disagreement):.1%} of {n} objects, self on "
+            f"{np.mean(s_own.self_disagreement < s_oth.self_disagreement):.1%}"
+        )
     if args.sets > 1:
         sets = np.stack([rollout(s, np.arange(n))[0] for s in range(1, args.sets + 1)])  # (S, n, K)
         spread = np.log(sets).mean(2).std(0)
@@ -119,11 +140,17 @@ def main(argv: list[str] | None = None) -> int:
         selfd = np.stack([sc.self_disagreement for sc in scores])
         err = np.abs(np.log(sets) - lt[None]).mean(2)
         rng = np.random.default_rng(args.seed)
-        for name, pick in (("anchored", anch.argmin(0)), ("self", selfd.argmin(0)),
-                           ("random", rng.integers(0, args.sets, n)), ("oracle", err.argmin(0))):  # fmt: skip
+        for name, pick in (
+            ("anchored", anch.argmin(0)),
+            ("self", selfd.argmin(0)),
+            ("random", rng.integers(0, args.sets, n)),
+            ("oracle", err.argmin(0)),
+        ):
             chosen = np.log(sets[pick, np.arange(n)])
-            print(f"  chosen by {name:8s}: tracking r {_corr(chosen.mean(1), lt.mean(1)):.3f}, mean |log error| "
-                  f"{np.abs(chosen - lt).mean():.3f}")  # fmt: skip
+            print(
+                f"  chosen by {name:8s}: tracking r {_corr(chosen.mean(1), lt.mean(1)):.3f}, mean |log error| "
+                f"{np.abs(chosen - lt).mean():.3f}"
+            )
     return 0
 
 

@@ -68,8 +68,17 @@ def main(argv=None) -> int:
 
     def one(job):
         variant, seed, pin = job
-        return run(f"{variant} seed{seed} {pin}", pin, {}, epochs=epochs, seed=seed, out=args.out, variant=variant,
-                   keys=KEYS[variant], train=overrides)  # fmt: skip
+        return run(
+            f"{variant} seed{seed} {pin}",
+            pin,
+            {},
+            epochs=epochs,
+            seed=seed,
+            out=args.out,
+            variant=variant,
+            keys=KEYS[variant],
+            train=overrides,
+        )
 
     # two jobs at a time: the study's training runs one thread each, two side by side
     with ThreadPoolExecutor(2) as pool:
@@ -77,8 +86,10 @@ def main(argv=None) -> int:
     (args.out / "spread.json").write_text(json.dumps(rows, indent=1))
     by = {r["name"]: r for r in rows}
     recipe = ", ".join(f"{k}={v}" for k, v in overrides.items()) or "the study's recipe"
-    print(f"Section 5 models ({recipe}), last epoch ({epochs}) on the validation objects: AVX-512 (native) against "
-          "AVX2 (pinned)\n")  # fmt: skip
+    print(
+        f"Section 5 models ({recipe}), last epoch ({epochs}) on the validation objects: AVX-512 (native) against "
+        "AVX2 (pinned)\n"
+    )
     print("| model | quantity | AVX-512 | AVX2 | moved |")
     print("|---|---|---|---|---|")
     worst = {}
@@ -92,8 +103,10 @@ def main(argv=None) -> int:
                 print(f"| {variant} seed {seed} | {k} | {x:.3f} | {y:.3f} | {abs(x - y):.3f} |")
                 if k == ("own_track" if variant == "calib" else "none_track"):
                     worst[f"{variant} seed {seed}"] = abs(x - y)
-    print("\nhow far each seed's tracking r moved (own calibration; none for the uncalibrated): "
-          + ", ".join(f"{k} {v:.3f}" for k, v in worst.items()))  # fmt: skip
+    print(
+        "\nhow far each seed's tracking r moved (own calibration; none for the uncalibrated): "
+        + ", ".join(f"{k} {v:.3f}" for k, v in worst.items())
+    )
     return 0
 
 

@@ -84,9 +84,14 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
             train_variant(
-                train, preset=preset, layout=layout, config=TrainConfig.from_dict(model_cfg["train"]),
-                data_seed=args.seed, out=Path(tmp) / "m.pt", checkpoint=Path(tmp) / "c.pt",
-            )  # fmt: skip
+                train,
+                preset=preset,
+                layout=layout,
+                config=TrainConfig.from_dict(model_cfg["train"]),
+                data_seed=args.seed,
+                out=Path(tmp) / "m.pt",
+                checkpoint=Path(tmp) / "c.pt",
+            )
             model, _, _ = load_model(Path(tmp) / "m.pt")
         line[f"{variant}_seconds"] = round(time.perf_counter() - t0, 1)
         readers = {"real": readout}
@@ -96,9 +101,14 @@ def main(argv: list[str] | None = None) -> int:
             readers["own"] = fit_rollout_readout(model, training_sequences(train, layout, objects), slides)
         for name, reader in readers.items():
             scores = validation_scores(
-                model, layout, val, readout=reader, scorer=scorer, typical=typical,
+                model,
+                layout,
+                val,
+                readout=reader,
+                scorer=scorer,
+                typical=typical,
                 derangement_seed=model_cfg["derangement_seed"],
-            )  # fmt: skip
+            )
             key = variant if name == "real" else f"{variant}_own_readout"
             line[key] = {k: round(v, 3) for k, v in scores.items()}
     print(json.dumps(line), flush=True)

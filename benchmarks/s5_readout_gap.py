@@ -53,8 +53,10 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"{len(truth)} training objects, {layout.n_steps}-step sequences ({'with' if layout.calib else 'no'} calibration)"
     )
-    print(f"rest-frame tokens: mean |predicted - real| {np.mean(np.abs(predicted - real)):.4f}; spread across objects "
-          f"{predicted.std(axis=0).mean():.4f} predicted vs {real.std(axis=0).mean():.4f} real")  # fmt: skip
+    print(
+        f"rest-frame tokens: mean |predicted - real| {np.mean(np.abs(predicted - real)):.4f}; spread across objects "
+        f"{predicted.std(axis=0).mean():.4f} predicted vs {real.std(axis=0).mean():.4f} real"
+    )
     print(f"object-blind baseline: mean |log error| {np.mean(np.abs(typical - truth)):.3f}")
     readouts = {
         "real-token readout": res / "model/readout_ln.npz",
@@ -66,9 +68,11 @@ def main(argv: list[str] | None = None) -> int:
             continue
         read = load_latent_readout(path).predict_log(predicted)
         object_part = read - typical
-        print(f"{name}: bias {np.mean(read - truth):+.3f}, mean |log error| {np.mean(np.abs(read - truth)):.3f}, "
-              f"spread around the typical slide {object_part.std():.3f} (r with the truth's "
-              f"{np.corrcoef(object_part, truth - typical)[0, 1]:.2f})")  # fmt: skip
+        print(
+            f"{name}: bias {np.mean(read - truth):+.3f}, mean |log error| {np.mean(np.abs(read - truth)):.3f}, "
+            f"spread around the typical slide {object_part.std():.3f} (r with the truth's "
+            f"{np.corrcoef(object_part, truth - typical)[0, 1]:.2f})"
+        )
     return 0
 
 

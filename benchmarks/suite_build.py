@@ -45,27 +45,38 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         folder = build_suite(
-            suite_cfg, clips=clips, scene=scene, speeds=speeds, table_path=Path(args.table),
-            out_dir=Path(tmp) / "suite", nthread=args.threads, progress=False,
-        )  # fmt: skip
+            suite_cfg,
+            clips=clips,
+            scene=scene,
+            speeds=speeds,
+            table_path=Path(args.table),
+            out_dir=Path(tmp) / "suite",
+            nthread=args.threads,
+            progress=False,
+        )
         suite_s = time.perf_counter() - t0
         sizes = load_suite(folder).manifest["sizes"]
     n, k, c, t, m, mc = (sizes[key] for key in ("N", "K", "C", "T", "M", "M_c"))
     pushes = n * (2 + k) + m + mc
     frames = n * (2 * t + k * (c + 1)) + 2 * (m + mc)
-    print(f"suite: N {n}, K {k}, C {c}, T {t}, M {m}, M_c {mc}, {sizes['H']} x {sizes['W']} px on {args.threads} "
-          f"threads: {suite_s:.1f} s, {pushes} pushes ({pushes / suite_s:.0f}/s), {frames} frames drawn "
-          f"({frames / suite_s:.0f}/s)")  # fmt: skip
+    print(
+        f"suite: N {n}, K {k}, C {c}, T {t}, M {m}, M_c {mc}, {sizes['H']} x {sizes['W']} px on {args.threads} "
+        f"threads: {suite_s:.1f} s, {pushes} pushes ({pushes / suite_s:.0f}/s), {frames} frames drawn "
+        f"({frames / suite_s:.0f}/s)"
+    )
     if args.no_baseline:
         return
     # baseline: a training split of as many pushes (3 a object), every frame drawn, simulated the same way
     same_size = clips.replace(n_train_episodes=-(-pushes // 3))
     t0 = time.perf_counter()
-    base_frames, meta = render_split(same_size, "train", scene=scene, speeds=speeds, nthread=args.threads,
-                                     progress=False)  # fmt: skip
+    base_frames, meta = render_split(
+        same_size, "train", scene=scene, speeds=speeds, nthread=args.threads, progress=False
+    )
     base_s = time.perf_counter() - t0
-    print(f"baseline render_split: {len(meta)} clips, {base_frames.shape[0] * base_frames.shape[1]} frames in "
-          f"{base_s:.1f} s; suite / baseline time {suite_s / base_s:.2f}")  # fmt: skip
+    print(
+        f"baseline render_split: {len(meta)} clips, {base_frames.shape[0] * base_frames.shape[1]} frames in "
+        f"{base_s:.1f} s; suite / baseline time {suite_s / base_s:.2f}"
+    )
 
 
 if __name__ == "__main__":

@@ -79,8 +79,10 @@ def main() -> None:
     t0 = time.perf_counter()
     direct = evaluate(models, suite=suite, settings=settings)
     t_direct = time.perf_counter() - t0
-    print(f"suite {suite.checksum[:12]}: {suite.n_objects} objects, camera {suite.frame_shape[1]}x"
-          f"{suite.frame_shape[0]}; in process: {len(models)} stand-ins scored in {t_direct:.1f} s")  # fmt: skip
+    print(
+        f"suite {suite.checksum[:12]}: {suite.n_objects} objects, camera {suite.frame_shape[1]}x"
+        f"{suite.frame_shape[0]}; in process: {len(models)} stand-ins scored in {t_direct:.1f} s"
+    )
     print(_line("in process", known_answers(direct)))
     for size in (int(x) for x in args.sizes.split(",")):
         shape = None if size == 0 else (size, size)
@@ -100,12 +102,16 @@ def main() -> None:
         t_score = time.perf_counter() - t0
         ka = known_answers(from_files)
         oracle = next(e for e in from_files if e.model == "oracle")
-        print(f"{label}: {n_videos} MP4s read in {t_read:.1f} s ({n_videos / t_read:.0f} videos/s); scored in "
-              f"{t_score:.1f} s; read + score / in process {(t_read + t_score) / t_direct:.2f}x")  # fmt: skip
+        print(
+            f"{label}: {n_videos} MP4s read in {t_read:.1f} s ({n_videos / t_read:.0f} videos/s); scored in "
+            f"{t_score:.1f} s; read + score / in process {(t_read + t_score) / t_direct:.2f}x"
+        )
         print(_line(f"through H.264 at {label}", ka))
-        print(f"{'':28s} readout through the codec ({oracle.readout.encoding}): R^2 {oracle.readout.r2_codec:.3f}, "
-              f"error {oracle.readout.error_codec:.3f} (lossless: R^2 {oracle.readout.r2_check:.3f}, error "
-              f"{oracle.readout.error_check:.3f})")  # fmt: skip
+        print(
+            f"{'':28s} readout through the codec ({oracle.readout.encoding}): R^2 {oracle.readout.r2_codec:.3f}, "
+            f"error {oracle.readout.error_codec:.3f} (lossless: R^2 {oracle.readout.r2_check:.3f}, error "
+            f"{oracle.readout.error_check:.3f})"
+        )
 
 
 if __name__ == "__main__":

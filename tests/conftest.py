@@ -35,10 +35,16 @@ def scene(default_config) -> SceneConfig:
 
 
 TINY_GRID = TableGrid(
-    speed_min=0.15, speed_max=1.05, n_speeds=7,
-    mass_min=0.2, mass_max=2.0, n_masses=6,
-    friction_min=0.1, friction_max=0.6, n_frictions=6,
-)  # fmt: skip
+    speed_min=0.15,
+    speed_max=1.05,
+    n_speeds=7,
+    mass_min=0.2,
+    mass_max=2.0,
+    n_masses=6,
+    friction_min=0.1,
+    friction_max=0.6,
+    n_frictions=6,
+)
 
 
 @pytest.fixture(scope="session")

@@ -30,8 +30,18 @@ def synth_split(path: Path, name: str, n_objects: int, heldout: bool, seed: int,
             pushes.append(("query", -1, float(rng.uniform(0.15, 1.05))))
         for role, k, v in pushes:
             d = np.exp(2 * np.log(v) - np.log(fric[i]) - 0.5 * np.log(mass[i]) * v - 3.0)
-            row = {"object_id": f"{name}-{i:05d}", "episode": i, "role": role, "speed_index": k, "speed": v,
-                   "displacement": d, "stop_time": 0.5 + d, "ok": 1, "mass": mass[i], "friction": fric[i]}  # fmt: skip
+            row = {
+                "object_id": f"{name}-{i:05d}",
+                "episode": i,
+                "role": role,
+                "speed_index": k,
+                "speed": v,
+                "displacement": d,
+                "stop_time": 0.5 + d,
+                "ok": 1,
+                "mass": mass[i],
+                "friction": fric[i],
+            }
             row.update({f"t{j}": t for j, t in enumerate(TIMES)})
             row["t7"] = 0.5 + d
             rows.append(row)
@@ -43,6 +53,7 @@ def synth_split(path: Path, name: str, n_objects: int, heldout: bool, seed: int,
     tokens = np.sin(pos[:, :, None, None] * w[None, None] + np.arange(dim)[None, None, None, :] * 0.3)
     tokens += 0.01 * rng.normal(size=tokens.shape)
     meta.to_csv(path / f"{name}.csv", index=False)
-    np.savez(path / f"{name}.npz", tokens=tokens.astype(np.float16), clip_id=meta["clip_id"].to_numpy(),
-             grid=np.array(grid))  # fmt: skip
+    np.savez(
+        path / f"{name}.npz", tokens=tokens.astype(np.float16), clip_id=meta["clip_id"].to_numpy(), grid=np.array(grid)
+    )
     return path / f"{name}.npz", path / f"{name}.csv"

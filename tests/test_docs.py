@@ -183,9 +183,23 @@ def test_placeholders_read_config_and_results_or_say_when_they_appear(tmp_path):
     times = docs_pages.expand("{{ stage_times }}", "t.md", ctx)
     assert "| table | table | 1 | 42 | 42 | 80 |" in times
 
-    standins = {"result": {"n_objects": 3, "readout": {"name": "frame difference", "r2_check": 0.99, "error_check": 0.05},
-                           "standins": {"oracle": {"model": "oracle", "condition": "own", "track": 0.987, "error": 0.07,
-                                                   "self": 0.03, "anchored": 0.04, "static_share": 0.0}}}}  # fmt: skip
+    standins = {
+        "result": {
+            "n_objects": 3,
+            "readout": {"name": "frame difference", "r2_check": 0.99, "error_check": 0.05},
+            "standins": {
+                "oracle": {
+                    "model": "oracle",
+                    "condition": "own",
+                    "track": 0.987,
+                    "error": 0.07,
+                    "self": 0.03,
+                    "anchored": 0.04,
+                    "static_share": 0.0,
+                }
+            },
+        }
+    }
     (tmp_path / "results" / "evaluate").mkdir(parents=True)
     (tmp_path / "results" / "evaluate" / "standins.json").write_text(json.dumps(standins))
     table = docs_pages.expand("{{ standins }}", "t.md", ctx)
@@ -215,8 +229,13 @@ def test_the_site_builds_strict_with_every_key_and_option(tmp_path):
 
     site = tmp_path / "site"
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(site)], cwd=ROOT,
-                          capture_output=True, text=True, env=env)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(site)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     config = (site / "reference" / "config" / "index.html").read_text()
     assert all(f"<code>{key}</code>" in config for key in study_keys())
@@ -267,8 +286,16 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     (tmp_path / "results" / "table").mkdir(parents=True)
     (tmp_path / "results" / "table" / "table.npz").symlink_to(tiny_table_path)
     (tmp_path / "examples").symlink_to(ROOT / "examples")
-    fast = ["--effects", "tilt,speed_gain,viscous", "--effect-grid-json", GRID, "--cache-dir", str(tmp_path / "cache"),
-            "--threads", "2"]  # fmt: skip
+    fast = [
+        "--effects",
+        "tilt,speed_gain,viscous",
+        "--effect-grid-json",
+        GRID,
+        "--cache-dir",
+        str(tmp_path / "cache"),
+        "--threads",
+        "2",
+    ]
     prelude = (
         f"set -euo pipefail\nPY={shlex.quote(sys.executable)}\n"
         "snakemake() { test -e results/table/table.npz; }\n"  # the table is there: the tiny one

@@ -73,8 +73,14 @@ def test_signatures_break_long_parameter_lists_and_keep_markers():
     try:
         docs_api.LINE = 20
         assert docs_api.signature("f", f).splitlines() == [
-            "f(", "    a: int,", "    /,", "    b: str = 'x',", "    *,", "    c: float | None = None,", ") -> list[int]"
-        ]  # fmt: skip
+            "f(",
+            "    a: int,",
+            "    /,",
+            "    b: str = 'x',",
+            "    *,",
+            "    c: float | None = None,",
+            ") -> list[int]",
+        ]
     finally:
         docs_api.LINE = docs_api_line
 

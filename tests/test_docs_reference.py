@@ -112,8 +112,13 @@ def test_cell_escapes_html_outside_code_spans_once_and_keeps_pipes_and_backticks
     assert docs_pages.code("<stage>") == "`<stage>`"
     assert docs_pages.code("") == ""
     # rendered, each shows as written: escaped once, not twice
-    page = rendered("| a | b |\n|---|---|\n| " + docs_pages.cell("<stem>.json & more") + " | "
-                    + docs_pages.code("{'a': '<b>'}") + " |\n")  # fmt: skip
+    page = rendered(
+        "| a | b |\n|---|---|\n| "
+        + docs_pages.cell("<stem>.json & more")
+        + " | "
+        + docs_pages.code("{'a': '<b>'}")
+        + " |\n"
+    )
     assert page.column("a") == ["<stem>.json & more"] and page.column("b") == ["{'a': '<b>'}"]
     assert page.tags <= ALLOWED_TAGS
 
@@ -206,8 +211,13 @@ def test_a_settings_default_a_help_string_names_is_shown_as_its_value(monkeypatc
 def site(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("site")
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "--site-dir", str(out)],
-                          cwd=ROOT, capture_output=True, text=True, env=env)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "--site-dir", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     return out
 

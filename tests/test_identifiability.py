@@ -21,9 +21,12 @@ def test_grid_inversion_recovers_log_mass_and_log_friction(full_table, scene, de
     log_u = rng.uniform(np.log(lo_u), np.log(hi_u), n)
     speeds = np.array(default_config["score"]["query_speeds"])
     res = simulate_pushes(
-        np.tile(speeds, n), np.repeat(np.exp(log_m), speeds.size), np.repeat(np.exp(log_u), speeds.size),
-        scene=scene, nthread=2,
-    )  # fmt: skip
+        np.tile(speeds, n),
+        np.repeat(np.exp(log_m), speeds.size),
+        np.repeat(np.exp(log_u), speeds.size),
+        scene=scene,
+        nthread=2,
+    )
     assert res.ok.all()
     fit = Scorer(full_table, grid=default_config["score"]["grid"]).fit(speeds, res.displacement.reshape(n, -1))
     r2_mass = r_squared(log_m, np.log(fit.mass))

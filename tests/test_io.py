@@ -84,8 +84,12 @@ def test_a_failing_writer_leaves_nothing(tmp_path):
 
 
 def test_write_columns_writes_what_write_csv_writes(tmp_path):
-    cols = {"object_id": ["a", "b,c", 'q"x'], "n": np.array([3, 2, 5]),
-            "x": np.array([0.1, np.nan, 1e-20]), "y": np.array([1 / 3, 2.0, -5.5])}  # fmt: skip
+    cols = {
+        "object_id": ["a", "b,c", 'q"x'],
+        "n": np.array([3, 2, 5]),
+        "x": np.array([0.1, np.nan, 1e-20]),
+        "y": np.array([1 / 3, 2.0, -5.5]),
+    }
     write_csv(tmp_path / "pandas.csv", pd.DataFrame(cols))
     write_columns(tmp_path / "plain.csv", cols)
     assert (tmp_path / "pandas.csv").read_bytes() == (tmp_path / "plain.csv").read_bytes()

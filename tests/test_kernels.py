@@ -26,8 +26,9 @@ print(json.dumps({"torch": torch.backends.cpu.get_cpu_capability(), "numpy_v4": 
 
 def _probe(env: dict[str, str]) -> dict:
     clean = {k: v for k, v in os.environ.items() if k not in environment("avx2")}
-    out = subprocess.run([sys.executable, "-c", PROBE], env={**clean, **env}, capture_output=True, text=True,
-                         check=True)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE], env={**clean, **env}, capture_output=True, text=True, check=True
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

@@ -167,9 +167,11 @@ def test_bounds_are_checked_by_the_class_and_stated_in_the_schema():
         kind: str = option("a", doc="which", choices=("a", "b"))
 
     assert Example.from_dict({"n": 2}).n == 2
-    for bad, message in [({"n": 1}, "example.n: 1 is less than the minimum of 2"),
-                         ({"sizes": [1.0, 0.0]}, "example.sizes: 0 is less than or equal to the minimum of 0"),
-                         ({"kind": "c"}, "example.kind: 'c' is not one of ['a', 'b']")]:  # fmt: skip
+    for bad, message in [
+        ({"n": 1}, "example.n: 1 is less than the minimum of 2"),
+        ({"sizes": [1.0, 0.0]}, "example.sizes: 0 is less than or equal to the minimum of 0"),
+        ({"kind": "c"}, "example.kind: 'c' is not one of ['a', 'b']"),
+    ]:
         with pytest.raises(ValueError, match=re.escape(message)):
             Example.from_dict(bad)
     props = json_schema(Example)["properties"]

@@ -65,8 +65,17 @@ def test_the_check_fails_a_table_stepped_too_coarsely(scene):
     from imply.table import TableGrid, build_table
 
     coarse = replace(scene, push_substeps=1, slow_push_speed=0.0, release_window=0.0, slide_steps=0)
-    grid = TableGrid(speed_min=0.3, speed_max=1.05, n_speeds=4, mass_min=0.2, mass_max=2.0, n_masses=4,
-                     friction_min=0.1, friction_max=0.6, n_frictions=4)  # fmt: skip
+    grid = TableGrid(
+        speed_min=0.3,
+        speed_max=1.05,
+        n_speeds=4,
+        mass_min=0.2,
+        mass_max=2.0,
+        n_masses=4,
+        friction_min=0.1,
+        friction_max=0.6,
+        n_frictions=4,
+    )
     error = check_table(
         build_table(coarse, grid, nthread=2), TableCheckConfig(cells=8, reference_substeps=32), nthread=2
     )

@@ -157,10 +157,15 @@ def check_rules(config: dict[str, Any]) -> None:
 
     s4 = config.get("section4")
     if s4 is not None:
-        _inside(list(_ordered(s4["objects"]["mass"], "section4.objects.mass")), *masses, "section4.objects.mass",
-                "mass")  # fmt: skip
-        _inside(list(_ordered(s4["objects"]["friction"], "section4.objects.friction")), *frictions,
-                "section4.objects.friction", "friction")  # fmt: skip
+        _inside(
+            list(_ordered(s4["objects"]["mass"], "section4.objects.mass")), *masses, "section4.objects.mass", "mass"
+        )
+        _inside(
+            list(_ordered(s4["objects"]["friction"], "section4.objects.friction")),
+            *frictions,
+            "section4.objects.friction",
+            "friction",
+        )
         sel = s4["selection"]
         if not any(math.isclose(sel["query_speed"], q, rel_tol=TOL) for q in score["query_speeds"]):
             listed = ", ".join(f"{q:g}" for q in score["query_speeds"])
@@ -190,15 +195,27 @@ def check_rules(config: dict[str, Any]) -> None:
         except (TypeError, ValueError) as exc:
             raise ConfigError(str(exc)) from None
         _inside(list(design.speeds), *speeds, "gap.benchmark.speeds", "speed")
-        _inside(list(_ordered(list(design.masses), "gap.benchmark.masses", strict=False)), *masses,
-                "gap.benchmark.masses", "mass")  # fmt: skip
-        _inside(list(_ordered(list(design.frictions), "gap.benchmark.frictions", strict=False)), *frictions,
-                "gap.benchmark.frictions", "friction")  # fmt: skip
+        _inside(
+            list(_ordered(list(design.masses), "gap.benchmark.masses", strict=False)),
+            *masses,
+            "gap.benchmark.masses",
+            "mass",
+        )
+        _inside(
+            list(_ordered(list(design.frictions), "gap.benchmark.frictions", strict=False)),
+            *frictions,
+            "gap.benchmark.frictions",
+            "friction",
+        )
         gain = design.range_of("speed_gain")[1]
         offset = design.range_of("speed_offset")[1]
         lo, hi = min(design.speeds), max(design.speeds)
-        if lo * (1 - gain) < speeds[0] * (1 - TOL) or hi * (1 + gain) > speeds[1] * (1 + TOL) or \
-                lo - offset < speeds[0] * (1 - TOL) or hi + offset > speeds[1] * (1 + TOL):  # fmt: skip
+        if (
+            lo * (1 - gain) < speeds[0] * (1 - TOL)
+            or hi * (1 + gain) > speeds[1] * (1 + TOL)
+            or lo - offset < speeds[0] * (1 - TOL)
+            or hi + offset > speeds[1] * (1 + TOL)
+        ):
             raise ConfigError(
                 f"gap.benchmark.speeds: speeds {lo:g} to {hi:g} m/s with speed errors up to {gain:g} (gain) and "
                 f"{offset:g} m/s (offset) leave the table's speed range [{speeds[0]:g}, {speeds[1]:g}]"

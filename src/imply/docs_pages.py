@@ -475,8 +475,7 @@ def _usage(parser: argparse.ArgumentParser) -> str:
 
 def options_of(parser: argparse.ArgumentParser) -> list[argparse.Action]:
     """A parser's own arguments and options (not its help, not its subcommands)."""
-    return [a for a in parser._actions
-            if not isinstance(a, argparse._SubParsersAction | argparse._HelpAction)]  # fmt: skip
+    return [a for a in parser._actions if not isinstance(a, argparse._SubParsersAction | argparse._HelpAction)]
 
 
 def _default(action: argparse.Action) -> str:
@@ -556,20 +555,41 @@ class Format:
 
 
 FORMATS: tuple[Format, ...] = (
-    Format("Push log (`imply diagnose`)", "imply.diagnose.pushlog", ("REQUIRED", "OPTIONAL_NUMERIC"),
-           "what a robot records: one row per push"),
-    Format("The box's track beside a push log (`imply diagnose --track`)", "imply.diagnose.track_file",
-           ("REQUIRED", "OPTIONAL_NUMERIC"), "where each pushed box was over time, one row per frame"),
-    Format("Calibration probes beside a push log (`<log>.probes.csv`, `imply sim pushes --probes`)",
-           "imply.diagnose.probes", ("KINDS", "NUMERIC"), "what a lab measures besides its pushes, one row per probe"),
-    Format("Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"),
-    Format("Rollouts to score (`imply score`)", "imply.score_file", ("ROLES", "SCORE_COLUMNS"),
-           "a model's rollouts read as slides, and the scores written back"),
+    Format(
+        "Push log (`imply diagnose`)",
+        "imply.diagnose.pushlog",
+        ("REQUIRED", "OPTIONAL_NUMERIC"),
+        "what a robot records: one row per push",
+    ),
+    Format(
+        "The box's track beside a push log (`imply diagnose --track`)",
+        "imply.diagnose.track_file",
+        ("REQUIRED", "OPTIONAL_NUMERIC"),
+        "where each pushed box was over time, one row per frame",
+    ),
+    Format(
+        "Calibration probes beside a push log (`<log>.probes.csv`, `imply sim pushes --probes`)",
+        "imply.diagnose.probes",
+        ("KINDS", "NUMERIC"),
+        "what a lab measures besides its pushes, one row per probe",
+    ),
+    Format(
+        "Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"
+    ),
+    Format(
+        "Rollouts to score (`imply score`)",
+        "imply.score_file",
+        ("ROLES", "SCORE_COLUMNS"),
+        "a model's rollouts read as slides, and the scores written back",
+    ),
     Format("User tables in general (CSV or parquet)", "imply.input_files", ("PARQUET_SUFFIXES",)),
-    Format("The evaluation suite (`imply suite build`)", "imply.evaluate.suite",
-           ("FILES", "SUITE_ARRAYS", "TRUTH_ARRAYS")),
-    Format("The suite as files (`imply suite export`) and generated videos (`imply evaluate --videos`)",
-           "imply.evaluate.video_package"),
+    Format(
+        "The evaluation suite (`imply suite build`)", "imply.evaluate.suite", ("FILES", "SUITE_ARRAYS", "TRUTH_ARRAYS")
+    ),
+    Format(
+        "The suite as files (`imply suite export`) and generated videos (`imply evaluate --videos`)",
+        "imply.evaluate.video_package",
+    ),
     Format("Rollouts made elsewhere (`imply evaluate --rollouts`)", "imply.evaluate.rollouts_file", ("CSV_COLUMNS",)),
     Format("The report of `imply evaluate`", "imply.evaluate.report", ("REPORT_FILES",)),
     Format("The report of `imply diagnose`", "imply.diagnose.report", ("REPORT_FILES",)),
@@ -578,7 +598,7 @@ FORMATS: tuple[Format, ...] = (
     Format("Result documents (`results/**/*.json`)", "imply.paper.results"),
     Format("Macros and numbers (`results/paper/macros.tex`, `numbers.json`)", "imply.paper.macros"),
     Format("The reproduction report (`results/paper/reproduction.md`, `.csv`)", "imply.paper.report"),
-)  # fmt: skip
+)
 
 
 def formats_reference() -> str:
@@ -616,9 +636,11 @@ def snapshot_note(stamp: dict, page: str) -> str:
     """The admonition that says a page shows the committed snapshot, not this checkout's run."""
     from imply.paper.snapshot import label
 
-    return (f"!!! info \"A snapshot of one run\"\n    This checkout has not run the study, so this shows the snapshot "
-            f"committed with the documentation: {escape_html(label(stamp))}. Run the study "
-            f"([tutorial]({_relative(page, 'tutorials/reproduce.md')})) and build the site again to see your own.")  # fmt: skip
+    return (
+        f'!!! info "A snapshot of one run"\n    This checkout has not run the study, so this shows the snapshot '
+        f"committed with the documentation: {escape_html(label(stamp))}. Run the study "
+        f"([tutorial]({_relative(page, 'tutorials/reproduce.md')})) and build the site again to see your own."
+    )
 
 
 def _snapshot(root: Path) -> tuple[Path, dict] | None:
@@ -653,25 +675,40 @@ def status_page(root: Path = ROOT) -> str:
         c = stamp["claims"]
         body = re.sub(r"^# .*\n", "", report.read_text(), count=1)
         body = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", body, flags=re.M)
-        return "\n".join([*out, snapshot_note(stamp, "status.md"), "",
-                          f"In that run {c['hold']} of {c['checked']} claims hold.", "", body])  # fmt: skip
+        return "\n".join(
+            [
+                *out,
+                snapshot_note(stamp, "status.md"),
+                "",
+                f"In that run {c['hold']} of {c['checked']} claims hold.",
+                "",
+                body,
+            ]
+        )
     if not report.is_file():
-        return "\n".join([*out,
-            "!!! note \"The study has not run in this checkout\"",
-            "    This page is generated from `results/paper/reproduction.md` and `results/paper/numbers.json`, "
-            "which the study writes. Neither is here yet, so there is nothing to report. Run the study "
-            "([tutorial](tutorials/reproduce.md)), then build the site again: `snakemake --cores 2 && mkdocs build`.",
-            "",
-            "The reproduction report puts every number the paper prints beside the reproduced one (*matches*, "
-            "*close*, *differs*, *not produced*) and marks every claim of every stage *holds* or *fails*. Claims "
-            "that fail are reported, never tuned away. Earlier runs are recorded in the "
-            "[notes](notes/study-runs.md).", ""])  # fmt: skip
+        return "\n".join(
+            [
+                *out,
+                '!!! note "The study has not run in this checkout"',
+                "    This page is generated from `results/paper/reproduction.md` and `results/paper/numbers.json`, "
+                "which the study writes. Neither is here yet, so there is nothing to report. Run the study "
+                "([tutorial](tutorials/reproduce.md)), then build the site again: `snakemake --cores 2 && mkdocs build`.",
+                "",
+                "The reproduction report puts every number the paper prints beside the reproduced one (*matches*, "
+                "*close*, *differs*, *not produced*) and marks every claim of every stage *holds* or *fails*. Claims "
+                "that fail are reported, never tuned away. Earlier runs are recorded in the "
+                "[notes](notes/study-runs.md).",
+                "",
+            ]
+        )
     out += [f"Generated from `results/paper/reproduction.md` (written {_when(report)})"]
     if numbers.is_file():
         values = json.loads(numbers.read_text())
         undefined = sum(v is None for v in values.values())
-        out[-1] += (f" and `results/paper/numbers.json` ({len(values)} numbers, {undefined} undefined; "
-                    f"written {_when(numbers)})")  # fmt: skip
+        out[-1] += (
+            f" and `results/paper/numbers.json` ({len(values)} numbers, {undefined} undefined; "
+            f"written {_when(numbers)})"
+        )
     out[-1] += ". Rebuild the site after a run to refresh it."
     body = report.read_text()
     body = re.sub(r"^# .*\n", "", body, count=1)
@@ -746,10 +783,14 @@ def ph_figure(ctx: Context, page: str, arg: str) -> str:
             return f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}`, as the last run here wrote it.)"
         from imply.paper.snapshot import label
 
-        return (f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}` from the snapshot committed with the "
-                f"docs: {escape_html(label(found[1]))}; run the study to see your own.)")  # fmt: skip
-    return (f"!!! note \"Figure: {caption}\"\n    `{path}` appears here once it has been built "
-            f"(`snakemake --cores 2 {path}`), and the site rebuilt.")  # fmt: skip
+        return (
+            f"![{caption}]({_relative(page, site)})\n\n*{caption}* (`{path}` from the snapshot committed with the "
+            f"docs: {escape_html(label(found[1]))}; run the study to see your own.)"
+        )
+    return (
+        f'!!! note "Figure: {caption}"\n    `{path}` appears here once it has been built '
+        f"(`snakemake --cores 2 {path}`), and the site rebuilt."
+    )
 
 
 def rule_stages(root: Path = ROOT) -> dict[str, str]:
@@ -768,37 +809,59 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
     if not jobs and snap is not None and snap[1]["stage_times"]["stages"]:
         return _snapshot_stage_times(snap[1], page)
     if not jobs:
-        return ("!!! note \"Times per stage\"\n    The time each stage took appears here after a run: every rule "
-                "writes `results/benchmarks/<rule>/<wildcards>.tsv` (wall and CPU seconds, peak memory) and the "
-                "site reads them when it is built. Until then, the [record of earlier runs](../notes/study-runs.md) "
-                "gives the whole study's times on 2 cores.")  # fmt: skip
+        return (
+            '!!! note "Times per stage"\n    The time each stage took appears here after a run: every rule '
+            "writes `results/benchmarks/<rule>/<wildcards>.tsv` (wall and CPU seconds, peak memory) and the "
+            "site reads them when it is built. Until then, the [record of earlier runs](../notes/study-runs.md) "
+            "gives the whole study's times on 2 cores."
+        )
     stages = rule_stages(ctx.root)
     rows: dict[str, list] = {}
     for r in by_rule(jobs):
         rows.setdefault(stages.get(r.rule, "other"), []).append(r)
     out = ["| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]
     for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1])):
-        out.append(f"| {stage} | {', '.join(r.rule for r in rs)} | {sum(r.jobs for r in rs)} | "
-                   f"{sum(r.seconds for r in rs):.0f} | {max(r.longest for r in rs):.0f} | "
-                   f"{sum(r.cpu_seconds for r in rs):.0f} |")  # fmt: skip
+        out.append(
+            f"| {stage} | {', '.join(r.rule for r in rs)} | {sum(r.jobs for r in rs)} | "
+            f"{sum(r.seconds for r in rs):.0f} | {max(r.longest for r in rs):.0f} | "
+            f"{sum(r.cpu_seconds for r in rs):.0f} |"
+        )
     newest = max(j.end for j in jobs)
     when = datetime.fromtimestamp(newest, UTC).strftime("%Y-%m-%d")
-    return "\n".join([*out, "", f"*Read from the {len(jobs)} benchmark files in `results/benchmarks/` (newest "
-                      f"{when}) when the site was built. Jobs of different stages run side by side on the cores, "
-                      "so the whole study takes less than the sum.*"])  # fmt: skip
+    return "\n".join(
+        [
+            *out,
+            "",
+            f"*Read from the {len(jobs)} benchmark files in `results/benchmarks/` (newest "
+            f"{when}) when the site was built. Jobs of different stages run side by side on the cores, "
+            "so the whole study takes less than the sum.*",
+        ]
+    )
 
 
 def _snapshot_stage_times(stamp: dict, page: str) -> str:
     """The stage-times table of the snapshot's run."""
     times = stamp["stage_times"]
-    out = [snapshot_note(stamp, page), "",
-           "| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]  # fmt: skip
+    out = [
+        snapshot_note(stamp, page),
+        "",
+        "| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |",
+        "|---|---|---|---|---|---|",
+    ]
     for row in times["stages"]:
-        out.append(f"| {row['stage']} | {', '.join(row['rules'])} | {row['jobs']} | {row['seconds']:.0f} | "
-                   f"{row['longest']:.0f} | {row['cpu_seconds']:.0f} |")  # fmt: skip
-    return "\n".join([*out, "", f"*{times['jobs']} jobs; the whole run took {times['wall_seconds'] / 60:.0f} min from "
-                      "the first job's start to the last one's end. Jobs of different stages run side by side on the "
-                      "cores, so the whole study takes less than the sum.*"])  # fmt: skip
+        out.append(
+            f"| {row['stage']} | {', '.join(row['rules'])} | {row['jobs']} | {row['seconds']:.0f} | "
+            f"{row['longest']:.0f} | {row['cpu_seconds']:.0f} |"
+        )
+    return "\n".join(
+        [
+            *out,
+            "",
+            f"*{times['jobs']} jobs; the whole run took {times['wall_seconds'] / 60:.0f} min from "
+            "the first job's start to the last one's end. Jobs of different stages run side by side on the "
+            "cores, so the whole study takes less than the sum.*",
+        ]
+    )
 
 
 def ph_snapshot(ctx: Context, page: str, arg: str) -> str:
@@ -806,15 +869,19 @@ def ph_snapshot(ctx: Context, page: str, arg: str) -> str:
     claims that hold, its wall time, its commit and machine)."""
     report = ctx.root / "results" / "paper" / "reproduction.md"
     if report.is_file():
-        return (f"This checkout's last run wrote its [reproduction report]({_relative(page, 'status.md')}) on "
-                f"{_when(report)}.")  # fmt: skip
+        return (
+            f"This checkout's last run wrote its [reproduction report]({_relative(page, 'status.md')}) on "
+            f"{_when(report)}."
+        )
     snap = _snapshot(ctx.root)
     if snap is None:
         return "The study has not run here, and no snapshot of a run is committed."
     from imply.paper.snapshot import readme_line
 
-    return (f"{escape_html(readme_line(snap[1]))} Its figures and numbers are shown throughout these pages until you "
-            f"run the study yourself ([reproduction status]({_relative(page, 'status.md')})).")  # fmt: skip
+    return (
+        f"{escape_html(readme_line(snap[1]))} Its figures and numbers are shown throughout these pages until you "
+        f"run the study yourself ([reproduction status]({_relative(page, 'status.md')}))."
+    )
 
 
 def _fmt(value: Any, spec: str) -> str:
@@ -828,26 +895,39 @@ def ph_standins(ctx: Context, page: str, arg: str) -> str:
     found = result_file(ctx.root, "results/evaluate/standins.json")
     path = found[0] if found else ctx.root / "results" / "evaluate" / "standins.json"
     if not path.is_file():
-        return ("!!! note \"The stand-ins' known answers\"\n    A table of the four stand-ins (tracking r, log error, "
-                "self and anchored disagreement, AUROC against the oracle, static sets) appears here once "
-                "`snakemake --cores 2 results/evaluate/standins.json` has run and the site is rebuilt.")  # fmt: skip
+        return (
+            '!!! note "The stand-ins\' known answers"\n    A table of the four stand-ins (tracking r, log error, '
+            "self and anchored disagreement, AUROC against the oracle, static sets) appears here once "
+            "`snakemake --cores 2 results/evaluate/standins.json` has run and the site is rebuilt."
+        )
     result = json.loads(path.read_text())["result"]
-    out = ["| stand-in | tracking r | log error | self | anchored | AUROC vs oracle, self | AUROC, anchored | "
-           "static sets |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    out = [
+        "| stand-in | tracking r | log error | self | anchored | AUROC vs oracle, self | AUROC, anchored | "
+        "static sets |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     order = ("oracle", "jitter", "blind", "collapse")  # from the truth to the worst
     for _, s in sorted(result["standins"].items(), key=lambda kv: (order + (kv[0],)).index(kv[0])):
-        out.append(f"| {s['model']} | {_fmt(s['track'], '.2f')} | {_fmt(s['error'], '.3f')} | "
-                   f"{_fmt(s['self'], '.3f')} | {_fmt(s['anchored'], '.3f')} | {_fmt(s.get('auroc_self'), '.2f')} | "
-                   f"{_fmt(s.get('auroc_anchored'), '.2f')} | {_fmt(s['static_share'], '.0%')} |")  # fmt: skip
+        out.append(
+            f"| {s['model']} | {_fmt(s['track'], '.2f')} | {_fmt(s['error'], '.3f')} | "
+            f"{_fmt(s['self'], '.3f')} | {_fmt(s['anchored'], '.3f')} | {_fmt(s.get('auroc_self'), '.2f')} | "
+            f"{_fmt(s.get('auroc_anchored'), '.2f')} | {_fmt(s['static_share'], '.0%')} |"
+        )
     ro = result["readout"]
     if found[1] is not None:
         out = [snapshot_note(found[1], page), "", *out]
     when = _when(path) if found[1] is None else f"the snapshot's run of {found[1]['date']}"
-    return "\n".join([*out, "", f"*From `results/evaluate/standins.json` ({when}): {result['n_objects']} "
-                      f"objects, condition {next(iter(result['standins'].values()))['condition']}, sample set 0; the "
-                      f"{ro['name']} readout's R² on real check clips {ro['r2_check']:.3f}, mean absolute log error "
-                      f"{ro['error_check']:.3f}. Every number with its interval is in "
-                      "`results/evaluate/standins/report.md`.*"])  # fmt: skip
+    return "\n".join(
+        [
+            *out,
+            "",
+            f"*From `results/evaluate/standins.json` ({when}): {result['n_objects']} "
+            f"objects, condition {next(iter(result['standins'].values()))['condition']}, sample set 0; the "
+            f"{ro['name']} readout's R² on real check clips {ro['r2_check']:.3f}, mean absolute log error "
+            f"{ro['error_check']:.3f}. Every number with its interval is in "
+            "`results/evaluate/standins/report.md`.*",
+        ]
+    )
 
 
 PLACEHOLDERS: dict[str, Callable[[Context, str, str], str]] = {

@@ -52,13 +52,22 @@ class ScoreConfig(Config):
     grid: int = option(DEFAULT_GRID, doc="search grid points per axis", minimum=11, required=True)
     readout_floor: float = option(DEFAULT_FLOOR, doc="readout floor (m)", exclusive_minimum=0, required=True)
     query_speeds: tuple[float, ...] = option(
-        (0.25, 0.4, 0.55, 0.7, 0.85), doc="query push speeds (m/s)", required=True, min_items=2, unique=True,
+        (0.25, 0.4, 0.55, 0.7, 0.85),
+        doc="query push speeds (m/s)",
+        required=True,
+        min_items=2,
+        unique=True,
         items={"exclusive_minimum": 0},
-    )  # fmt: skip
+    )
     calibration_speeds: tuple[float, ...] = option(
-        (0.3, 0.8), doc="the two calibration push speeds (m/s)", required=True, min_items=2, max_items=2,
-        unique=True, items={"exclusive_minimum": 0},
-    )  # fmt: skip
+        (0.3, 0.8),
+        doc="the two calibration push speeds (m/s)",
+        required=True,
+        min_items=2,
+        max_items=2,
+        unique=True,
+        items={"exclusive_minimum": 0},
+    )
 
     def __post_init__(self) -> None:
         if self.grid < 2:

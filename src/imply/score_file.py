@@ -19,9 +19,15 @@ if TYPE_CHECKING:
     from imply.table import PushTable
 
 SCORE_COLUMNS = [
-    "object_id", "n_rollouts", "self_disagreement", "anchored_disagreement",
-    "mass_hat", "friction_hat", "anchored_mass_hat", "anchored_friction_hat",
-]  # fmt: skip
+    "object_id",
+    "n_rollouts",
+    "self_disagreement",
+    "anchored_disagreement",
+    "mass_hat",
+    "friction_hat",
+    "anchored_mass_hat",
+    "anchored_friction_hat",
+]
 ROLES = ("calibration", "rollout")
 
 
@@ -78,8 +84,13 @@ def _read_rollouts_carefully(path: str | Path, table: PushTable) -> RolloutRows:
     if (ids == "").any():
         raise row_error(path, int(np.flatnonzero(ids == "")[0]), "object_id", "is empty", lines)
     codes, objects = pd.factorize(frame["object_id"], sort=False)
-    rows = RolloutRows([str(o) for o in objects], codes.astype(np.int64), roles == "rollout",
-                       frame["speed"].to_numpy(float), frame["displacement"].to_numpy(float))  # fmt: skip
+    rows = RolloutRows(
+        [str(o) for o in objects],
+        codes.astype(np.int64),
+        roles == "rollout",
+        frame["speed"].to_numpy(float),
+        frame["displacement"].to_numpy(float),
+    )
     _check_rollouts(path, rows, table, lines)
     return rows
 
@@ -101,9 +112,13 @@ def _check_rollouts(path: str | Path, rows: RolloutRows, table: PushTable, lines
     if (n_rollouts < 2).any():
         # codes number objects in order of first appearance: the smallest is the first in the file
         obj = int(np.flatnonzero(n_rollouts < 2)[0])
-        raise row_error(path, int(np.flatnonzero(codes == obj)[0]), "object_id",
-                        f"object {rows.objects[obj]!r} has {n_rollouts[obj]} rollout(s); at least 2 are needed",
-                        lines)  # fmt: skip
+        raise row_error(
+            path,
+            int(np.flatnonzero(codes == obj)[0]),
+            "object_id",
+            f"object {rows.objects[obj]!r} has {n_rollouts[obj]} rollout(s); at least 2 are needed",
+            lines,
+        )
     order = np.lexsort((v, rows.is_rollout, codes))
     same = (np.diff(codes[order]) == 0) & (np.diff(rows.is_rollout[order]) == 0) & (np.diff(v[order]) == 0)
     if same.any():

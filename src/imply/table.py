@@ -67,10 +67,16 @@ class TableConfig(Config):
     def grid(self) -> TableGrid:
         """The table's axes as :func:`build_table` takes them."""
         return TableGrid(
-            speed_min=self.speeds.min, speed_max=self.speeds.max, n_speeds=self.speeds.n,
-            mass_min=self.masses.min, mass_max=self.masses.max, n_masses=self.masses.n,
-            friction_min=self.frictions.min, friction_max=self.frictions.max, n_frictions=self.frictions.n,
-        )  # fmt: skip
+            speed_min=self.speeds.min,
+            speed_max=self.speeds.max,
+            n_speeds=self.speeds.n,
+            mass_min=self.masses.min,
+            mass_max=self.masses.max,
+            n_masses=self.masses.n,
+            friction_min=self.frictions.min,
+            friction_max=self.frictions.max,
+            n_frictions=self.frictions.n,
+        )
 
 
 @dataclass(frozen=True)
@@ -192,9 +198,12 @@ class PushTable:
     # -- files ----------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> None:
         arrays = dict(
-            speeds=self.speeds, masses=self.masses, frictions=self.frictions, log_d=self.log_d,
+            speeds=self.speeds,
+            masses=self.masses,
+            frictions=self.frictions,
+            log_d=self.log_d,
             meta=np.array(json.dumps(self.meta, sort_keys=True)),
-        )  # fmt: skip
+        )
         write_npz(path, **arrays)
 
     @classmethod
@@ -209,10 +218,12 @@ class PushTable:
                     raise TableError(f"{path} is not a push table: missing array(s) {', '.join(missing)}")
                 meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
                 return cls(
-                    speeds=z["speeds"].astype(float), masses=z["masses"].astype(float),
-                    frictions=z["frictions"].astype(float), log_d=z["log_d"].astype(float),
+                    speeds=z["speeds"].astype(float),
+                    masses=z["masses"].astype(float),
+                    frictions=z["frictions"].astype(float),
+                    log_d=z["log_d"].astype(float),
                     meta=meta,
-                )  # fmt: skip
+                )
         except TableError:
             raise
         except Exception as exc:  # zip, pickle or JSON errors: all mean "not a table"
@@ -315,9 +326,14 @@ def reference_at_nodes(
     i, j, k = np.unravel_index(nodes, table.log_d.shape)
     step = scene.timestep / settings.reference_substeps
     ref = reference_log_d(
-        table.speeds[i], table.masses[j], table.frictions[k], scene=scene, step=step, nthread=nthread,
+        table.speeds[i],
+        table.masses[j],
+        table.frictions[k],
+        scene=scene,
+        step=step,
+        nthread=nthread,
         progress=progress,
-    )  # fmt: skip
+    )
     return (i, j, k), ref
 
 
@@ -333,8 +349,12 @@ def error_against(
         "rms_log_d": float(np.sqrt(np.mean(diff**2))),
         "mean_log_d": float(diff.mean()),
         "cells": int(diff.size),
-        "worst_cell": {"speed": float(table.speeds[i[worst]]), "mass": float(table.masses[j[worst]]),
-                       "friction": float(table.frictions[k[worst]]), "difference": float(diff[worst])},
+        "worst_cell": {
+            "speed": float(table.speeds[i[worst]]),
+            "mass": float(table.masses[j[worst]]),
+            "friction": float(table.frictions[k[worst]]),
+            "difference": float(diff[worst]),
+        },
         "reference_step_s": ref.step,
         "reference_error_max": float(ref.error_estimate.max()),
         "reference_error_rms": float(np.sqrt(np.mean(ref.error_estimate**2))),
@@ -343,7 +363,7 @@ def error_against(
             f"at {ref.step * 1e6:.4g} us from start to rest (imply.sim.reference); the reference's own error is "
             f"estimated as its difference from a run at twice that step"
         ),
-    }  # fmt: skip
+    }
 
 
 def check_table(

@@ -60,9 +60,11 @@ class GapConfig(Config):
         ContactBenchmarkConfig(), doc="the contact benchmark: other contact models and another engine", required=True
     )
     lab_benchmark: LabBenchmarkConfig = option(
-        LabBenchmarkConfig(), doc="the lab benchmark: pushes with calibration probes, development and sealed sets by "
-        "engine (imply.realworld.lab)", required=True,
-    )  # fmt: skip
+        LabBenchmarkConfig(),
+        doc="the lab benchmark: pushes with calibration probes, development and sealed sets by "
+        "engine (imply.realworld.lab)",
+        required=True,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,9 +74,10 @@ class PaperConfig(Config):
     config_key: ClassVar[str] = "paper"
 
     stages: tuple[str, ...] = option(
-        PAPER_STAGES, doc="merge only these stages' result parts (imply.config_check.PAPER_STAGES)",
+        PAPER_STAGES,
+        doc="merge only these stages' result parts (imply.config_check.PAPER_STAGES)",
         items={"pattern": "^[A-Za-z0-9_]+$"},
-    )  # fmt: skip
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

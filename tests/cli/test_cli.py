@@ -167,8 +167,11 @@ def test_score_output_matches_the_per_object_reference(tiny_table_path, tmp_path
     scorer = Scorer(PushTable.load(tiny_table_path))
     for obj, g in frame.groupby("object_id"):
         r, c = g[g.role == "rollout"], g[g.role == "calibration"]
-        s = scorer.score(r.speed.to_numpy()[None], r.displacement.to_numpy()[None],
-                         *((c.speed.to_numpy()[None], c.displacement.to_numpy()[None]) if len(c) else (None, None)))  # fmt: skip
+        s = scorer.score(
+            r.speed.to_numpy()[None],
+            r.displacement.to_numpy()[None],
+            *((c.speed.to_numpy()[None], c.displacement.to_numpy()[None]) if len(c) else (None, None)),
+        )
         assert got.loc[obj, "n_rollouts"] == len(r)
         assert got.loc[obj, "self_disagreement"] == pytest.approx(s.self_disagreement[0], rel=1e-8, abs=1e-10)
         if len(c):

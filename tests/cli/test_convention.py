@@ -67,11 +67,29 @@ def test_every_refusal_is_one_line_with_the_command_s_prefix(tmp_path, argv, pre
 
 
 def test_a_missing_suite_or_table_says_the_command_that_builds_it(tmp_path):
-    suite = subprocess.run([sys.executable, "-m", "imply.cli", "evaluate", "--suite", str(tmp_path / "none"), "-o",
-                            str(tmp_path / "r"), "--rollouts", "x.npz"], capture_output=True, text=True)  # fmt: skip
+    suite = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "imply.cli",
+            "evaluate",
+            "--suite",
+            str(tmp_path / "none"),
+            "-o",
+            str(tmp_path / "r"),
+            "--rollouts",
+            "x.npz",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert "snakemake --cores 2 results/suite/manifest.json" in suite.stderr
-    table = subprocess.run([sys.executable, "-m", "imply.cli", "diagnose", "log.csv", "-o", "r"], cwd=tmp_path,
-                           capture_output=True, text=True)  # fmt: skip
+    table = subprocess.run(
+        [sys.executable, "-m", "imply.cli", "diagnose", "log.csv", "-o", "r"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
     assert "snakemake --cores 2 results/table/table.npz" in table.stderr
 
 

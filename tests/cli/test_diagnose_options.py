@@ -13,13 +13,38 @@ from imply.cli import build_parser
 from imply.cli.common import UserError, diagnose_request, user_errors
 from sample_inputs import PUSHLOG_CSV
 
-SHARED = ["--table", "t.npz", "--cache-dir", "c", "--effects", "tilt", "--effect-grid-json", '{"n_speeds": 4}',
-          "--options-json", '{"alpha": 0.01}', "--noise-sd", "0.03", "--ignore-measured", "--threads", "2", "--force"]  # fmt: skip
+SHARED = [
+    "--table",
+    "t.npz",
+    "--cache-dir",
+    "c",
+    "--effects",
+    "tilt",
+    "--effect-grid-json",
+    '{"n_speeds": 4}',
+    "--options-json",
+    '{"alpha": 0.01}',
+    "--noise-sd",
+    "0.03",
+    "--ignore-measured",
+    "--threads",
+    "2",
+    "--force",
+]
 
 
 def _options(args) -> dict:
-    keep = ("table", "cache_dir", "effects", "effect_grid_json", "options_json", "noise_sd", "ignore_measured",
-            "threads", "force")  # fmt: skip
+    keep = (
+        "table",
+        "cache_dir",
+        "effects",
+        "effect_grid_json",
+        "options_json",
+        "noise_sd",
+        "ignore_measured",
+        "threads",
+        "force",
+    )
     return {k: getattr(args, k) for k in keep}
 
 

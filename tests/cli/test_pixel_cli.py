@@ -38,8 +38,28 @@ RECIPE = {"width": 8, "latent": 2, "frames": [3], "epochs": 2, "batch_size": 2}
 
 def test_train_writes_the_checkpoint_and_history(clips, tmp_path):
     out, history = tmp_path / "m.pt", tmp_path / "h.json"
-    assert main(["pixel", "train", "--clips", str(clips), "--recipe-json", json.dumps(RECIPE), "--variant", "calib",
-                 "--threads", "1", "-o", str(out), "--history", str(history), "--no-progress"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "pixel",
+                "train",
+                "--clips",
+                str(clips),
+                "--recipe-json",
+                json.dumps(RECIPE),
+                "--variant",
+                "calib",
+                "--threads",
+                "1",
+                "-o",
+                str(out),
+                "--history",
+                str(history),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     model, epochs = load_pixel_video(out)
     assert model.calibrated and len(epochs) == 2
     doc = json.loads(history.read_text())
@@ -56,8 +76,26 @@ def test_train_writes_the_checkpoint_and_history(clips, tmp_path):
 )
 def test_train_refuses_a_bad_recipe_naming_it_and_writes_nothing(clips, tmp_path, capsys, recipe, message):
     out = tmp_path / "m.pt"
-    assert main(["pixel", "train", "--clips", str(clips), "--recipe-json", json.dumps(recipe), "--variant", "nocalib",
-                 "--threads", "1", "-o", str(out), "--no-progress"]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "pixel",
+                "train",
+                "--clips",
+                str(clips),
+                "--recipe-json",
+                json.dumps(recipe),
+                "--variant",
+                "nocalib",
+                "--threads",
+                "1",
+                "-o",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.startswith("imply pixel train: error:") and message in err and err.count("\n") == 1
     assert list(tmp_path.iterdir()) == []
@@ -65,8 +103,24 @@ def test_train_refuses_a_bad_recipe_naming_it_and_writes_nothing(clips, tmp_path
 
 def test_score_refuses_a_folder_that_is_not_a_report(tmp_path, capsys):
     (tmp_path / "h.json").write_text(json.dumps({"epochs": []}))
-    assert main(["pixel", "score", "--calib", str(tmp_path), "--nocalib", str(tmp_path), "--calib-history",
-                 str(tmp_path / "h.json"), "--nocalib-history", str(tmp_path / "h.json"),
-                 "-o", str(tmp_path / "m.json")]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "pixel",
+                "score",
+                "--calib",
+                str(tmp_path),
+                "--nocalib",
+                str(tmp_path),
+                "--calib-history",
+                str(tmp_path / "h.json"),
+                "--nocalib-history",
+                str(tmp_path / "h.json"),
+                "-o",
+                str(tmp_path / "m.json"),
+            ]
+        )
+        == 2
+    )
     assert "is not an imply evaluate report" in capsys.readouterr().err
     assert not (tmp_path / "m.json").exists()

@@ -118,12 +118,21 @@ def test_cli_refuses_bad_input_with_one_line(tmp_path, capsys):
     from imply.cli import main
 
     out = tmp_path / "x.npz"
-    rc = main(["clips", "render", "--split", "bogus", "--clips-json", "{}", "--score-json", "{}",
-               "-o", str(out)])  # fmt: skip
+    rc = main(["clips", "render", "--split", "bogus", "--clips-json", "{}", "--score-json", "{}", "-o", str(out)])
     assert rc == 2 and "--split" in capsys.readouterr().err and not out.exists()
     frames = tmp_path / "f.npz"
     np.savez(frames, frames=np.zeros((1, 2, 16, 16, 3), np.uint8), clip_id=np.zeros(1, np.int64))
-    rc = main(["encoder", "encode", "--clips", str(frames), "--encoder-json", '{"kind": "vjepa2_pt", "weights": "/nope.pt"}',
-               "-o", str(out)])  # fmt: skip
+    rc = main(
+        [
+            "encoder",
+            "encode",
+            "--clips",
+            str(frames),
+            "--encoder-json",
+            '{"kind": "vjepa2_pt", "weights": "/nope.pt"}',
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "encoder.weights" in err and len(err.strip().splitlines()) == 1 and not out.exists()

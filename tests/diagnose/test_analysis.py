@@ -19,8 +19,9 @@ from sample_inputs import PUSHLOG_CSV
 
 EFFECTS = "tilt,speed_offset,viscous"
 GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, "floor_pushes": 24}'
-DESIGN = C.BenchmarkConfig.from_dict({"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85],
-                                      "masses": [0.3, 1.5], "frictions": [0.15, 0.45]})  # fmt: skip
+DESIGN = C.BenchmarkConfig.from_dict(
+    {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}
+)
 
 
 @pytest.fixture(scope="module")
@@ -31,16 +32,27 @@ def cache(tmp_path_factory):
 def _case(effects: list[dict], seed: int, *, stop_time: bool = False, measured_mass: bool = True, noise="gaussian"):
     rng = np.random.default_rng(seed)
     n = DESIGN.n_objects
-    return {"id": f"case{seed}", "group": "test", "effects": effects,
-            "mass": np.exp(rng.uniform(*np.log(DESIGN.masses), n)).tolist(),
-            "friction": np.exp(rng.uniform(*np.log(DESIGN.frictions), n)).tolist(),
-            "direction": rng.uniform(0, 2 * np.pi, n * len(DESIGN.speeds)).tolist(),
-            "measured_mass": measured_mass, "stop_time": stop_time, "noise": noise, "noise_seed": seed}  # fmt: skip
+    return {
+        "id": f"case{seed}",
+        "group": "test",
+        "effects": effects,
+        "mass": np.exp(rng.uniform(*np.log(DESIGN.masses), n)).tolist(),
+        "friction": np.exp(rng.uniform(*np.log(DESIGN.frictions), n)).tolist(),
+        "direction": rng.uniform(0, 2 * np.pi, n * len(DESIGN.speeds)).tolist(),
+        "measured_mass": measured_mass,
+        "stop_time": stop_time,
+        "noise": noise,
+        "noise_seed": seed,
+    }
 
 
 def _effect(name: str, magnitude: float, azimuth_deg: float | None = None) -> dict:
-    return {"name": name, "magnitude": magnitude, "in_library": True,
-            "azimuth": None if azimuth_deg is None else float(np.radians(azimuth_deg))}  # fmt: skip
+    return {
+        "name": name,
+        "magnitude": magnitude,
+        "in_library": True,
+        "azimuth": None if azimuth_deg is None else float(np.radians(azimuth_deg)),
+    }
 
 
 def _diagnose(
@@ -54,11 +66,34 @@ def _diagnose(
     if track:  # beside the log, where `imply diagnose` finds it
         write_csv(tmp_path / f"{case['id']}.track.csv", C.log_track(case, sims[case["id"]], label, DESIGN))
     out = tmp_path / f"report-{case['id']}"
-    argv = ["diagnose", str(log), "--table", str(tiny_table_path), "--effects", EFFECTS,
-            "--effect-grid-json", GRID, "--cache-dir", str(cache), "--threads", "2", "-o", str(out), *extra]  # fmt: skip
+    argv = [
+        "diagnose",
+        str(log),
+        "--table",
+        str(tiny_table_path),
+        "--effects",
+        EFFECTS,
+        "--effect-grid-json",
+        GRID,
+        "--cache-dir",
+        str(cache),
+        "--threads",
+        "2",
+        "-o",
+        str(out),
+        *extra,
+    ]
     assert main(argv) == 0
-    for name in ("summary.json", "report.md", "residuals.csv", "next_pushes.csv", "residuals_vs_speed.png",
-                 "before_after.png", "ranking.png", "hypotheses.png"):  # fmt: skip
+    for name in (
+        "summary.json",
+        "report.md",
+        "residuals.csv",
+        "next_pushes.csv",
+        "residuals_vs_speed.png",
+        "before_after.png",
+        "ranking.png",
+        "hypotheses.png",
+    ):
         assert (out / name).is_file(), name
     with open(out / "summary.json") as fh:
         return json.load(fh), label, (out / "report.md").read_text()
@@ -128,8 +163,20 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
     monkeypatch.chdir(tmp_path)
     (tmp_path / "log.csv").write_text(PUSHLOG)
     (tmp_path / "notes.txt").write_text("my notes\n")
-    args = ["diagnose", "log.csv", "--table", str(tiny_table_path), "--effects", "speed_gain", "--effect-grid-json",
-            GRID, "--cache-dir", str(cache), "--noise-sd", "0.05"]  # fmt: skip
+    args = [
+        "diagnose",
+        "log.csv",
+        "--table",
+        str(tiny_table_path),
+        "--effects",
+        "speed_gain",
+        "--effect-grid-json",
+        GRID,
+        "--cache-dir",
+        str(cache),
+        "--noise-sd",
+        "0.05",
+    ]
     assert main([*args, "-o", "."]) == 2
     assert "-o . is not empty" in capsys.readouterr().err
     assert main([*args, "-o", ".", "--force"]) == 0
@@ -144,9 +191,18 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
     assert main([*args, "-o", str(report), "--force"]) == 0
     assert (report / "my_reading.md").read_text() == "keep me"
     assert sorted(p.name for p in report.iterdir() if p.name != "my_reading.md") == sorted(
-        [".imply-manifest.json", "summary.json", "report.md", "residuals.csv", "next_pushes.csv",
-         "residuals_vs_speed.png", "before_after.png", "ranking.png", "hypotheses.png"]
-    )  # fmt: skip
+        [
+            ".imply-manifest.json",
+            "summary.json",
+            "report.md",
+            "residuals.csv",
+            "next_pushes.csv",
+            "residuals_vs_speed.png",
+            "before_after.png",
+            "ranking.png",
+            "hypotheses.png",
+        ]
+    )
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".report")]  # no temporary folder left
 
 
@@ -156,19 +212,41 @@ def test_ranking_colours_mark_only_the_verdict_green():
 
     def row(effect: str, identifiable: bool, improvement: float) -> RankedCandidate:
         return RankedCandidate(
-            effect=effect, title="", unit="", components={}, magnitude=0.0, ci95=(0.0, 0.0), sd=0.0, at_bound=False,
-            cls=effect, identifiable=identifiable, lr_stat=0.0, df=1, lr_critical=1.0, heldout_gain=0.0,
-            heldout_improvement=improvement, explained_ms=0.0, floor_ms=0.0, qualifies=False, reasons=[], delta_bic=0.0,
-        )  # fmt: skip
+            effect=effect,
+            title="",
+            unit="",
+            components={},
+            magnitude=0.0,
+            ci95=(0.0, 0.0),
+            sd=0.0,
+            at_bound=False,
+            cls=effect,
+            identifiable=identifiable,
+            lr_stat=0.0,
+            df=1,
+            lr_critical=1.0,
+            heldout_gain=0.0,
+            heldout_improvement=improvement,
+            explained_ms=0.0,
+            floor_ms=0.0,
+            qualifies=False,
+            reasons=[],
+            delta_bic=0.0,
+        )
 
-    ranking = [row("tilt", True, 0.6), row("viscous", True, 0.1), row("height", False, 0.05),
-               row("speed_gain", True, -4.0)]  # fmt: skip
+    ranking = [
+        row("tilt", True, 0.6),
+        row("viscous", True, 0.1),
+        row("height", False, 0.05),
+        row("speed_gain", True, -4.0),
+    ]
     assert ranking_colours(ranking, ["tilt"]) == ["C2", "C0", "0.75", "C3"]
     assert "C2" not in ranking_colours(ranking, [])  # "none of the candidates": nothing is green
 
 
-def test_the_pushers_measured_speed_joins_every_fit_and_narrows_a_speed_error(tmp_path, tiny_table, tiny_table_path,
-                                                                              cache):  # fmt: skip
+def test_the_pushers_measured_speed_joins_every_fit_and_narrows_a_speed_error(
+    tmp_path, tiny_table, tiny_table_path, cache
+):
     """A commanded speed 0.05 m/s off, masses weighed: with the pusher's measured speed in every hypothesis's fit
     the offset is found as before, within a narrower interval, and the report says what each observable told apart;
     without it, the report says what measuring it would add."""

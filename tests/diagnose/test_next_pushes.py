@@ -46,8 +46,13 @@ def test_the_design_separates_the_contenders_better_than_the_logs_own_pushes(ana
 
         cp = Problem.of(cand, prob.table, None, grid=prob.grid)
         log_d, _ = predictions(cp, fit)
-        k = next(i for i in range(cand.n) if cand.objects[cand.obj[i]] == first.object_id
-                 and np.isclose(cand.speed[i], first.speed) and np.isclose(cand.direction[i], first.direction))  # fmt: skip
+        k = next(
+            i
+            for i in range(cand.n)
+            if cand.objects[cand.obj[i]] == first.object_id
+            and np.isclose(cand.speed[i], first.speed)
+            and np.isclose(cand.direction[i], first.direction)
+        )
         assert np.isclose(first.expected_displacement[name], np.exp(log_d[k]))
 
 
@@ -62,8 +67,14 @@ def test_next_pushes_are_a_pushes_file_imply_sim_pushes_runs(analytic_table, tmp
     prob = problem_of(make_log(seed=7, offset=0.05), analytic_table).with_noise(0.02, None)
     design = design_pushes(prob, _contenders(prob), n=3, speeds=5, directions=4, opts=OPTS.replace(model_floor=0.0))
     frame = next_pushes_frame(design, prob.log)
-    assert list(frame.columns) == ["object_id", "speed", "direction", "mass", "expected_displacement_if_speed_gain",
-                                   "expected_displacement_if_speed_offset"]  # fmt: skip
+    assert list(frame.columns) == [
+        "object_id",
+        "speed",
+        "direction",
+        "mass",
+        "expected_displacement_if_speed_gain",
+        "expected_displacement_if_speed_offset",
+    ]
     path = tmp_path / "next_pushes.csv"
     write_next_pushes(path, design, prob.log)
     pushes = read_pushes(path)  # what `imply sim pushes` reads
@@ -83,14 +94,42 @@ def test_extra_pushes_run_in_the_same_world_with_the_logs_columns():
     from imply.realworld import cases as C
     from imply.sim import SceneConfig
 
-    design = C.BenchmarkConfig.from_dict({"seed": 0, "n_objects": 3, "speeds": [0.3, 0.6], "masses": [0.3, 1.5],
-                                          "frictions": [0.15, 0.45], "replicates": 2})  # fmt: skip
-    case = {"id": "c", "group": "test", "effects": [], "mass": [0.5, 1.0, 1.2], "friction": [0.2, 0.3, 0.4],
-            "direction": [0.0] * 6, "measured_mass": True, "stop_time": True, "noise": "gaussian", "noise_seed": 3}  # fmt: skip
+    design = C.BenchmarkConfig.from_dict(
+        {
+            "seed": 0,
+            "n_objects": 3,
+            "speeds": [0.3, 0.6],
+            "masses": [0.3, 1.5],
+            "frictions": [0.15, 0.45],
+            "replicates": 2,
+        }
+    )
+    case = {
+        "id": "c",
+        "group": "test",
+        "effects": [],
+        "mass": [0.5, 1.0, 1.2],
+        "friction": [0.2, 0.3, 0.4],
+        "direction": [0.0] * 6,
+        "measured_mass": True,
+        "stop_time": True,
+        "noise": "gaussian",
+        "noise_seed": 3,
+    }
     scene = SceneConfig()
     new = C.extra_pushes(case, design, scene, np.array([0, 2]), np.array([0.4, 0.8]), np.array([0.0, 1.0]), seed=1)
-    assert list(new.columns) == ["object_id", "speed", "direction", "displacement", "stop_time", "pusher_speed",
-                                 "size_x", "size_y", "size_z", "mass"]  # fmt: skip
+    assert list(new.columns) == [
+        "object_id",
+        "speed",
+        "direction",
+        "displacement",
+        "stop_time",
+        "pusher_speed",
+        "size_x",
+        "size_y",
+        "size_z",
+        "mass",
+    ]
     # the pusher's measured speed: below its command within the stroke, noise of the configured size
     assert (new["pusher_speed"] < new["speed"]).all() and (new["pusher_speed"] > 0.2 * new["speed"]).all()
     assert list(new["object_id"]) == ["obj00", "obj02", "obj00", "obj02"]  # two noise draws of each push

@@ -103,8 +103,10 @@ def test_pusher_speed_is_read_and_its_bad_cells_named(tmp_path):
     good = _with_pusher_speed(GOOD, ["0.2", "0.3", "0.4", "0.2", "0.3", "0.4"])
     log = read_pushlog(_write(tmp_path, good), (0.15, 1.05))
     assert log.pusher_speed.tolist() == [0.2, 0.3, 0.4, 0.2, 0.3, 0.4]
-    assert log.aux("pusher_speed") is not None and read_pushlog(_write(tmp_path, GOOD), (0.15, 1.05)).aux(
-        "pusher_speed") is None  # fmt: skip
+    assert (
+        log.aux("pusher_speed") is not None
+        and read_pushlog(_write(tmp_path, GOOD), (0.15, 1.05)).aux("pusher_speed") is None
+    )
     for values, expected in (
         (["0.2", "0.3", "-0.4", "0.2", "0.3", "0.4"], "row 3 (line 4), column pusher_speed: -0.4 must be positive"),
         (["0.2", "0.3", "0.4", "0.2", "300", "0.4"], "row 5 (line 6), column pusher_speed: 300 m/s is more than"),

@@ -31,9 +31,18 @@ OPTS = DiagnosisConfig(grid=41, scan=5, max_effects=2)
 TABLELESS = ["speed_gain", "speed_offset", "anisotropic"]
 
 
-def make_log(*, seed: int = 0, gain: float = 0.0, offset: float = 0.0, aniso: tuple[float, float] = (0.0, 0.0),
-             sd: float = 0.02, replicates: int = 2, n_objects: int = 6, measured_mass: bool = True,
-             outlier: float = 0.0) -> PushLog:  # fmt: skip
+def make_log(
+    *,
+    seed: int = 0,
+    gain: float = 0.0,
+    offset: float = 0.0,
+    aniso: tuple[float, float] = (0.0, 0.0),
+    sd: float = 0.02,
+    replicates: int = 2,
+    n_objects: int = 6,
+    measured_mass: bool = True,
+    outlier: float = 0.0,
+) -> PushLog:
     """A push log of the closed-form world: each object pushed once per speed in a random direction."""
     rng = np.random.default_rng(seed)
     mass = np.geomspace(0.3, 1.5, n_objects)
@@ -47,9 +56,17 @@ def make_log(*, seed: int = 0, gain: float = 0.0, offset: float = 0.0, aniso: tu
     log_d[5] += outlier
     names = [f"box{i}" for i in obj]
     frame = pd.DataFrame({"object_id": names, "speed": v, "displacement": np.exp(log_d), "direction": phi})
-    return PushLog(path="<synthetic>", frame=frame, objects=[f"box{i}" for i in range(n_objects)], obj=obj, speed=v,
-                   displacement=np.exp(log_d), direction=phi, has_direction=True,
-                   mass=mass if measured_mass else None)  # fmt: skip
+    return PushLog(
+        path="<synthetic>",
+        frame=frame,
+        objects=[f"box{i}" for i in range(n_objects)],
+        obj=obj,
+        speed=v,
+        displacement=np.exp(log_d),
+        direction=phi,
+        has_direction=True,
+        mass=mass if measured_mass else None,
+    )
 
 
 def problem_of(log: PushLog, table) -> Problem:
@@ -173,8 +190,16 @@ def _hypotheses(log: PushLog, table):
     prob, base = baseline_fit(estimate_noise(prob, OPTS).apply(prob), OPTS)
     cands = candidates.get(TABLELESS)
     alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
-    hyps = enumerate_hypotheses(prob, base, cands, alias=alias, max_effects=OPTS.max_effects, screen=OPTS.screen,
-                                scan=OPTS.scan, n_folds=OPTS.folds)  # fmt: skip
+    hyps = enumerate_hypotheses(
+        prob,
+        base,
+        cands,
+        alias=alias,
+        max_effects=OPTS.max_effects,
+        screen=OPTS.screen,
+        scan=OPTS.scan,
+        n_folds=OPTS.folds,
+    )
     return prob, base, hyps
 
 
@@ -200,8 +225,17 @@ def test_effects_the_discrepancy_holds_never_sit_beside_it(analytic_table):
     alias = aliasing(prob, cands, fit=base.objects, opts=OPTS)
 
     def table(held):
-        return enumerate_hypotheses(prob, base, cands, alias=alias, max_effects=OPTS.max_effects, screen=OPTS.screen,
-                                    scan=OPTS.scan, n_folds=OPTS.folds, held=held).table  # fmt: skip
+        return enumerate_hypotheses(
+            prob,
+            base,
+            cands,
+            alias=alias,
+            max_effects=OPTS.max_effects,
+            screen=OPTS.screen,
+            scan=OPTS.scan,
+            n_folds=OPTS.folds,
+            held=held,
+        ).table
 
     free, held = table(set()), table({"speed_gain"})
     assert any(h.discrepancy and "speed_gain" in h.effects for h in free)

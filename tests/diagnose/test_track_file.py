@@ -29,8 +29,17 @@ def _track(log) -> pd.DataFrame:
     for i in range(log.n):
         d, phi = log.displacement[i], log.direction[i]
         s = np.where(t < 0.3, d * (1.0 - (1.0 - t / 0.3) ** 2), d)
-        rows.append(pd.DataFrame({"object_id": log.objects[log.obj[i]], "push": i + 1, "t": t,
-                                  "x": 0.2 + s * np.cos(phi), "y": -0.1 + s * np.sin(phi)}))  # fmt: skip
+        rows.append(
+            pd.DataFrame(
+                {
+                    "object_id": log.objects[log.obj[i]],
+                    "push": i + 1,
+                    "t": t,
+                    "x": 0.2 + s * np.cos(phi),
+                    "y": -0.1 + s * np.sin(phi),
+                }
+            )
+        )
     return pd.concat(rows, ignore_index=True)
 
 
@@ -64,27 +73,42 @@ def _edit_row(frame: pd.DataFrame, row: int, **values) -> pd.DataFrame:
     "edit, expected",
     [
         (lambda f: _edit_row(f, 5, t=0.01), "row 6 (line 7), column t: 0.01 does not come after the frame before it"),
-        (lambda f: f.assign(t=np.where(f["push"] == 2, f["t"] + 0.5, f["t"])),
-         f"row {FRAMES + 1} (line {FRAMES + 2}), column t: the track of push 2 starts at 0.5 s"),
-        (lambda f: _edit_row(f, FRAMES + 3, object_id="b"),
-         f"row {FRAMES + 4} (line {FRAMES + 5}), column object_id: 'b', but push 2 of the log is of 'a'"),
+        (
+            lambda f: f.assign(t=np.where(f["push"] == 2, f["t"] + 0.5, f["t"])),
+            f"row {FRAMES + 1} (line {FRAMES + 2}), column t: the track of push 2 starts at 0.5 s",
+        ),
+        (
+            lambda f: _edit_row(f, FRAMES + 3, object_id="b"),
+            f"row {FRAMES + 4} (line {FRAMES + 5}), column object_id: 'b', but push 2 of the log is of 'a'",
+        ),
         (lambda f: f[f["push"] != 4], "row 4 (line 5): push 4 has no track in"),
-        (lambda f: f.assign(push=np.where(f["push"] == 6, 9, f["push"])),
-         f"row {5 * FRAMES + 1} (line {5 * FRAMES + 2}), column push: 9 is not a push of"),
-        (lambda f: f.assign(x=np.where(f["push"] == 3, f["x"] * 0 + 0.2, f["x"])),
-         f"row {3 * FRAMES} (line {3 * FRAMES + 1}), column x: the track of push 3 ends 0 m along the push"),
-        (lambda f: f.assign(y=np.where(f["push"] == 6, f["x"], f["y"]), x=np.where(f["push"] == 6, 0.2, f["x"])),
-         "the track of push 6 ends 0 m along the push"),  # filmed across the log's direction
-        (lambda f: f.assign(x=f["x"] * 1000, y=f["y"] * 1000), "ends 50 m along the push from where it starts; "
-         "the log's displacement is 0.05 m"),
-        (lambda f: pd.concat([f.iloc[:FRAMES // 2], f.iloc[FRAMES:2 * FRAMES], f.iloc[FRAMES // 2:FRAMES],
-                              f.iloc[2 * FRAMES:]]),
-         f"row {2 * FRAMES - FRAMES // 2 + 1} (line {2 * FRAMES - FRAMES // 2 + 2}), column push: push 1 continues here"),
+        (
+            lambda f: f.assign(push=np.where(f["push"] == 6, 9, f["push"])),
+            f"row {5 * FRAMES + 1} (line {5 * FRAMES + 2}), column push: 9 is not a push of",
+        ),
+        (
+            lambda f: f.assign(x=np.where(f["push"] == 3, f["x"] * 0 + 0.2, f["x"])),
+            f"row {3 * FRAMES} (line {3 * FRAMES + 1}), column x: the track of push 3 ends 0 m along the push",
+        ),
+        (
+            lambda f: f.assign(y=np.where(f["push"] == 6, f["x"], f["y"]), x=np.where(f["push"] == 6, 0.2, f["x"])),
+            "the track of push 6 ends 0 m along the push",
+        ),  # filmed across the log's direction
+        (
+            lambda f: f.assign(x=f["x"] * 1000, y=f["y"] * 1000),
+            "ends 50 m along the push from where it starts; the log's displacement is 0.05 m",
+        ),
+        (
+            lambda f: pd.concat(
+                [f.iloc[: FRAMES // 2], f.iloc[FRAMES : 2 * FRAMES], f.iloc[FRAMES // 2 : FRAMES], f.iloc[2 * FRAMES :]]
+            ),
+            f"row {2 * FRAMES - FRAMES // 2 + 1} (line {2 * FRAMES - FRAMES // 2 + 2}), column push: push 1 continues here",
+        ),
         (lambda f: pd.concat([f[f["push"] != 1], f[f["push"] == 1].iloc[:3]]), "the track of push 1 has 3 frame(s)"),
         (lambda f: _edit_row(f.astype({"y": object}), 7, y="left"), "row 8 (line 9), column y: 'left' is not a finite"),
         (lambda f: f.drop(columns=["t"]), "missing column(s) t"),
     ],
-)  # fmt: skip
+)
 def test_a_bad_track_is_refused_naming_its_row(tmp_path, edit, expected):
     log = _log(tmp_path)
     with pytest.raises(InputError) as err:
@@ -106,8 +130,18 @@ def test_a_track_names_pushes_by_the_logs_push_column_where_it_has_one(tmp_path)
 def test_imply_diagnose_refuses_a_bad_track_before_any_work(tmp_path, tiny_table_path, capsys):
     log = _log(tmp_path)
     bad = _write(tmp_path, _edit_row(_track(log), 5, t=0.01))
-    code = main(["diagnose", str(tmp_path / "log.csv"), "--table", str(tiny_table_path), "--track", str(bad),
-                 "-o", str(tmp_path / "report")])  # fmt: skip
+    code = main(
+        [
+            "diagnose",
+            str(tmp_path / "log.csv"),
+            "--table",
+            str(tiny_table_path),
+            "--track",
+            str(bad),
+            "-o",
+            str(tmp_path / "report"),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code != 0 and "row 6 (line 7), column t" in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "report").exists()

@@ -25,23 +25,45 @@ from imply.diagnose.verdict import Adequacy, Identification, adequacy, explanati
 def _estimate(name: str, magnitude: float, azimuth_deg: float | None = None) -> EffectEstimate:
     c = CANDIDATES[name]
     return EffectEstimate(
-        effect=name, title=c.title, unit=c.unit, components={}, magnitude=magnitude, ci95=(0.0, 1.0), sd=0.1,
-        at_bound=False, azimuth_deg=azimuth_deg, azimuth_ci95_deg=None if azimuth_deg is None else (0.0, 1.0),
-    )  # fmt: skip
+        effect=name,
+        title=c.title,
+        unit=c.unit,
+        components={},
+        magnitude=magnitude,
+        ci95=(0.0, 1.0),
+        sd=0.1,
+        at_bound=False,
+        azimuth_deg=azimuth_deg,
+        azimuth_ci95_deg=None if azimuth_deg is None else (0.0, 1.0),
+    )
 
 
 def _accepted(e: EffectEstimate) -> AcceptedEffect:
     return AcceptedEffect(**e.__dict__, cls=e.effect, fit_alias="")
 
 
-def _h(effects: list[str], weight: float, *, disc: bool = False, bound: tuple[str, ...] = (),
-       magnitudes: dict[str, float] | None = None) -> Hypothesis:  # fmt: skip
+def _h(
+    effects: list[str],
+    weight: float,
+    *,
+    disc: bool = False,
+    bound: tuple[str, ...] = (),
+    magnitudes: dict[str, float] | None = None,
+) -> Hypothesis:
     label = "+".join(sorted(effects) + (["discrepancy"] if disc else [])) or NO_EFFECT
     mags = magnitudes or {}
-    return Hypothesis(label=label, effects=list(effects), discrepancy=disc, log_evidence=0.0, weight=weight, chi2=1.0,
-                      heldout_chi2=1.0, n_parameters=len(effects), at_bound=list(bound),
-                      estimates=[_estimate(e, mags.get(e, 0.05), 0.0 if CANDIDATES[e].dim == 2 else None)
-                                 for e in effects])  # fmt: skip
+    return Hypothesis(
+        label=label,
+        effects=list(effects),
+        discrepancy=disc,
+        log_evidence=0.0,
+        weight=weight,
+        chi2=1.0,
+        heldout_chi2=1.0,
+        n_parameters=len(effects),
+        at_bound=list(bound),
+        estimates=[_estimate(e, mags.get(e, 0.05), 0.0 if CANDIDATES[e].dim == 2 else None) for e in effects],
+    )
 
 
 def _judge(table, share=0.95):
@@ -75,11 +97,15 @@ def test_each_effect_says_itself(effect, expected):
 
 def test_speed_gain_and_offset_read_as_one_speed():
     both = [_estimate("speed_gain", -0.2), _estimate("air_drag", 142.0), _estimate("speed_offset", -0.00689)]
-    assert clauses(both) == ["the pusher's speed is 20.0% below the command, less 6.9 mm/s",
-                             "the box feels air drag as of a medium of 142 kg/m^3"]  # fmt: skip
+    assert clauses(both) == [
+        "the pusher's speed is 20.0% below the command, less 6.9 mm/s",
+        "the box feels air drag as of a medium of 142 kg/m^3",
+    ]
     crossing = clauses([_estimate("speed_offset", 0.0233), _estimate("speed_gain", -0.2)])
-    assert crossing == ["the pusher's speed is 20.0% below the command, plus 23 mm/s (faster than commanded below "
-                        "0.12 m/s, slower above)"]  # fmt: skip
+    assert crossing == [
+        "the pusher's speed is 20.0% below the command, plus 23 mm/s (faster than commanded below "
+        "0.12 m/s, slower above)"
+    ]
 
 
 def test_every_candidate_has_a_clause_and_a_way_to_be_told_apart():
@@ -160,9 +186,15 @@ def test_an_effect_at_its_bound_or_a_gap_left_open_states_nothing():
 def _summary(table, *, share=0.95, effects=(), inclusion=None, discrepancy=None, next_pushes=None):
     v = _judge(table, share=share)
     shrink = SimpleNamespace(before_rms=0.0238, noise_floor_rms=0.0182, unexplained_rms_above_floor=0.0198)
-    return SimpleNamespace(verdict=v, shrinkage=shrink, hypotheses=sorted(table, key=lambda h: -h.weight),
-                           effects=list(effects), inclusion=inclusion or {}, discrepancy=discrepancy,
-                           next_pushes=next_pushes)  # fmt: skip
+    return SimpleNamespace(
+        verdict=v,
+        shrinkage=shrink,
+        hypotheses=sorted(table, key=lambda h: -h.weight),
+        effects=list(effects),
+        inclusion=inclusion or {},
+        discrepancy=discrepancy,
+        next_pushes=next_pushes,
+    )
 
 
 def test_no_gap_in_words():
@@ -176,8 +208,11 @@ def test_no_gap_in_words():
 
 def test_one_cause_in_words():
     tilt = {"tilt": 0.0212}
-    s = _summary([_h(["tilt"], 0.9, magnitudes=tilt), _h(["tilt", "viscous"], 0.1, magnitudes=tilt)],
-                 effects=[_accepted(_estimate("tilt", 0.0212, None))], inclusion={"tilt": 1.0, "viscous": 0.1})  # fmt: skip
+    s = _summary(
+        [_h(["tilt"], 0.9, magnitudes=tilt), _h(["tilt", "viscous"], 0.1, magnitudes=tilt)],
+        effects=[_accepted(_estimate("tilt", 0.0212, None))],
+        inclusion={"tilt": 1.0, "viscous": 0.1},
+    )
     assert verdict_text(s) == (
         "The gap is explained (the leading hypothesis closes 95% of the gap), and by one cause: the table slopes "
         "0.0212 rad toward 0 degrees (table frame) (weight 0.90). These pushes cannot rule out viscous friction beside "
@@ -186,14 +221,25 @@ def test_one_cause_in_words():
 
 
 def test_undecided_in_words_with_the_next_pushes():
-    design = PushDesign(contenders=["speed_gain+discrepancy", "discrepancy"], pushes=[],
-                        separation_sd={"speed_gain+discrepancy | discrepancy": 4.25},
-                        log_design_separation_sd={"speed_gain+discrepancy | discrepancy": 1.5})  # fmt: skip
+    design = PushDesign(
+        contenders=["speed_gain+discrepancy", "discrepancy"],
+        pushes=[],
+        separation_sd={"speed_gain+discrepancy | discrepancy": 4.25},
+        log_design_separation_sd={"speed_gain+discrepancy | discrepancy": 1.5},
+    )
     design = PushDesign(**{**design.__dict__, "pushes": [object()] * 12})
-    disc = DiscrepancyReport(coefficients={}, rms_log_d=0.05, speed_trend=-0.2, speed_trend_rough_minus_smooth=0.0,
-                             speed_trend_heavy_minus_light=0.0)  # fmt: skip
-    s = _summary([_h(["speed_gain"], 0.6, disc=True, magnitudes={"speed_gain": -0.1}), _h([], 0.4, disc=True)],
-                 discrepancy=disc, next_pushes=design)  # fmt: skip
+    disc = DiscrepancyReport(
+        coefficients={},
+        rms_log_d=0.05,
+        speed_trend=-0.2,
+        speed_trend_rough_minus_smooth=0.0,
+        speed_trend_heavy_minus_light=0.0,
+    )
+    s = _summary(
+        [_h(["speed_gain"], 0.6, disc=True, magnitudes={"speed_gain": -0.1}), _h([], 0.4, disc=True)],
+        discrepancy=disc,
+        next_pushes=design,
+    )
     assert verdict_text(s) == (
         "The gap is explained (the leading hypothesis closes 95% of the gap), and the pushes cannot tell 2 "
         "explanations apart: the pusher runs 10.0% slower than commanded, beside a smooth discrepancy (weight 0.60); "

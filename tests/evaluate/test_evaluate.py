@@ -132,9 +132,12 @@ def _rows(ev, suite):
     grid = np.meshgrid(np.arange(c), np.arange(s), np.arange(n), np.arange(k), indexing="ij")
     ci, si, ni, ki = (g.ravel() for g in grid)
     return dict(
-        object_id=suite.object_ids[ni], condition=np.array(r.conditions)[ci], speed=suite.query_speeds[ki],
-        sample=si, output=r.displacement.ravel(),
-    )  # fmt: skip
+        object_id=suite.object_ids[ni],
+        condition=np.array(r.conditions)[ci],
+        speed=suite.query_speeds[ki],
+        sample=si,
+        output=r.displacement.ravel(),
+    )
 
 
 def test_two_ways_in_give_one_result(tiny_suite, tmp_path):

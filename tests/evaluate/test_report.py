@@ -75,16 +75,19 @@ def make_evaluation(
             # an undefined correlation (a constant score): must come out as null / n/a
             corr_self=Estimate(NAN, NAN, NAN) if c == "none" else _estimate(rng),
             corr_anchored=_estimate(rng),
-        )  # fmt: skip
+        )
         for c in conditions
     )
     rules = ("lowest self", "lowest anchored", "random")
-    by_conditions = Selection("conditions", len(conditions), tuple(
-        SelectionRow(rule, _estimate(rng), _estimate(rng)) for rule in rules))  # fmt: skip
+    by_conditions = Selection(
+        "conditions", len(conditions), tuple(SelectionRow(rule, _estimate(rng), _estimate(rng)) for rule in rules)
+    )
     by_samples = tuple(
-        Selection(f"sample sets ({c})", n_samples, tuple(SelectionRow(r, _estimate(rng), _estimate(rng)) for r in rules))
+        Selection(
+            f"sample sets ({c})", n_samples, tuple(SelectionRow(r, _estimate(rng), _estimate(rng)) for r in rules)
+        )
         for c in conditions
-    )  # fmt: skip
+    )
     degenerate = tuple(
         Degenerate(
             c,
@@ -93,7 +96,7 @@ def make_evaluation(
             static=3 if (frames and c == "none") else 0,
             not_growing=1 if c == "other" else 0,
             no_box=2 if (frames and c == "other") else 0,
-        )  # fmt: skip
+        )
         for c in conditions
     )
     return Evaluation(
@@ -108,7 +111,7 @@ def make_evaluation(
             n_check=50,
             r2_check=0.97,
             error_check=0.05,
-        ),  # fmt: skip
+        ),
         n_objects=N_OBJECTS,
         n_speeds=N_SPEEDS,
         n_samples=n_samples,
@@ -179,8 +182,17 @@ def _comparison_table(text: str) -> list[list[str]]:
 
 def test_every_file_is_written(written):
     out, names = written
-    expected = {"results.json", "report.md", "per_object.csv", "slides.png", "slides.pdf", "scores.png",
-                "scores.pdf", "selection.png", "selection.pdf"}  # fmt: skip
+    expected = {
+        "results.json",
+        "report.md",
+        "per_object.csv",
+        "slides.png",
+        "slides.pdf",
+        "scores.png",
+        "scores.pdf",
+        "selection.png",
+        "selection.pdf",
+    }
     assert set(names) == expected
     assert {p.name for p in out.iterdir()} == expected | {MANIFEST}
     assert set(names) <= set(report.REPORT_FILES)
@@ -203,12 +215,23 @@ def test_per_object_csv_has_a_row_per_model_condition_sample_object_and_speed(wr
         rows = list(csv.DictReader(fh))
     assert len(rows) == sum(ev.readings.displacement.size for ev in evaluations)
     assert len(rows) == (3 * 1 + 3 * 3 + 1 * 1) * N_OBJECTS * N_SPEEDS
-    assert list(rows[0]) == ["model", "condition", "sample", "object_id", "speed_m_s", "read_displacement_m",
-                             "true_displacement_m", "box_found"]  # fmt: skip
+    assert list(rows[0]) == [
+        "model",
+        "condition",
+        "sample",
+        "object_id",
+        "speed_m_s",
+        "read_displacement_m",
+        "true_displacement_m",
+        "box_found",
+    ]
     ev = evaluations[1]
     # the second model, condition other (index 1), sample set 2, object 5: its K rows in speed order
-    pick = [r for r in rows if (r["model"], r["condition"], r["sample"], r["object_id"]) == (ev.model, "other", "2",
-                                                                                             "obj005")]  # fmt: skip
+    pick = [
+        r
+        for r in rows
+        if (r["model"], r["condition"], r["sample"], r["object_id"]) == (ev.model, "other", "2", "obj005")
+    ]
     assert len(pick) == N_SPEEDS
     assert float(pick[3]["read_displacement_m"]) == pytest.approx(ev.readings.displacement[1, 2, 5, 3], rel=1e-9)
     assert float(pick[3]["true_displacement_m"]) == pytest.approx(ev.readings.true_displacement[5, 3], rel=1e-9)

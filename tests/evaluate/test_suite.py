@@ -66,9 +66,14 @@ def test_frames_equal_the_clips_renderers(tiny_table_path, tmp_path):
     scene, speeds = SceneConfig(), ScoreConfig()
     cfg = SuiteConfig.from_dict({"n_objects": 2, "n_readout_train": 2, "n_readout_check": 1, "context_frames": 2})
     folder = build_suite(
-        cfg, clips=clips, scene=scene, speeds=speeds, table_path=tiny_table_path, out_dir=tmp_path / "s",
+        cfg,
+        clips=clips,
+        scene=scene,
+        speeds=speeds,
+        table_path=tiny_table_path,
+        out_dir=tmp_path / "s",
         progress=False,
-    )  # fmt: skip
+    )
     suite = load_suite(folder)
     truth = load_truth(suite)
     held, held_meta = render_split(clips, "heldout_calib", scene=scene, speeds=speeds, progress=False)
@@ -148,9 +153,17 @@ def test_split_outside_the_heldout_splits_is_refused():
 def test_cli_build_gives_the_same_bytes_and_show_checks_it(tiny_suite, tiny_table_path, tmp_path, capsys):
     out = tmp_path / "cli"
     argv = [
-        "suite", "build", "--suite-json", json.dumps(TINY_SUITE), "--clips-json", json.dumps(TINY_SUITE_CLIPS),
-        "--table", str(tiny_table_path), "-o", str(out),
-    ]  # fmt: skip
+        "suite",
+        "build",
+        "--suite-json",
+        json.dumps(TINY_SUITE),
+        "--clips-json",
+        json.dumps(TINY_SUITE_CLIPS),
+        "--table",
+        str(tiny_table_path),
+        "-o",
+        str(out),
+    ]
     assert main(argv) == 0
     for name in FILES:
         assert (out / name).read_bytes() == (tiny_suite / name).read_bytes(), name

@@ -35,8 +35,9 @@ def _png(path, frame):
     Image.fromarray(frame).save(path)
 
 
-def _generate(suite, model, folder, *, mp4: bool = False, fps: float = 10.0, skip: tuple[str, ...] = (),
-              scale: int = 1):  # fmt: skip
+def _generate(
+    suite, model, folder, *, mp4: bool = False, fps: float = 10.0, skip: tuple[str, ...] = (), scale: int = 1
+):
     """What a model elsewhere would write: each case's context frames, then its rollout, one video per case
     (``scale`` times the camera's size, each pixel repeated)."""
     C = suite.context_frames.shape[2]
@@ -127,8 +128,12 @@ def test_a_bad_folder_is_refused_with_one_line_per_problem_and_nothing_scored(ti
         check_videos(folder, suite, CONDITIONS)
     lines = err.value.problems
     kinds = [line.split(": ")[1] for line in lines]
-    assert kinds == ["extra files (not a video or a folder of PNG frames)", "missing", "undecodable",
-                     "mixed frame rates"]  # fmt: skip
+    assert kinds == [
+        "extra files (not a video or a folder of PNG frames)",
+        "missing",
+        "undecodable",
+        "mixed frame rates",
+    ]
     assert f"missing: 1 ({cases[0].case_id}.mp4)" in lines[1]
     assert "25 fps: 1 videos" in lines[3] and "10 fps:" in lines[3]
     report = tmp_path / "report"
@@ -157,8 +162,23 @@ def test_export_and_evaluate_from_the_command_line(tiny_suite, tmp_path):
     _generate(suite, oracle(suite), folder)
     assert main(["evaluate", "--videos", str(folder), "--suite", str(tiny_suite), "--check"]) == 0
     out = tmp_path / "report"
-    assert main(["evaluate", "--videos", str(folder), "--suite", str(tiny_suite), "-o", str(out), "--no-progress",
-                 "--bootstrap", "20"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--videos",
+                str(folder),
+                "--suite",
+                str(tiny_suite),
+                "-o",
+                str(out),
+                "--no-progress",
+                "--bootstrap",
+                "20",
+            ]
+        )
+        == 0
+    )
     results = json.loads((out / "results.json").read_text())
     assert results["models"][0]["model"] == "oracle" and results["models"][0]["kind"] == "frames"
 
@@ -189,15 +209,26 @@ def test_the_file_door_example_runs_as_written(tiny_suite, tmp_path, repo_root):
     assert model["model"] == "my-videos" and model["kind"] == "frames"
 
 
-def test_a_command_in_its_own_environment_generates_then_is_scored_and_resumes(tiny_suite, tmp_path, repo_root,
-                                                                              capsys):  # fmt: skip
+def test_a_command_in_its_own_environment_generates_then_is_scored_and_resumes(tiny_suite, tmp_path, repo_root, capsys):
     import sys
 
     script = repo_root / "examples" / "video_world_model.py"
     out = tmp_path / "report"
     command = f"{sys.executable} {script} {{package}} {{out}} --cases {{cases}}"
-    args = ["evaluate", "--command", command, "--name", "power-law", "--suite", str(tiny_suite), "-o", str(out),
-            "--no-progress", "--bootstrap", "20"]  # fmt: skip
+    args = [
+        "evaluate",
+        "--command",
+        command,
+        "--name",
+        "power-law",
+        "--suite",
+        str(tiny_suite),
+        "-o",
+        str(out),
+        "--no-progress",
+        "--bootstrap",
+        "20",
+    ]
     assert main(args) == 0
     results = json.loads((out / "results.json").read_text())
     assert results["models"][0]["model"] == "power-law"
@@ -213,8 +244,16 @@ def test_a_command_in_its_own_environment_generates_then_is_scored_and_resumes(t
     assert [r.rsplit("# ", 1)[1] for r in runs] == [f"{n} cases", "2 cases"]
     assert all(p.exists() for p in lost)
     # a command that fails stops with its last lines, nothing scored
-    bad = ["evaluate", "--command", f"{sys.executable} -c \"import sys; print('no GPU here'); sys.exit(3)\"",
-           "--suite", str(tiny_suite), "-o", str(tmp_path / "bad"), "--no-progress"]  # fmt: skip
+    bad = [
+        "evaluate",
+        "--command",
+        f"{sys.executable} -c \"import sys; print('no GPU here'); sys.exit(3)\"",
+        "--suite",
+        str(tiny_suite),
+        "-o",
+        str(tmp_path / "bad"),
+        "--no-progress",
+    ]
     assert main(bad) == 2
     err = capsys.readouterr().err
     assert "--command exited with status 3" in err and "no GPU here" in err
@@ -231,10 +270,25 @@ def test_slides_no_pushed_box_could_make_are_flagged(tiny_suite, tmp_path, capsy
         "    def rollout(self, request):\n"
         "        return np.tile(1000.0 * 0.2 * (request.query_speeds / 0.55) ** 2, (len(request.object_ids), 1))\n"
         "def build(suite):\n    return M()\n"
-    )  # fmt: skip
+    )
     out = tmp_path / "report"
-    assert main(["evaluate", "--model", str(tmp_path / "millimetres.py") + ":build", "--suite", str(tiny_suite),
-                 "-o", str(out), "--no-progress", "--bootstrap", "20"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--model",
+                str(tmp_path / "millimetres.py") + ":build",
+                "--suite",
+                str(tiny_suite),
+                "-o",
+                str(out),
+                "--no-progress",
+                "--bootstrap",
+                "20",
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     assert "millimetres: 90 rollout(s) read a slide more than ten times" in err
     assert "read a slide more than ten times the longest real one" in (out / "report.md").read_text()

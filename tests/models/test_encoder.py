@@ -58,10 +58,19 @@ def test_official_pt_checkpoint_loads(tmp_path):
 def _tiny_hf_model(tmp_path):
     transformers = pytest.importorskip("transformers")
     cfg = transformers.VJEPA2Config(
-        crop_size=32, frames_per_clip=2, tubelet_size=2, patch_size=16, hidden_size=24, num_attention_heads=2,
-        num_hidden_layers=2, mlp_ratio=4.0, pred_hidden_size=12, pred_num_attention_heads=2,
-        pred_num_hidden_layers=1, num_pooler_layers=1,
-    )  # fmt: skip
+        crop_size=32,
+        frames_per_clip=2,
+        tubelet_size=2,
+        patch_size=16,
+        hidden_size=24,
+        num_attention_heads=2,
+        num_hidden_layers=2,
+        mlp_ratio=4.0,
+        pred_hidden_size=12,
+        pred_num_attention_heads=2,
+        pred_num_hidden_layers=1,
+        num_pooler_layers=1,
+    )
     torch.manual_seed(1)
     model = transformers.VJEPA2Model(cfg).eval()
     model.save_pretrained(tmp_path / "hf")
@@ -76,9 +85,12 @@ def test_hf_directory_loads_and_matches_our_vit(tmp_path):
     assert out.shape == (3, 4, 24)
     # our ViT with the HF weights gives the same tokens: the two are the same architecture
     sd = hf.state_dict()
-    ours = {"patch_embed.proj.weight": sd["encoder.embeddings.patch_embeddings.proj.weight"],
-            "patch_embed.proj.bias": sd["encoder.embeddings.patch_embeddings.proj.bias"],
-            "norm.weight": sd["encoder.layernorm.weight"], "norm.bias": sd["encoder.layernorm.bias"]}  # fmt: skip
+    ours = {
+        "patch_embed.proj.weight": sd["encoder.embeddings.patch_embeddings.proj.weight"],
+        "patch_embed.proj.bias": sd["encoder.embeddings.patch_embeddings.proj.bias"],
+        "norm.weight": sd["encoder.layernorm.weight"],
+        "norm.bias": sd["encoder.layernorm.bias"],
+    }
     for i in range(2):
         p = f"encoder.layer.{i}."
         for a, b in (

@@ -21,8 +21,13 @@ def test_typical_slide_is_the_geometric_mean_at_each_speed():
 
 
 def test_clips_with_a_failed_push_or_no_slide_are_left_out():
-    meta = pd.DataFrame({"speed": [0.3, 0.5, 0.7, 0.9, 1.0, 0.4], "displacement": [0.02, 0.05, 0.1, 0.16, 0.2, 0.0],
-                         "ok": [1, 1, 1, 1, 1, 1]})  # fmt: skip
+    meta = pd.DataFrame(
+        {
+            "speed": [0.3, 0.5, 0.7, 0.9, 1.0, 0.4],
+            "displacement": [0.02, 0.05, 0.1, 0.16, 0.2, 0.0],
+            "ok": [1, 1, 1, 1, 1, 1],
+        }
+    )
     with_zero = typical_slide_of_clips(meta)
     assert np.isfinite(with_zero.log_slide([0.5])).all()
     bad = meta.assign(ok=[1, 1, 0, 0, 1, 1])  # three pushes left: too few for a cubic

@@ -99,8 +99,15 @@ def test_the_calibrated_variant_needs_the_calibration_pushes():
     with pytest.raises(ValueError, match="calibration"):
         generate(model, context=context, speeds=np.array([0.5]), sample=0)
     cal = np.stack([meta.index[meta.role == "calibration_0"], meta.index[meta.role == "calibration_1"]], 1)
-    out = generate(model, context=context, speeds=np.array([0.5]), sample=0, calib_first=frames[cal, 0],
-                   calib_rest=frames[cal, -1], calib_speed=np.array([0.3, 0.8]))  # fmt: skip
+    out = generate(
+        model,
+        context=context,
+        speeds=np.array([0.5]),
+        sample=0,
+        calib_first=frames[cal, 0],
+        calib_rest=frames[cal, -1],
+        calib_speed=np.array([0.3, 0.8]),
+    )
     assert out.shape == (8, 1, 1, H, W, 3)
 
 

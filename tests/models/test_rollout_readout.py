@@ -23,9 +23,14 @@ def test_rollout_readout_reads_the_models_predictions(tmp_path):
     config = TrainConfig(epochs=2, batch_size=16, rollout_steps=3, final_weight=5.0)
     real = fit_latent_readout(split)
     payload = train_variant(
-        split, preset=PredictorPreset(width=32, depth=1, heads=2, residual=True), layout=layout, config=config,
-        data_seed=0, out=tmp_path / "m.pt", checkpoint=tmp_path / "c.pt",
-    )  # fmt: skip
+        split,
+        preset=PredictorPreset(width=32, depth=1, heads=2, residual=True),
+        layout=layout,
+        config=config,
+        data_seed=0,
+        out=tmp_path / "m.pt",
+        checkpoint=tmp_path / "c.pt",
+    )
     assert [h["epoch"] for h in payload["history"]] == [1, 2]
     model, _, _ = load_model(tmp_path / "m.pt")
     objects = training_objects(split)

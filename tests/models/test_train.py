@@ -28,8 +28,9 @@ def test_training_loss_falls(synth):
     layout = Layout(calib=True, query_context=2, query_frames=None)
     seqs = training_sequences(split, layout)
     assert len(seqs) == 48 and seqs.n_steps == 14 and seqs.n_context == 8
-    cfg = TrainConfig(epochs=1, batch_size=48, lr=3e-3, start_lr=3e-3, warmup=0.0, anneal=0.0, rollout_steps=2,
-                      final_weight=1.0)  # fmt: skip
+    cfg = TrainConfig(
+        epochs=1, batch_size=48, lr=3e-3, start_lr=3e-3, warmup=0.0, anneal=0.0, rollout_steps=2, final_weight=1.0
+    )
     model = tiny_model()
     opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
     batch = seqs.batch(np.arange(48))

@@ -113,10 +113,24 @@ def test_replacing_the_weights_reruns_the_features(repo_root, tmp_path):
     config = _tiny_config(repo_root, work, {**_pt_section(weights), "device": "cpu"})
     target = "results/features/heldout_calib.npz"
     run = subprocess.run(
-        [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(work), "--snakefile",
-         str(work / "Snakefile"), target, "--configfile", str(config)],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "--cores",
+            "2",
+            "--directory",
+            str(work),
+            "--snakefile",
+            str(work / "Snakefile"),
+            target,
+            "--configfile",
+            str(config),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     assert (work / target).is_file()
     assert "Nothing to be done" in snakemake(work, target, "-n", "--configfile", str(config)).stdout

@@ -37,10 +37,14 @@ def files(tiny_table_path, tmp_path_factory):
         models[variant] = root / variant / "seed0" / "model.pt"
         models[variant].parent.mkdir(parents=True)
         torch.save(
-            {"predictor": cfg.to_dict(), "layout": layout.to_dict(), "token_grid": [1, 2],
-             "model": predictor.state_dict()},
+            {
+                "predictor": cfg.to_dict(),
+                "layout": layout.to_dict(),
+                "token_grid": [1, 2],
+                "model": predictor.state_dict(),
+            },
             models[variant],
-        )  # fmt: skip
+        )
     return suite, root / "encoder.pt", models["calib"], models["nocalib"]
 
 
@@ -116,7 +120,11 @@ def test_loaded_by_spec_with_options(files):
 def test_model_spec_parsing():
     assert parse_model_spec("m.py:build") == ("m.py", "build", {})
     assert parse_model_spec("pkg.mod:f,a=1,b=x=y") == ("pkg.mod", "f", {"a": "1", "b": "x=y"})
-    for bad, message in (("m.py", "MODULE:FACTORY"), ("m:f,a", "not KEY=VALUE"), ("m:f,a=1,a=2", "twice"),
-                         ("m:f,suite=x", "reserved")):  # fmt: skip
+    for bad, message in (
+        ("m.py", "MODULE:FACTORY"),
+        ("m:f,a", "not KEY=VALUE"),
+        ("m:f,a=1,a=2", "twice"),
+        ("m:f,suite=x", "reserved"),
+    ):
         with pytest.raises(ModelError, match=message):
             parse_model_spec(bad)

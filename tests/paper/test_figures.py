@@ -12,12 +12,24 @@ STANDINS = ("oracle", "jitter", "blind", "collapse")
 
 def test_figure1_noise_panel_draws_anchored_solid_and_self_dashed(tmp_path, monkeypatch):
     rng = np.random.default_rng(0)
-    scores = pd.DataFrame({"standin": np.repeat(STANDINS, 5), "self_disagreement": rng.uniform(0.01, 1, 20),
-                           "anchored_disagreement": rng.uniform(0.01, 1, 20)})  # fmt: skip
+    scores = pd.DataFrame(
+        {
+            "standin": np.repeat(STANDINS, 5),
+            "self_disagreement": rng.uniform(0.01, 1, 20),
+            "anchored_disagreement": rng.uniform(0.01, 1, 20),
+        }
+    )
     auroc = {"jitter": (1.0, 0.9), "blind": (0.95, 0.55), "collapse": (1.0, 1.0)}  # (anchored, self) at every level
-    levels = [{"sd": sd, "standins": {"oracle": {"auroc_anchored": None, "auroc_self": None},
-                                      **{n: {"auroc_anchored": a, "auroc_self": s} for n, (a, s) in auroc.items()}}}
-              for sd in (0.0, 0.1)]  # fmt: skip
+    levels = [
+        {
+            "sd": sd,
+            "standins": {
+                "oracle": {"auroc_anchored": None, "auroc_self": None},
+                **{n: {"auroc_anchored": a, "auroc_self": s} for n, (a, s) in auroc.items()},
+            },
+        }
+        for sd in (0.0, 0.1)
+    ]
     drawn = []
     monkeypatch.setattr(figures.plt, "close", drawn.append)  # keep the figure to look at it
     pdf, png = tmp_path / "f.pdf", tmp_path / "f.png"

@@ -31,10 +31,14 @@ def test_result_documents_name_their_producer(tmp_path):
 
 def test_paths_resolve_and_missing_levels_are_not_produced():
     reg = load_registry()
-    noise = {"imply.study.section4.scoring.noise_sweep": {"levels": [
-        {"sd": 0.0, "standins": {"oracle": {"mean_anchored": 0.01}, "blind": {"auroc_anchored": 0.9}}},
-        {"sd": 0.2, "standins": {"oracle": {"mean_anchored": 0.1}, "blind": {"auroc_anchored": 0.7}}},
-    ]}}  # fmt: skip
+    noise = {
+        "imply.study.section4.scoring.noise_sweep": {
+            "levels": [
+                {"sd": 0.0, "standins": {"oracle": {"mean_anchored": 0.01}, "blind": {"auroc_anchored": 0.9}}},
+                {"sd": 0.2, "standins": {"oracle": {"mean_anchored": 0.1}, "blind": {"auroc_anchored": 0.7}}},
+            ]
+        }
+    }
     assert reg["noiseBSd"].resolve(noise) == 0.2
     assert reg["noiseMax"].resolve(noise) == 0.2 and reg["noiseMaxAurocBlind"].resolve(noise) == 0.7
     assert reg["noiseCSd"].resolve(noise) is NOT_PRODUCED
@@ -90,8 +94,9 @@ def test_merge_and_report(tmp_path):
 def test_tables_print_registered_formats_and_refuse_missing_cells():
     reg = load_registry()
     numbers = {e.name: 0.5 for e in reg.of_stage("section4")}
-    numbers.update(OrSelf=0.0049, BlAurocSelf=0.7012, noiseASd=0.0, noiseAOracle=0.006, selAnchMiss=1.46,
-                   selPickedOracle=97.5)  # fmt: skip
+    numbers.update(
+        OrSelf=0.0049, BlAurocSelf=0.7012, noiseASd=0.0, noiseAOracle=0.006, selAnchMiss=1.46, selPickedOracle=97.5
+    )
     t1 = table1_tex(reg.values(numbers))
     assert "\\toprule" in t1 and "Oracle (true physics) & 0.005 & 0.500 & 0.500 & --" in t1 and "& 0.70 &" in t1
     t2 = table2_tex(reg.values(numbers))

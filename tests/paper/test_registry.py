@@ -67,8 +67,9 @@ def test_unknown_names_fail_loudly():
 def test_renaming_a_macro_without_the_registry_fails(monkeypatch):
     """A name used by a table or a claim but missing from the registry cannot go unnoticed."""
     reg = load_registry()
-    renamed = Registry([e if e.name != "BlAurocSelf" else type(e)(**{**e.__dict__, "name": "BlAurocSelfRenamed"})
-                        for e in reg])  # fmt: skip
+    renamed = Registry(
+        [e if e.name != "BlAurocSelf" else type(e)(**{**e.__dict__, "name": "BlAurocSelfRenamed"}) for e in reg]
+    )
     numbers = {e.name: 1.0 for e in renamed if e.stage == "section4"}
     values = renamed.values(numbers)
     with pytest.raises(UnknownNumberError, match="BlAurocSelf"):
@@ -93,8 +94,12 @@ def test_every_name_used_by_tables_and_claims_is_registered():
 def test_literal_names_are_greppable():
     """The names the code uses are written out in full: no macro name is assembled from pieces."""
     assembled = re.compile(r"""f["'](?:noise|sel|vj|gap|Or|Jit|Bl|Col)\{""")
-    offenders = [f"{p.relative_to(SRC)}:{i}" for p in SRC.rglob("*.py")
-                 for i, line in enumerate(p.read_text().splitlines(), 1) if assembled.search(line)]  # fmt: skip
+    offenders = [
+        f"{p.relative_to(SRC)}:{i}"
+        for p in SRC.rglob("*.py")
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if assembled.search(line)
+    ]
     assert offenders == []
 
 

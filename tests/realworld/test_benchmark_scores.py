@@ -26,12 +26,14 @@ def _hyp(effects, weight, magnitude, discrepancy=False):
 
 
 def test_told_error_reads_the_heavier_of_the_true_effects_own_hypotheses_whatever_leads():
-    summary = SimpleNamespace(hypotheses=[
-        _hyp(["viscous", "speed_gain"], 0.97, 0.9),  # leads, but holds another effect
-        _hyp(["viscous"], 0.02, 0.55, discrepancy=True),
-        _hyp(["viscous"], 0.01, 0.2),
-        _hyp([], 0.0, 0.0),
-    ])  # fmt: skip
+    summary = SimpleNamespace(
+        hypotheses=[
+            _hyp(["viscous", "speed_gain"], 0.97, 0.9),  # leads, but holds another effect
+            _hyp(["viscous"], 0.02, 0.55, discrepancy=True),
+            _hyp(["viscous"], 0.01, 0.2),
+            _hyp([], 0.0, 0.0),
+        ]
+    )
     truth = {"name": "viscous", "magnitude": 0.5}
     assert abs(told_error(truth, summary) - 0.1) < 1e-12  # 0.55 against 0.5, not the lighter 0.2 nor the 0.9
     assert told_error({"name": "air_drag", "magnitude": 1.0}, summary) is None  # never fitted alone

@@ -24,8 +24,9 @@ BEFORE_STOP_TIME = ["0x1.9251e620031e1p-3", "0x1.b1cb67567bf78p-3", "0x1.e2acf4c
 
 @pytest.mark.skipif(mujoco.__version__ != BEFORE_MUJOCO, reason="the recorded bytes are MuJoCo 4.0.0's")
 def test_nominal_contact_reproduces_the_world_before_it_bit_for_bit(scene):
-    p = WorldPushes.nominal([0.2, 0.9, 0.5, 0.6], [0.3, 1.2, 0.5, 1.0], [0.15, 0.4, 0.25, 0.5], [0.0, 1.0, 2.0, 3.0],
-                            scene)  # fmt: skip
+    p = WorldPushes.nominal(
+        [0.2, 0.9, 0.5, 0.6], [0.3, 1.2, 0.5, 1.0], [0.15, 0.4, 0.25, 0.5], [0.0, 1.0, 2.0, 3.0], scene
+    )
     p.params["stribeck"][2] = 0.5
     p.params["viscous"][3] = 0.4
     p.params["tilt"][3] = 0.01
@@ -81,9 +82,20 @@ def test_contact_parameters_are_world_parameters(scene):
         apply_contact(WorldPushes.nominal(0.5, 0.5, 0.3, 0.0, scene), {"parameters": {"tilt": 0.1}})
 
 
-DESIGN = {"seed": 5, "logs": {"null_contact": 3, "single_contact": 3, "outside_contact": 2, "null_engine": 1,
-                              "single_engine": 2, "outside_engine": 1},
-          "n_objects": 3, "speeds": [0.3, 0.6, 0.9], "four_share": 0.5}  # fmt: skip
+DESIGN = {
+    "seed": 5,
+    "logs": {
+        "null_contact": 3,
+        "single_contact": 3,
+        "outside_contact": 2,
+        "null_engine": 1,
+        "single_engine": 2,
+        "outside_engine": 1,
+    },
+    "n_objects": 3,
+    "speeds": [0.3, 0.6, 0.9],
+    "four_share": 0.5,
+}
 
 
 def test_contact_cases_are_drawn_reproducibly_from_the_configured_ranges():
@@ -140,8 +152,14 @@ def test_an_engine_case_runs_in_the_bullet_world(scene, monkeypatch):
         calls.append(pushes)
         n = pushes.n
         # a world that slides the box as far as it is pushed fast: distinguishable from MuJoCo's
-        return WorldResult(0.05 * pushes.speed, np.zeros(n), np.full(n, 0.3), np.ones(n, bool), np.ones(n, np.int64),
-                           0.01 / pushes.speed)  # fmt: skip
+        return WorldResult(
+            0.05 * pushes.speed,
+            np.zeros(n),
+            np.full(n, 0.3),
+            np.ones(n, bool),
+            np.ones(n, np.int64),
+            0.01 / pushes.speed,
+        )
 
     monkeypatch.setitem(sys.modules, "imply.realworld.bullet", types.SimpleNamespace(simulate_bullet=simulate_bullet))
     design = C.ContactBenchmarkConfig.from_dict(DESIGN)
@@ -160,14 +178,36 @@ def test_an_engine_case_runs_in_the_bullet_world(scene, monkeypatch):
 
 
 def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_path):
-    design = {"seed": 1, "logs": {"null_contact": 1, "outside_contact": 1}, "n_objects": 2, "speeds": [0.4, 0.8],
-              "four_share": 0.0, "accuracy": {"pushes": 1, "nominal": 1}}  # fmt: skip
-    args = ["gap", "generate", "--table", str(tiny_table_path), "--contact-bench-json", json.dumps(design),
-            "--logs", str(tmp_path / "logs"), "--sealed", str(tmp_path / "s.json"), "--accuracy", str(tmp_path / "a.json")]  # fmt: skip
+    design = {
+        "seed": 1,
+        "logs": {"null_contact": 1, "outside_contact": 1},
+        "n_objects": 2,
+        "speeds": [0.4, 0.8],
+        "four_share": 0.0,
+        "accuracy": {"pushes": 1, "nominal": 1},
+    }
+    args = [
+        "gap",
+        "generate",
+        "--table",
+        str(tiny_table_path),
+        "--contact-bench-json",
+        json.dumps(design),
+        "--logs",
+        str(tmp_path / "logs"),
+        "--sealed",
+        str(tmp_path / "s.json"),
+        "--accuracy",
+        str(tmp_path / "a.json"),
+    ]
     assert main(args) == 0
     labels = json.loads((tmp_path / "s.json").read_text())
     assert sorted(labels) == ["log-000", "log-001"] and sorted(p.name for p in (tmp_path / "logs").iterdir()) == [
-        "log-000.csv", "log-000.track.csv", "log-001.csv", "log-001.track.csv"]  # fmt: skip
+        "log-000.csv",
+        "log-000.track.csv",
+        "log-001.csv",
+        "log-001.track.csv",
+    ]
     for label in labels.values():
         assert label["engine"] == "mujoco" and label["contact"]["kinds"] and label["design"] == "random"
         assert set(label["noise_free"]) == ({"all"} if label["group"] == "null_contact" else {"all", "contact"})
@@ -184,8 +224,20 @@ def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_pat
     ],
 )
 def test_bad_contact_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message):
-    args = ["gap", "generate", "--table", str(tiny_table_path), "--contact-bench-json", json.dumps({**DESIGN, **edit}),
-            "--logs", str(tmp_path / "logs"), "--sealed", str(tmp_path / "s.json"), "--accuracy", str(tmp_path / "a.json")]  # fmt: skip
+    args = [
+        "gap",
+        "generate",
+        "--table",
+        str(tiny_table_path),
+        "--contact-bench-json",
+        json.dumps({**DESIGN, **edit}),
+        "--logs",
+        str(tmp_path / "logs"),
+        "--sealed",
+        str(tmp_path / "s.json"),
+        "--accuracy",
+        str(tmp_path / "a.json"),
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err

@@ -17,22 +17,46 @@ def _label(effect_signature: np.ndarray, contact_signature: np.ndarray, measured
     def run(dm=0.0, df=0.0, extra=0.0):
         log_d = 2 * np.log(v) - 0.4 * (lm + dm) - 0.9 * (lf + df) + 0.1 * (lm + dm) * np.log(v) + extra
         log_t = np.log(v) - 0.5 * (lf + df) + 0.2 * (lm + dm) + extra / 3
-        return {"log_d": log_d.tolist(), "log_t": log_t.tolist(), "log_p": (np.log(v) - 0.05).tolist(),
-                "log_c": (np.log(v)[:, None] + [[-2.0, -1.5, -1.0]]).tolist(), "ok": [True] * 6,
-                "probes": {"kind": ["friction", "friction"], "object": [0, 1], "reading": [0.2, 0.4],
-                           "log_p": [np.nan] * 2, "log_d": [np.nan] * 2, "log_t": [np.nan] * 2, "ok": [True] * 2}}  # fmt: skip
+        return {
+            "log_d": log_d.tolist(),
+            "log_t": log_t.tolist(),
+            "log_p": (np.log(v) - 0.05).tolist(),
+            "log_c": (np.log(v)[:, None] + [[-2.0, -1.5, -1.0]]).tolist(),
+            "ok": [True] * 6,
+            "probes": {
+                "kind": ["friction", "friction"],
+                "object": [0, 1],
+                "reading": [0.2, 0.4],
+                "log_p": [np.nan] * 2,
+                "log_d": [np.nan] * 2,
+                "log_t": [np.nan] * 2,
+                "ok": [True] * 2,
+            },
+        }
 
     table = run()
     contact = run(extra=contact_signature)
     return {
-        "id": "log-000", "group": "single_contact", "engine": "mujoco", "contact": {"kinds": ["table_compliance"]},
-        "probes": True, "measured_mass": measured_mass, "replicates": 2, "free_strokes": 2,
+        "id": "log-000",
+        "group": "single_contact",
+        "engine": "mujoco",
+        "contact": {"kinds": ["table_compliance"]},
+        "probes": True,
+        "measured_mass": measured_mass,
+        "replicates": 2,
+        "free_strokes": 2,
         "effects": [{"name": "viscous", "magnitude": 0.5, "in_library": True}],
         "noise": {"sd": 0.02, "stop_time_sd": 0.02, "pusher_speed_sd": 0.01, "friction_sd": 0.06},
-        "objects": {"obj00": {}, "obj01": {}}, "pushes": {"object": ["obj00"] * 3 + ["obj01"] * 3},
-        "noise_free": {"table": table, "contact": contact, "all": run(extra=contact_signature + effect_signature),
-                       "log_mass": run(dm=JACOBIAN_STEP), "log_friction": run(df=JACOBIAN_STEP)},
-    }  # fmt: skip
+        "objects": {"obj00": {}, "obj01": {}},
+        "pushes": {"object": ["obj00"] * 3 + ["obj01"] * 3},
+        "noise_free": {
+            "table": table,
+            "contact": contact,
+            "all": run(extra=contact_signature + effect_signature),
+            "log_mass": run(dm=JACOBIAN_STEP),
+            "log_friction": run(df=JACOBIAN_STEP),
+        },
+    }
 
 
 def test_an_effect_shaped_like_its_contact_is_not_separable_and_another_is():

@@ -115,8 +115,13 @@ def test_effect_catalogue():
     assert all(e.default_range[0] < e.default_range[1] for e in EFFECTS.values())
 
 
-DESIGN = {"seed": 3, "logs": {"null_gaussian": 1, "null_heavy": 1, "single": 2, "double": 1, "outside": 1},
-          "n_objects": 3, "speeds": [0.3, 0.6, 0.9], "noise": {"outliers": [2, 2]}}  # fmt: skip
+DESIGN = {
+    "seed": 3,
+    "logs": {"null_gaussian": 1, "null_heavy": 1, "single": 2, "double": 1, "outside": 1},
+    "n_objects": 3,
+    "speeds": [0.3, 0.6, 0.9],
+    "noise": {"outliers": [2, 2]},
+}
 
 
 def test_logs_are_drawn_reproducibly_and_say_nothing_of_their_labels(scene):
@@ -150,8 +155,20 @@ def test_logs_are_drawn_reproducibly_and_say_nothing_of_their_labels(scene):
     ],
 )
 def test_bad_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message):
-    args = ["gap", "generate", "--table", str(tiny_table_path), "--bench-json", json.dumps({**DESIGN, **edit}),
-            "--logs", str(tmp_path / "logs"), "--sealed", str(tmp_path / "s.json"), "--accuracy", str(tmp_path / "a.json")]  # fmt: skip
+    args = [
+        "gap",
+        "generate",
+        "--table",
+        str(tiny_table_path),
+        "--bench-json",
+        json.dumps({**DESIGN, **edit}),
+        "--logs",
+        str(tmp_path / "logs"),
+        "--sealed",
+        str(tmp_path / "s.json"),
+        "--accuracy",
+        str(tmp_path / "a.json"),
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err

@@ -44,9 +44,13 @@ def test_profile_runs_on_a_real_slurm_without_accounting(tmp_path):
     # its own process group, so that on a timeout SIGTERM reaches the script, Snakemake and
     # the daemons alike, and the script's exit trap stops whatever is left
     proc = subprocess.Popen(
-        ["bash", str(SCRIPT), str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=env, start_new_session=True,
-    )  # fmt: skip
+        ["bash", str(SCRIPT), str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
     try:
         out, _ = proc.communicate(timeout=TIME_LIMIT)
     except subprocess.TimeoutExpired:

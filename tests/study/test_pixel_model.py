@@ -10,11 +10,23 @@ from imply.paper.registry import load_registry
 from imply.study.pixel_model import per_object_slopes, pixel_claims
 
 GOOD = {
-    "pxCalSlopeRatio": 1.05, "pxNoCalSlopeRatio": 0.9, "pxCalSaliency": 1.02, "pxNoCalSaliency": 0.95,
-    "pxCalPsnr": 40.0, "pxNoCalPsnr": 35.0, "pxCalTrackOwn": 0.95, "pxCalTrackOther": 0.0, "pxCalAnchOwn": 0.9,
-    "pxNoCalSpread": 0.4, "pxCalSpread": 0.01, "pxSelAnchTrack": 0.95, "pxSelAnchCut": 0.8,
-    "pxSelAnchOverOracle": 0.05, "pxSelSelfTrack": 0.05, "pxSelRandomTrack": 0.0,
-}  # fmt: skip
+    "pxCalSlopeRatio": 1.05,
+    "pxNoCalSlopeRatio": 0.9,
+    "pxCalSaliency": 1.02,
+    "pxNoCalSaliency": 0.95,
+    "pxCalPsnr": 40.0,
+    "pxNoCalPsnr": 35.0,
+    "pxCalTrackOwn": 0.95,
+    "pxCalTrackOther": 0.0,
+    "pxCalAnchOwn": 0.9,
+    "pxNoCalSpread": 0.4,
+    "pxCalSpread": 0.01,
+    "pxSelAnchTrack": 0.95,
+    "pxSelAnchCut": 0.8,
+    "pxSelAnchOverOracle": 0.05,
+    "pxSelSelfTrack": 0.05,
+    "pxSelRandomTrack": 0.0,
+}
 
 
 def test_per_object_slopes_are_read_per_object_and_per_condition():
@@ -24,8 +36,16 @@ def test_per_object_slopes_are_read_per_object_and_per_condition():
         for cond, factor in (("own", 1.0), ("other", 0.0)):
             for v in speeds:
                 read = scale * v ** (slope * factor)  # condition other: the same slide at every speed
-                rows.append({"condition": cond, "sample": 0, "object_id": obj, "speed_m_s": v,
-                             "read_displacement_m": read, "true_displacement_m": scale * v**slope})  # fmt: skip
+                rows.append(
+                    {
+                        "condition": cond,
+                        "sample": 0,
+                        "object_id": obj,
+                        "speed_m_s": v,
+                        "read_displacement_m": read,
+                        "true_displacement_m": scale * v**slope,
+                    }
+                )
     df = pd.DataFrame(rows).sample(frac=1.0, random_state=0)  # order must not matter
     read, true = per_object_slopes(df, condition="own")
     assert np.allclose(read, [1.0, 2.0]) and np.allclose(true, [1.0, 2.0])

@@ -26,10 +26,25 @@ def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     # targets go before --configfile, which takes every value after it
     run = subprocess.run(
-        [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(tmp_path), "--snakefile",
-         str(tmp_path / "Snakefile"), "results/readout/ridge.npz", "results/paper/parts/clips.json", "--configfile", str(tmp_path / "config.yaml")],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "--cores",
+            "2",
+            "--directory",
+            str(tmp_path),
+            "--snakefile",
+            str(tmp_path / "Snakefile"),
+            "results/readout/ridge.npz",
+            "results/paper/parts/clips.json",
+            "--configfile",
+            str(tmp_path / "config.yaml"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     logs = "\n".join(p.read_text() for p in sorted((tmp_path / "results/logs").glob("*.log")))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:] + logs[-3000:]
 

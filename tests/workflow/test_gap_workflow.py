@@ -15,24 +15,67 @@ from workflow_helpers import copy_workflow
 def test_gap_workflow_tiny(tmp_path, repo_root):
     copy_workflow(tmp_path)
     target = "results/paper/parts/gap.json"
-    cmd = [sys.executable, "-m", "snakemake", target, "--cores", "2", "--directory", str(tmp_path),
-           "--configfile", str(repo_root / "tests/config/gap_tiny.yaml")]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        target,
+        "--cores",
+        "2",
+        "--directory",
+        str(tmp_path),
+        "--configfile",
+        str(repo_root / "tests/config/gap_tiny.yaml"),
+    ]
     run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-3000:]
     part = json.loads((tmp_path / target).read_text())
     assert part["stage"] == "gap"
-    assert {"gapTopOneAcc", "gapFalseAlarm", "gapFalseAlarmHeavy", "gapBothNamed", "gapNoneRecall", "gapMagErr",
-            "gapShrinkMedian", "gapWorldErrMax", "gapTableErrMax", "gapLogsN"} <= set(part["numbers"])  # fmt: skip
+    assert {
+        "gapTopOneAcc",
+        "gapFalseAlarm",
+        "gapFalseAlarmHeavy",
+        "gapBothNamed",
+        "gapNoneRecall",
+        "gapMagErr",
+        "gapShrinkMedian",
+        "gapWorldErrMax",
+        "gapTableErrMax",
+        "gapLogsN",
+    } <= set(part["numbers"])
     assert {c["id"] for c in part["claims"]} == {
-        "gap-world", "gap-null", "gap-top1", "gap-both", "gap-outside", "gap-magnitude", "gap-shrink",
-        "gap-contact-null", "gap-contact-named", "gap-contact-contenders", "gap-contact-wrong", "gap-contact-loop",
+        "gap-world",
+        "gap-null",
+        "gap-top1",
+        "gap-both",
+        "gap-outside",
+        "gap-magnitude",
+        "gap-shrink",
+        "gap-contact-null",
+        "gap-contact-named",
+        "gap-contact-contenders",
+        "gap-contact-wrong",
+        "gap-contact-loop",
         # the same logs with the pusher's speed and the box's track in every fit
-        "gap-observed-null", "gap-observed-top1", "gap-observed-both", "gap-observed-outside", "gap-observed-magnitude",
-        "gap-observed-shrink", "gap-observed-contact-null", "gap-observed-contact-single", "gap-observed-contact-wrong",
-    }  # fmt: skip
+        "gap-observed-null",
+        "gap-observed-top1",
+        "gap-observed-both",
+        "gap-observed-outside",
+        "gap-observed-magnitude",
+        "gap-observed-shrink",
+        "gap-observed-contact-null",
+        "gap-observed-contact-single",
+        "gap-observed-contact-wrong",
+    }
     assert {"gapObsFalseAlarm", "gapObsContactSingleRight", "gapContactSingleRight"} <= set(part["numbers"])
-    assert {"gapContactLogsN", "gapContactNullNoLib", "gapContactAmongNamed", "gapContactWrongSingle",
-            "gapLoopRight", "gapLoopRandomRight"} <= set(part["numbers"])  # fmt: skip
+    assert {
+        "gapContactLogsN",
+        "gapContactNullNoLib",
+        "gapContactAmongNamed",
+        "gapContactWrongSingle",
+        "gapLoopRight",
+        "gapLoopRandomRight",
+    } <= set(part["numbers"])
     bench = json.loads((tmp_path / "results/gap/benchmark.json").read_text())["result"]
     assert bench["n_logs"] == 7 and bench["n_null"] == 3 and bench["n_double"] == 1 and bench["n_outside"] == 1
     # the world measured its own error, and the table's is beside it
@@ -45,8 +88,18 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     for name in logs:
         header = (tmp_path / "results/gap/logs" / name).read_text().splitlines()[0].split(",")
         assert header[:4] == ["object_id", "speed", "direction", "displacement"]
-        assert set(header) <= {"object_id", "speed", "direction", "displacement", "stop_time", "pusher_speed",
-                               "size_x", "size_y", "size_z", "mass"}  # fmt: skip
+        assert set(header) <= {
+            "object_id",
+            "speed",
+            "direction",
+            "displacement",
+            "stop_time",
+            "pusher_speed",
+            "size_x",
+            "size_y",
+            "size_z",
+            "mass",
+        }
         assert "pusher_speed" in header  # a robot's encoders give it on every push
     md = (tmp_path / "results/gap/benchmark.md").read_text()
     assert md.startswith("# Gap diagnostic benchmark") and "## Confusion matrix" in md
@@ -60,16 +113,19 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert all(row["told_error"] is None or row["told_error"] >= 0 for row in single)
     assert "told the cause: its own hypothesis within tolerance" in md
     # both benchmarks diagnosed again with every observable the logs carry, side by side in the report
-    seen = json.loads(next((tmp_path / "results/gap/contact/reports_observed").glob("shard*/log-*/summary.json"))
-                      .read_text())  # fmt: skip
+    seen = json.loads(
+        next((tmp_path / "results/gap/contact/reports_observed").glob("shard*/log-*/summary.json")).read_text()
+    )
     assert {"pusher_speed", "crossing_50"} <= set(seen["observables"])
     assert "# With what a robot records" in md and "| with pusher speed and track |" in md
     report = next((tmp_path / "results/gap/reports").glob("shard*/log-*/report.md")).read_text()
     assert report.startswith("# Sim-to-real gap diagnosis\n\n**")
     # the closed loop: every undecided log's next pushes run in its world, and as many random ones
     loop = bench["contact"]["closed_loop"]
-    rows = [json.loads((d / "closed_loop.json").read_text())["rows"]
-            for d in (tmp_path / "results/gap/contact/closed_loop").iterdir()]  # fmt: skip
+    rows = [
+        json.loads((d / "closed_loop.json").read_text())["rows"]
+        for d in (tmp_path / "results/gap/contact/closed_loop").iterdir()
+    ]
     assert sum(len(r) for r in rows) == len(loop["rows"])
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md
 
@@ -79,8 +135,18 @@ def test_gap_lab_workflow_tiny(tmp_path, repo_root):
     """The lab benchmark's two sets on every engine, with probes, and each effect log marked."""
     copy_workflow(tmp_path)
     target = "results/gap/lab/separability.json"
-    cmd = [sys.executable, "-m", "snakemake", target, "--cores", "2", "--directory", str(tmp_path),
-           "--configfile", str(repo_root / "tests/config/gap_tiny.yaml")]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        target,
+        "--cores",
+        "2",
+        "--directory",
+        str(tmp_path),
+        "--configfile",
+        str(repo_root / "tests/config/gap_tiny.yaml"),
+    ]
     run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / target).read_text())["result"]

@@ -46,8 +46,13 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
         build_eight_frame_suite(work / "results/section5/suite_nocalib", tiny_table_path, n_objects=5),
     ]
     now = time.time()
-    order = [work / "results/table/table.npz", *clips.iterdir(), work / "results/encoder/encoder.pt",
-             *feats.iterdir(), *(f for s in suites for f in sorted(s.iterdir()))]  # fmt: skip
+    order = [
+        work / "results/table/table.npz",
+        *clips.iterdir(),
+        work / "results/encoder/encoder.pt",
+        *feats.iterdir(),
+        *(f for s in suites for f in sorted(s.iterdir())),
+    ]
     for i, path in enumerate(order):
         os.utime(path, (now - 1000 + i, now - 1000 + i))
     target = [
@@ -56,9 +61,24 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
         "results/paper/figures/figure2.png",
         "results/model/training.png",
     ]
-    cmd = [sys.executable, "-m", "snakemake", "--cores", "2", "--directory", str(work), "--snakefile",
-           str(work / "Snakefile"), "--configfile", str(work / "config.yaml"), str(work / "small.yaml"),
-           "--rerun-triggers", "mtime", "--", *target]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "--cores",
+        "2",
+        "--directory",
+        str(work),
+        "--snakefile",
+        str(work / "Snakefile"),
+        "--configfile",
+        str(work / "config.yaml"),
+        str(work / "small.yaml"),
+        "--rerun-triggers",
+        "mtime",
+        "--",
+        *target,
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     for upstream in ("clips_render", "encoder_encode", "suite_build", "section5_suite_nocalib"):
@@ -75,7 +95,13 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
     assert report["models"][0]["kind"] == "latents" and report["models"][0]["readout"]["name"] == "ridge on encode()"
     metrics = json.loads((work / "results/section5/metrics.json").read_text())["result"]
     assert metrics["seeds"][0]["readouts"]["calib"]["fitted_on"].endswith("real training clips")
-    for f in ("model/calib/seed0/checkpoint.pt", "model/training.png", "section5/evaluate/nocalib_seed0/report.md",
-              "paper/tables/table3.tex", "paper/figures/figure2.png",
-              "logs/model_train_calib_seed0.log", "section5/metrics.json"):  # fmt: skip
+    for f in (
+        "model/calib/seed0/checkpoint.pt",
+        "model/training.png",
+        "section5/evaluate/nocalib_seed0/report.md",
+        "paper/tables/table3.tex",
+        "paper/figures/figure2.png",
+        "logs/model_train_calib_seed0.log",
+        "section5/metrics.json",
+    ):
         assert (work / "results" / f).exists(), f

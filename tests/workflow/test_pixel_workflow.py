@@ -26,9 +26,12 @@ def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path
     assert set(part["numbers"]) == registered
     assert part["numbers"]["pxNSamples"] == 3 and part["numbers"]["pxNObjects"] == 6
     assert {c["id"] for c in part["claims"]} == {
-        "px-moves-with-the-action", "px-frames-readable", "px-calibrated-tracks-its-object",
-        "px-uncertain-without-calibration", "px-anchored-chooses-among-samples",
-    }  # fmt: skip
+        "px-moves-with-the-action",
+        "px-frames-readable",
+        "px-calibrated-tracks-its-object",
+        "px-uncertain-without-calibration",
+        "px-anchored-chooses-among-samples",
+    }
     report = (work / "results/paper/reproduction.md").read_text()
     assert "## Beyond the paper: a pixel-space, stochastic world model" in report
     assert "| pxSelAnchTrack |" in report.split("## Beyond the paper")[1]

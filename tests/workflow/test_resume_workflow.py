@@ -55,9 +55,25 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
 
 def _command(work: Path, *extra: str) -> list[str]:
     # options that take several values go last, with "--" before the target
-    return [sys.executable, "-m", "snakemake", "--cores", "1", "--directory", str(work), "--snakefile",
-            str(work / "Snakefile"), *extra, "--configfile", str(work / "config.yaml"), str(work / "small.yaml"),
-            "--rerun-triggers", "mtime", "--", TARGET]  # fmt: skip
+    return [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "--cores",
+        "1",
+        "--directory",
+        str(work),
+        "--snakefile",
+        str(work / "Snakefile"),
+        *extra,
+        "--configfile",
+        str(work / "config.yaml"),
+        str(work / "small.yaml"),
+        "--rerun-triggers",
+        "mtime",
+        "--",
+        TARGET,
+    ]
 
 
 def _epoch(checkpoint: Path) -> int:

@@ -25,10 +25,27 @@ TARGETS = [
     "results/paper/figures/figure1.png",
 ]
 PAPER_S4_MACROS = [
-    "nObjects", "kSpeeds", "jitterSd", "OrSelf", "JitCorr", "BlSelf", "BlAnch", "BlErr", "BlAurocSelf",
-    "BlAurocAnch", "BlCorr", "orMassR", "orFricR", "selFirstMiss", "selConsMiss", "selAnchMiss",
-    "selPickedOracle", "selK", "noiseMax", "noiseMaxAurocBlind",
-]  # fmt: skip
+    "nObjects",
+    "kSpeeds",
+    "jitterSd",
+    "OrSelf",
+    "JitCorr",
+    "BlSelf",
+    "BlAnch",
+    "BlErr",
+    "BlAurocSelf",
+    "BlAurocAnch",
+    "BlCorr",
+    "orMassR",
+    "orFricR",
+    "selFirstMiss",
+    "selConsMiss",
+    "selAnchMiss",
+    "selPickedOracle",
+    "selK",
+    "noiseMax",
+    "noiseMaxAurocBlind",
+]
 
 
 def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
@@ -105,8 +122,20 @@ def test_dag_up_to_date_and_param_scoped_reruns(dag_dir):
     # changing only the selection settings reruns only the selection and what follows it
     over = dag_dir / "over.yaml"
     over.write_text("section4:\n  selection:\n    noise_sd: 0.05\n")
-    cmd = [sys.executable, "-m", "snakemake", *TARGETS, "-n", "--cores", "2", "--directory", str(dag_dir),
-           "--configfile", str(SMALL), str(over)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        *TARGETS,
+        "-n",
+        "--cores",
+        "2",
+        "--directory",
+        str(dag_dir),
+        "--configfile",
+        str(SMALL),
+        str(over),
+    ]
     proc = subprocess.run(cmd, cwd=dag_dir, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = proc.stdout + proc.stderr

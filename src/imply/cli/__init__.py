@@ -30,9 +30,22 @@ from typing import Any
 from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
 
 GROUPS: list[str] = [
-    "score", "table", "sim", "diagnose", "suite", "evaluate", "section4", "clips", "encoder", "readout", "model",
-    "section5", "gap", "pixel", "paper",
-]  # fmt: skip
+    "score",
+    "table",
+    "sim",
+    "diagnose",
+    "suite",
+    "evaluate",
+    "section4",
+    "clips",
+    "encoder",
+    "readout",
+    "model",
+    "section5",
+    "gap",
+    "pixel",
+    "paper",
+]
 
 
 DESCRIPTION = (

@@ -20,8 +20,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--score-json", type=json_arg, required=True, help="calibration_speeds and query_speeds as JSON")
     r.add_argument("--scene-json", type=json_arg, help="config section 'scene' as JSON")
     r.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
-    r.add_argument("-o", "--output", required=True,
-                   help="the split's frames (.npz); its pushes' table is written beside it, with the suffix .csv")  # fmt: skip
+    r.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="the split's frames (.npz); its pushes' table is written beside it, with the suffix .csv",
+    )
     r.set_defaults(func=cmd_render)
 
 

@@ -213,9 +213,11 @@ DEFAULT_TABLE = "results/table/table.npz"
 
 def add_diagnose_options(p: argparse.ArgumentParser) -> None:
     """The options of a run of diagnoses (besides the push logs and ``-o``), one declaration for every command."""
-    p.add_argument("--force", action="store_true",
-                   help="write into a non-empty report folder: replace the files an earlier report wrote there, "
-                        "keep the rest")  # fmt: skip
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write into a non-empty report folder: replace the files an earlier report wrote there, keep the rest",
+    )
     p.add_argument("--table", default=DEFAULT_TABLE, help="baseline push table (default %(default)s)")
     p.add_argument("--cache-dir", help="effect-table cache (default $IMPLY_CACHE or ~/.cache/imply)")
     p.add_argument("--effects", help="comma-separated candidate effects (default: the whole library)")
@@ -223,13 +225,16 @@ def add_diagnose_options(p: argparse.ArgumentParser) -> None:
         "--effect-grid-json", type=json_arg, help="coarse grid of the effect tables (config gap.effect_grid)"
     )
     p.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
-    p.add_argument("--noise-sd", type=positive_float,
-                   help="log-displacement noise sd, used when the log has no replicates")  # fmt: skip
-    p.add_argument("--ignore-measured", action="store_true",
-                   help="fit mass and friction even where the log has measured values")  # fmt: skip
+    p.add_argument(
+        "--noise-sd", type=positive_float, help="log-displacement noise sd, used when the log has no replicates"
+    )
+    p.add_argument(
+        "--ignore-measured", action="store_true", help="fit mass and friction even where the log has measured values"
+    )
     p.add_argument("--threads", type=int_range(0), default=0, help="simulation threads for building effect tables")
-    p.add_argument("--no-plots", action="store_true",
-                   help="write no figures (report.md without them): for many logs read as data")  # fmt: skip
+    p.add_argument(
+        "--no-plots", action="store_true", help="write no figures (report.md without them): for many logs read as data"
+    )
 
 
 def cache_dir(arg: str | None) -> Path:
@@ -285,10 +290,17 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) 
     table = load_table(args.table)
     with user_errors(InputError):
         logs = [read_checked_pushlog(pushlog, table, getattr(args, "track", None)) for pushlog, _ in reports]
-    opts, grid = diagnosis_options(args.options_json, args.effect_grid_json, noise_sd=args.noise_sd,
-                                   ignore_measured=args.ignore_measured)  # fmt: skip
+    opts, grid = diagnosis_options(
+        args.options_json, args.effect_grid_json, noise_sd=args.noise_sd, ignore_measured=args.ignore_measured
+    )
     return DiagnoseRequest(
-        table=table, candidates=tuple(candidate_effects(args.effects)), options=opts, grid=grid,
-        cache_dir=cache_dir(args.cache_dir), threads=args.threads, force=args.force, plots=not args.no_plots,
+        table=table,
+        candidates=tuple(candidate_effects(args.effects)),
+        options=opts,
+        grid=grid,
+        cache_dir=cache_dir(args.cache_dir),
+        threads=args.threads,
+        force=args.force,
+        plots=not args.no_plots,
         reports=tuple(Report(pushlog=log, folder=out) for log, out in zip(logs, folders, strict=True)),
-    )  # fmt: skip
+    )

@@ -32,13 +32,15 @@ def register(sub: argparse._SubParsersAction) -> None:
             "residuals_vs_speed.png, before_after.png, ranking.png and hypotheses.png."
         ),
     )
-    d.add_argument("pushlog", help="the push log (CSV or parquet; a .track.csv and a .probes.csv beside it are read "
-                   "with it)")  # fmt: skip
+    d.add_argument(
+        "pushlog", help="the push log (CSV or parquet; a .track.csv and a .probes.csv beside it are read with it)"
+    )
     d.add_argument("-o", "--output", required=True, help="report folder to write (new or empty)")
     d.add_argument(
-        "--track", help="the boxes' tracks (CSV or parquet, rows object_id,push,t,x,y[,yaw]; default: "
+        "--track",
+        help="the boxes' tracks (CSV or parquet, rows object_id,push,t,x,y[,yaw]; default: "
         "PUSHLOG's <stem>.track.csv or .parquet beside it, where there is one)",
-    )  # fmt: skip
+    )
     add_diagnose_options(d)
     d.set_defaults(func=cmd_diagnose)
 

@@ -57,8 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--effects", help="comma-separated effects (default: the whole library)")
     t.add_argument("--options-json", type=json_arg, help="diagnostic settings (config gap.diagnose)")
     t.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
-    t.add_argument("-o", "--output", required=True,
-                   help="folder of the effect tables (an effect-table cache) and their manifest.json")  # fmt: skip
+    t.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="folder of the effect tables (an effect-table cache) and their manifest.json",
+    )
     t.set_defaults(func=cmd_tables)
 
     gen = gsub.add_parser(
@@ -70,9 +74,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     which = gen.add_mutually_exclusive_group(required=True)
     which.add_argument("--bench-json", type=json_arg, help="config gap.benchmark")
     which.add_argument(
-        "--contact-bench-json", type=json_arg,
+        "--contact-bench-json",
+        type=json_arg,
         help="config gap.contact_benchmark: worlds with a contact model of their own, and another engine's",
-    )  # fmt: skip
+    )
     gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
     gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
     gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
@@ -83,7 +88,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "closed-loop",
         help="run the next pushes of every log with several explanations in contention (and as many random pushes of "
         "its own design) in the same world, append them and diagnose again (the other-contact benchmark)",
-    )  # fmt: skip
+    )
     cl.add_argument("--contact-bench-json", type=json_arg, required=True, help="config gap.contact_benchmark")
     cl.add_argument("--logs", required=True, help="folder of the benchmark's push logs")
     cl.add_argument("--reports", required=True, help="folder of their report folders (one per log)")
@@ -95,13 +100,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "lab-generate",
         help="one set of the lab benchmark's logs: pushes with calibration probes, on MuJoCo contact variants, Bullet "
         "and SAPIEN (imply.realworld.lab)",
-    )  # fmt: skip
-    lab.add_argument("--lab-json", type=json_arg, required=True,
-                     help="config gap.lab_benchmark (the other set's seed and logs may be left out)")  # fmt: skip
+    )
+    lab.add_argument(
+        "--lab-json",
+        type=json_arg,
+        required=True,
+        help="config gap.lab_benchmark (the other set's seed and logs may be left out)",
+    )
     lab.add_argument("--set", required=True, choices=("development", "sealed"), help="which set")
     lab.add_argument("--table", default=DEFAULT_TABLE, help="its scene is the worlds' scene (its numbers are not read)")
-    lab.add_argument("--logs", required=True,
-                     help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)")  # fmt: skip
+    lab.add_argument(
+        "--logs",
+        required=True,
+        help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)",
+    )
     lab.add_argument("--labels", required=True, help="JSON file for the logs' labels")
     lab.add_argument("--timing", required=True, help="JSON file for each world's time per push")
     lab.add_argument(
@@ -116,10 +128,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "separability",
         help="mark each lab-benchmark effect log separable or not from its contact, per observable set, from its "
         "label (a result document and a report)",
-    )  # fmt: skip
+    )
     sep.add_argument("--lab-json", type=json_arg, required=True, help="config gap.lab_benchmark")
-    sep.add_argument("--labels", nargs="+", required=True, metavar="SET=LABELS",
-                     help="each set's labels, as development=PATH sealed=PATH")  # fmt: skip
+    sep.add_argument(
+        "--labels",
+        nargs="+",
+        required=True,
+        metavar="SET=LABELS",
+        help="each set's labels, as development=PATH sealed=PATH",
+    )
     sep.add_argument("--timing", nargs="+", required=True, metavar="SET=TIMING", help="each set's timing, likewise")
     sep.add_argument("-o", "--output", required=True, help="the result document (JSON)")
     sep.add_argument("--markdown", required=True, help="the report (Markdown)")
@@ -137,13 +154,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--contact-sealed", help="the contact benchmark's sealed labels")
     b.add_argument("--contact-reports", nargs="+", default=[], help="folders of the contact benchmark's reports")
     b.add_argument(
-        "--observed-reports", nargs="+", default=[],
+        "--observed-reports",
+        nargs="+",
+        default=[],
         help="folders of the same logs' reports with every observable the logs carry (the pusher's measured speed, "
         "the box's track), scored beside the others",
-    )  # fmt: skip
+    )
     b.add_argument(
-        "--observed-contact-reports", nargs="+", default=[], help="the same for the contact benchmark's logs",
-    )  # fmt: skip
+        "--observed-contact-reports",
+        nargs="+",
+        default=[],
+        help="the same for the contact benchmark's logs",
+    )
     b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply gap closed-loop'")
     b.set_defaults(func=cmd_benchmark)
 
@@ -181,8 +203,15 @@ def cmd_closed_loop(args: argparse.Namespace) -> int:
     out = output_dir(args.output)
     request = diagnose_request(args, [])
     scene = SceneConfig.from_dict(request.table.meta.get("scene"), "the table's scene")
-    rows = run_closed_loop(design=design, scene=scene, logs=Path(args.logs), reports=Path(args.reports),
-                           session=prepare(request), out=out, nthread=args.threads)  # fmt: skip
+    rows = run_closed_loop(
+        design=design,
+        scene=scene,
+        logs=Path(args.logs),
+        reports=Path(args.reports),
+        session=prepare(request),
+        out=out,
+        nthread=args.threads,
+    )
     log.info("closed loop: %d logs x 2 arms diagnosed again -> %s", len(rows) // 2, out)
     return 0
 
@@ -194,8 +223,9 @@ def cmd_tables(args: argparse.Namespace) -> int:
     table = load_table(args.table)
     opts, grid = diagnosis_options(args.options_json, args.effect_grid_json)
     folder = output_dir(args.output)
-    et = effect_tables(table, candidate_effects(args.effects), options=opts, grid=grid, cache_dir=folder,
-                       nthread=args.threads)  # fmt: skip
+    et = effect_tables(
+        table, candidate_effects(args.effects), options=opts, grid=grid, cache_dir=folder, nthread=args.threads
+    )
     write_json(folder / "manifest.json", {"meta": et.meta, "levels": {k: v.tolist() for k, v in et.levels.items()}})
     log.info("effect tables ready (model floor %.4f) -> %s", et.meta["model_floor_rms"], folder)
     return 0
@@ -217,12 +247,24 @@ def cmd_generate(args: argparse.Namespace) -> int:
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
     error = write_benchmark_logs(
-        config, scene, logs=Path(args.logs), sealed=Path(args.sealed), accuracy=Path(args.accuracy),
-        table_error=table.meta.get("numerical_error"), nthread=args.threads, progress=True,
-    )  # fmt: skip
+        config,
+        scene,
+        logs=Path(args.logs),
+        sealed=Path(args.sealed),
+        accuracy=Path(args.accuracy),
+        table_error=table.meta.get("numerical_error"),
+        nthread=args.threads,
+        progress=True,
+    )
     e = error["against_finer"]["log_d"]
-    log.info("wrote %d logs -> %s (labels sealed in %s); world error max %.4f RMS %.4f in log d", config.n_logs,
-             args.logs, args.sealed, e["max_abs"], e["rms"])  # fmt: skip
+    log.info(
+        "wrote %d logs -> %s (labels sealed in %s); world error max %.4f RMS %.4f in log d",
+        config.n_logs,
+        args.logs,
+        args.sealed,
+        e["max_abs"],
+        e["rms"],
+    )
     return 0
 
 
@@ -240,8 +282,15 @@ def cmd_lab_generate(args: argparse.Namespace) -> int:
         design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
-    timing = write_lab_set(design, scene, logs=Path(args.logs), labels=Path(args.labels), timing=Path(args.timing),
-                           nthread=args.threads, progress=True)  # fmt: skip
+    timing = write_lab_set(
+        design,
+        scene,
+        logs=Path(args.logs),
+        labels=Path(args.labels),
+        timing=Path(args.timing),
+        nthread=args.threads,
+        progress=True,
+    )
     for engine, t in timing.items():
         log.info("%s: %d pushes, %.4f s per push", engine, t["pushes"], t["seconds_per_push"])
     log.info("wrote the %s set's %d logs -> %s (labels in %s)", args.set, design.n_logs, args.logs, args.labels)
@@ -275,15 +324,25 @@ def cmd_separability(args: argparse.Namespace) -> int:
     for name, path in labels.items():
         with user_errors(FileNotFoundError, message="--labels: {error}"):
             with open(path) as fh:
-                marks = mark_logs(json.load(fh), alias_cos=design.alias_cos, min_size_sd=design.min_size_sd,
-                                  crossing_sd=design.crossing_sd)  # fmt: skip
+                marks = mark_logs(
+                    json.load(fh),
+                    alias_cos=design.alias_cos,
+                    min_size_sd=design.min_size_sd,
+                    crossing_sd=design.crossing_sd,
+                )
         with user_errors(FileNotFoundError, message="--timing: {error}"):
             with open(timing[name]) as fh:
                 times = json.load(fh)
         result["sets"][name] = {"logs": marks, "summary": summarise(marks), "timing": times}
         for engine, row in result["sets"][name]["summary"].items():
-            log.info("%s set, %s: %d effect logs; separable with displacement only %d, with probes %d", name, engine,
-                     row["effect_logs"], row["sets"]["displacement"]["separable"], row["sets"]["probes"]["separable"])  # fmt: skip
+            log.info(
+                "%s set, %s: %d effect logs; separable with displacement only %d, with probes %d",
+                name,
+                engine,
+                row["effect_logs"],
+                row["sets"]["displacement"]["separable"],
+                row["sets"]["probes"]["separable"],
+            )
     write_result(args.output, mark_logs, result)
     write_separability(result, args.markdown)
     return 0
@@ -316,15 +375,18 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         from imply.realworld.cases import ContactBenchmarkConfig
 
         design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
-        result["contact"] = score_contact_cases(contact_labels, contact_summaries, targets=dict(design.targets),
-                                                min_size_sd=design.min_size_sd)  # fmt: skip
+        result["contact"] = score_contact_cases(
+            contact_labels, contact_summaries, targets=dict(design.targets), min_size_sd=design.min_size_sd
+        )
         if args.closed_loop:
             from imply.realworld.closed_loop import score_closed_loop
 
             result["contact"]["closed_loop"] = score_closed_loop(
-                contact_labels, [Path(p) for p in args.closed_loop], within=design.targets["magnitude_within"],
+                contact_labels,
+                [Path(p) for p in args.closed_loop],
+                within=design.targets["magnitude_within"],
                 min_size_sd=design.min_size_sd,
-            )  # fmt: skip
+            )
     if args.observed_reports:
         with user_errors(FileNotFoundError, message="--observed-reports: {error}"):
             observed = find_summaries(labels, [Path(r) for r in args.observed_reports])
@@ -334,12 +396,23 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
 
             with user_errors(FileNotFoundError, message="--observed-contact-reports: {error}"):
                 seen = find_summaries(contact_labels, [Path(r) for r in args.observed_contact_reports])
-            result["observed"]["contact"] = score_contact_cases(contact_labels, seen, targets=dict(design.targets),
-                                                                min_size_sd=design.min_size_sd)  # fmt: skip
+            result["observed"]["contact"] = score_contact_cases(
+                contact_labels, seen, targets=dict(design.targets), min_size_sd=design.min_size_sd
+            )
     write_result(args.output, score_cases, result)
     write_benchmark_markdown(result, args.markdown)
-    log.info("false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "
-             "magnitude error %.3f, shrinkage %.3f", result["false_alarm"], result["n_null"], result["top1_big"],
-             result["n_big"], result["both_named_big"], result["n_double_big"], result["none_recall_outside"],
-             result["n_outside"], result["magnitude_rel_error_median"], result["shrinkage_median"])  # fmt: skip
+    log.info(
+        "false alarms %.3f (n=%d), top-1 %.3f (n=%d), both named %.3f (n=%d), none outside %.3f (n=%d), "
+        "magnitude error %.3f, shrinkage %.3f",
+        result["false_alarm"],
+        result["n_null"],
+        result["top1_big"],
+        result["n_big"],
+        result["both_named_big"],
+        result["n_double_big"],
+        result["none_recall_outside"],
+        result["n_outside"],
+        result["magnitude_rel_error_median"],
+        result["shrinkage_median"],
+    )
     return 0

@@ -53,18 +53,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--seed", type=int_range(0), required=True, help="data-order seed")
     _add_token_grid(tr, "pool the encoder's patch tokens to this grid (config model.token_grid; default: keep)")
     tr.add_argument(
-        "--validation", nargs=2, type=existing_file, metavar=("FEATURES", "CLIPS"),
+        "--validation",
+        nargs=2,
+        type=existing_file,
+        metavar=("FEATURES", "CLIPS"),
         help="the validation split (results/features/validation.npz, results/clips/validation.csv): every Table 3 "
         "quantity on it after every epoch (needs --readout and --table)",
-    )  # fmt: skip
+    )
     tr.add_argument(
-        "--readout", type=existing_file,
+        "--readout",
+        type=existing_file,
         help="the latent readout fitted on real training clips (imply model readout), for validation",
-    )  # fmt: skip
+    )
     tr.add_argument("--table", type=existing_file, help="the push table (results/table/table.npz), for validation")
     tr.add_argument("--score-json", type=json_arg, default={}, help="scoring settings (config score): grid, floor")
-    tr.add_argument("--derangement-seed", type=int_range(0), default=default_of(ModelConfig, "derangement_seed"),
-                    help="which validation object's calibration each object gets in the swap context")  # fmt: skip
+    tr.add_argument(
+        "--derangement-seed",
+        type=int_range(0),
+        default=default_of(ModelConfig, "derangement_seed"),
+        help="which validation object's calibration each object gets in the swap context",
+    )
     tr.add_argument("--history", help="also write the per-epoch losses and validation metrics here (.json)")
     tr.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
     tr.add_argument("--checkpoint", help="checkpoint path (default: beside the output, checkpoint.pt)")
@@ -121,7 +129,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     ro.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
     ro.add_argument("-o", "--output", required=True, help="the rollouts to write (.npz)")
-    ro.set_defaults(func=cmd_rollout)  # fmt: skip
+    ro.set_defaults(func=cmd_rollout)
 
     pl = msub.add_parser("plot", help="plot the per-epoch validation of trained predictors")
     pl.add_argument(
@@ -173,9 +181,13 @@ def _validator(args: argparse.Namespace, layout, train_meta, token_grid):
     split = _feature_split(*args.validation).pooled(token_grid)
     readout = _readout(args.readout)
     return section5_validator(
-        split, layout, readout=readout, scorer=Scorer(table, grid=score.grid, floor=score.readout_floor),
-        typical=typical_slide_of_clips(train_meta), derangement_seed=args.derangement_seed,
-    )  # fmt: skip
+        split,
+        layout,
+        readout=readout,
+        scorer=Scorer(table, grid=score.grid, floor=score.readout_floor),
+        typical=typical_slide_of_clips(train_meta),
+        derangement_seed=args.derangement_seed,
+    )
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -200,10 +212,17 @@ def cmd_train(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     with user_errors(ValueError):
         payload = train_variant(
-            split, preset=preset, layout=layout, config=config, data_seed=args.seed,
-            out=out, checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
-            token_grid=grid, validate=validate, device=args.device,
-        )  # fmt: skip
+            split,
+            preset=preset,
+            layout=layout,
+            config=config,
+            data_seed=args.seed,
+            out=out,
+            checkpoint=Path(args.checkpoint) if args.checkpoint else out.with_name("checkpoint.pt"),
+            token_grid=grid,
+            validate=validate,
+            device=args.device,
+        )
     if args.history:
         write_json(args.history, {"seed": args.seed, "layout": layout.to_dict(), "history": payload["history"]})
     log.info("trained seed %d in %.1f s -> %s", args.seed, time.perf_counter() - t0, out)
@@ -249,9 +268,14 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         layout = replace(layout, rest_state=args.rest_state)
     t0 = time.perf_counter()
     table = rollout_split(
-        model, layout, split, readout=readout, contexts=contexts,
-        derangement_seed=args.derangement_seed, batch_size=args.batch_size,
-    )  # fmt: skip
+        model,
+        layout,
+        split,
+        readout=readout,
+        contexts=contexts,
+        derangement_seed=args.derangement_seed,
+        batch_size=args.batch_size,
+    )
     write_csv(args.output, table)
     log.info("rollouts written to %s in %.1f s", args.output, time.perf_counter() - t0)
     return 0
@@ -264,8 +288,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     docs = []
     for path in args.histories:
-        with user_errors(ValueError, KeyError,
-                         message=f"{path}: not a training history of imply model train --history ({{error}})"):  # fmt: skip
+        with user_errors(
+            ValueError, KeyError, message=f"{path}: not a training history of imply model train --history ({{error}})"
+        ):
             doc = json.loads(Path(path).read_text())
             if not doc["history"] or "layout" not in doc:
                 raise KeyError("history")

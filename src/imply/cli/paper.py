@@ -66,8 +66,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--report-md", required=True, help="reproduction.md to write")
     m.add_argument("--report-csv", required=True, help="reproduction.csv to write")
     m.add_argument("--report-html", help="reproduction.html to write (the page the Snakemake report shows)")
-    m.add_argument("--benchmarks", help="folder of the rules' benchmark files (results/benchmarks): the last run's "
-                   "time per rule and the jobs it waited on join the report")  # fmt: skip
+    m.add_argument(
+        "--benchmarks",
+        help="folder of the rules' benchmark files (results/benchmarks): the last run's "
+        "time per rule and the jobs it waited on join the report",
+    )
     m.set_defaults(func=cmd_merge)
 
     sn = psub.add_parser(
@@ -77,11 +80,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and every figure a documentation page names, with each stage's times, into the snapshot folder, and stamps "
         "it (snapshot.json: commit, date, machine, wall time, claims that hold); fills the README's snapshot line. "
         "The site shows the snapshot wherever results/ lacks a file.",
-    )  # fmt: skip
+    )
     sn.add_argument("--root", default=".", help="the checkout whose results/ to take (default: here)")
     sn.add_argument("--kernels", help="the numerical kernels the run pinned (config kernels.pin)")
-    sn.add_argument("-o", "--output", default="docs/snapshot",
-                    help="the snapshot folder to write: snapshot.json and results/... (default %(default)s)")  # fmt: skip
+    sn.add_argument(
+        "-o",
+        "--output",
+        default="docs/snapshot",
+        help="the snapshot folder to write: snapshot.json and results/... (default %(default)s)",
+    )
     sn.set_defaults(func=cmd_snapshot)
 
 
@@ -151,8 +158,9 @@ def cmd_part(args: argparse.Namespace) -> int:
         read_by = stage_read_by(args.stage, results)
     write_part(args.output, stage=args.stage, numbers=numbers, claims=claims, read_by=read_by)
     held = sum(c.holds for c in claims)
-    log.info("%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims),
-             args.output)  # fmt: skip
+    log.info(
+        "%s part: %d numbers, %d of %d claims hold -> %s", args.stage, len(numbers), held, len(claims), args.output
+    )
     return 0
 
 
@@ -209,9 +217,13 @@ def cmd_merge(args: argparse.Namespace) -> int:
 
         timings = markdown(read_benchmarks(args.benchmarks))
     frame = write_report(
-        load_registry(), merged, md_path=args.report_md, csv_path=args.report_csv, html_path=args.report_html,
+        load_registry(),
+        merged,
+        md_path=args.report_md,
+        csv_path=args.report_csv,
+        html_path=args.report_html,
         timings=timings,
-    )  # fmt: skip
+    )
     counts = frame["status"].value_counts().to_dict()
     log.info("merged %d parts, %d numbers; paper numbers: %s", len(merged.stages), len(merged.numbers), counts)
     return 0

@@ -32,8 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr = psub.add_parser("train", help="train one variant on a clip split")
     tr.add_argument("--clips", type=existing_file, required=True, help="results/clips/train.npz (and its .csv)")
     tr.add_argument("--recipe-json", type=json_arg, default={}, help="the recipe (config pixel.recipe)")
-    tr.add_argument("--variant", choices=("calib", "nocalib"), required=True,
-                    help="calib: the object's two calibration pushes in context; nocalib: none")  # fmt: skip
+    tr.add_argument(
+        "--variant",
+        choices=("calib", "nocalib"),
+        required=True,
+        help="calib: the object's two calibration pushes in context; nocalib: none",
+    )
     tr.add_argument("--threads", type=int_range(1), default=2, help="torch threads")
     tr.add_argument("--history", help="also write the per-epoch losses and seconds here (.json)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -77,8 +81,9 @@ def cmd_train(args: argparse.Namespace) -> int:
     if max(cfg.frames) >= frames.shape[1]:
         raise UserError(f"--recipe-json frames: index {max(cfg.frames)} is past the clips' {frames.shape[1]} frames")
     with user_errors(ValueError, message=f"--clips {args.clips}: {{error}}"):
-        model, history = train_pixel_video(frames, meta, cfg, calibrated=args.variant == "calib",
-                                           threads=args.threads, progress=not args.no_progress)  # fmt: skip
+        model, history = train_pixel_video(
+            frames, meta, cfg, calibrated=args.variant == "calib", threads=args.threads, progress=not args.no_progress
+        )
     save_pixel_video(out, model, history)
     if history_path:
         write_json(history_path, {"variant": args.variant, "recipe": cfg.to_dict(), "epochs": history})
@@ -101,9 +106,11 @@ def cmd_score(args: argparse.Namespace) -> int:
     out = output_file(args.output, [args.calib_history, args.nocalib_history])
     with user_errors(ValueError, KeyError):
         result = pixel_metrics(
-            calib=args.calib, nocalib=args.nocalib,
-            calib_history=_history(args.calib_history), nocalib_history=_history(args.nocalib_history),
-        )  # fmt: skip
+            calib=args.calib,
+            nocalib=args.nocalib,
+            calib_history=_history(args.calib_history),
+            nocalib_history=_history(args.nocalib_history),
+        )
     write_result(out, pixel_metrics, result)
     return 0
 
@@ -139,6 +146,13 @@ def cmd_figure(args: argparse.Namespace) -> int:
         "calibrated, own calibration (sample 0)": calib[(calib["condition"] == "own") & (calib["sample"] == 0)],
         "no calibration (sample 0)": nocalib[nocalib["sample"] == 0],
     }
-    figure3(true_rest=true_rest, generated_rest=gen_rest, panel_labels=labels, slides=slides,
-            selection=metrics["nocalib"]["selection"], pdf_path=args.pdf, png_path=args.png)  # fmt: skip
+    figure3(
+        true_rest=true_rest,
+        generated_rest=gen_rest,
+        panel_labels=labels,
+        slides=slides,
+        selection=metrics["nocalib"]["selection"],
+        pdf_path=args.pdf,
+        png_path=args.png,
+    )
     return 0

@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     f.add_argument("-o", "--output", required=True, help="fitted ridge readout (.npz)")
     f.add_argument("--metrics", required=True, help="the evaluation, a result document (JSON)")
-    f.set_defaults(func=cmd_fit)  # fmt: skip
+    f.set_defaults(func=cmd_fit)
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
@@ -51,9 +51,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     settings = config_from_json(ReadoutConfig, args.readout_json, "--readout-json")
     with user_errors(ValueError):
         ridge, result = evaluate_readouts(
-            clip_files(*args.train), [clip_files(*files) for files in args.heldout],
-            settings=settings, pretrain_episodes=args.pretrain_episodes,
-        )  # fmt: skip
+            clip_files(*args.train),
+            [clip_files(*files) for files in args.heldout],
+            settings=settings,
+            pretrain_episodes=args.pretrain_episodes,
+        )
     ridge.save(args.output)
     write_result(args.metrics, evaluate_readouts, result)
     return 0

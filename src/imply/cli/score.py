@@ -27,10 +27,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("rollouts", help="CSV with object_id,role,speed,displacement (role: calibration|rollout; metres)")
     p.add_argument("--table", required=True, help="push table (.npz) from 'imply table build'")
     p.add_argument("-o", "--output", required=True, help="scores CSV to write (not one of the inputs)")
-    p.add_argument("--floor", type=positive_float, default=default_of(ScoreConfig, "readout_floor"),
-                   help="readout floor in metres (default %(default)g)")  # fmt: skip
-    p.add_argument("--grid", type=int_range(2, MAX_GRID), default=default_of(ScoreConfig, "grid"),
-                   help=f"search grid points per axis, 2 to {MAX_GRID} (default %(default)d)")  # fmt: skip
+    p.add_argument(
+        "--floor",
+        type=positive_float,
+        default=default_of(ScoreConfig, "readout_floor"),
+        help="readout floor in metres (default %(default)g)",
+    )
+    p.add_argument(
+        "--grid",
+        type=int_range(2, MAX_GRID),
+        default=default_of(ScoreConfig, "grid"),
+        help=f"search grid points per axis, 2 to {MAX_GRID} (default %(default)d)",
+    )
     p.add_argument("--threads", type=int_range(0), default=0, help="scoring threads (0: all CPUs)")
     p.set_defaults(func=cmd_score)
 

@@ -110,8 +110,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         ["output"],
         ["seed", "noise", "score"],
     )
-    step("selection", "selection among candidates, Table 2 bottom (a result document)", cmd_selection,
-         ["truth", "rollouts", "table"], ["output", "choices"], ["seed", "selection", "score"])  # fmt: skip
+    step(
+        "selection",
+        "selection among candidates, Table 2 bottom (a result document)",
+        cmd_selection,
+        ["truth", "rollouts", "table"],
+        ["output", "choices"],
+        ["seed", "selection", "score"],
+    )
     p = ssub.add_parser(
         "through-evaluate",
         help="the four stand-ins through imply evaluate: their report and known answers (a result document)",
@@ -185,9 +191,13 @@ def cmd_truth(args: argparse.Namespace) -> int:
 
     score = _score(args)
     frame = simulate_truth(
-        _csv(args.objects), query_speeds=score.query_speeds, calibration_speeds=score.calibration_speeds,
-        scene=_scene(args), nthread=args.threads, progress=True,
-    )  # fmt: skip
+        _csv(args.objects),
+        query_speeds=score.query_speeds,
+        calibration_speeds=score.calibration_speeds,
+        scene=_scene(args),
+        nthread=args.threads,
+        progress=True,
+    )
     n_bad = int((~frame["ok"].astype(bool)).sum())
     if n_bad:
         log.warning("%d true pushes failed the simulator's checks; kept as simulated", n_bad)
@@ -203,11 +213,18 @@ def cmd_standins(args: argparse.Namespace) -> int:
 
     score = _score(args)
     frame = standin_rollouts(
-        _csv(args.objects), _csv(args.truth),
-        settings=config_from_json(StandinsConfig, args.standins_json, "--standins-json"), seed=args.seed,
-        table=_table(args), query_speeds=score.query_speeds, calibration_speeds=score.calibration_speeds,
-        floor=score.readout_floor, scene=_scene(args), nthread=args.threads, progress=True,
-    )  # fmt: skip
+        _csv(args.objects),
+        _csv(args.truth),
+        settings=config_from_json(StandinsConfig, args.standins_json, "--standins-json"),
+        seed=args.seed,
+        table=_table(args),
+        query_speeds=score.query_speeds,
+        calibration_speeds=score.calibration_speeds,
+        floor=score.readout_floor,
+        scene=_scene(args),
+        nthread=args.threads,
+        progress=True,
+    )
     write_csv(args.output, frame)
     log.info("wrote %d stand-in rollouts -> %s", len(frame), args.output)
     return 0
@@ -243,9 +260,13 @@ def cmd_noise(args: argparse.Namespace) -> int:
     from imply.study.section4.scoring import noise_sweep
 
     result = noise_sweep(
-        _table(args), _csv(args.truth), _csv(args.rollouts),
-        settings=config_from_json(NoiseConfig, args.noise_json, "--noise-json"), seed=args.seed, score=_score(args),
-    )  # fmt: skip
+        _table(args),
+        _csv(args.truth),
+        _csv(args.rollouts),
+        settings=config_from_json(NoiseConfig, args.noise_json, "--noise-json"),
+        seed=args.seed,
+        score=_score(args),
+    )
     write_result(args.output, noise_sweep, result)
     log.info("noise sweep -> %s", args.output)
     return 0
@@ -258,10 +279,13 @@ def cmd_selection(args: argparse.Namespace) -> int:
     from imply.study.section4.selection import selection_study
 
     result, choices = selection_study(
-        _table(args), _csv(args.truth), _csv(args.rollouts),
-        settings=config_from_json(SelectionConfig, args.selection_json, "--selection-json"), seed=args.seed,
+        _table(args),
+        _csv(args.truth),
+        _csv(args.rollouts),
+        settings=config_from_json(SelectionConfig, args.selection_json, "--selection-json"),
+        seed=args.seed,
         score=_score(args),
-    )  # fmt: skip
+    )
     write_csv(args.choices, choices)
     write_result(args.output, selection_study, result)
     log.info("selection -> %s", args.output)

@@ -22,10 +22,20 @@ log = logging.getLogger("imply.section5")
 
 def register(sub: argparse._SubParsersAction) -> None:
     s5 = sub.add_parser("section5", help="Section 5 scores of the predictor's rollouts (a result document)")
-    s5.add_argument("--evaluation", action="append", required=True, metavar="MODEL:SEED:FOLDER",
-                    help="an imply evaluate report of model calib|nocalib and data seed SEED (repeatable)")  # fmt: skip
-    s5.add_argument("--suite", action="append", required=True, metavar="MODEL:FOLDER",
-                    help="the suite the model's reports were scored on (calib and nocalib)")  # fmt: skip
+    s5.add_argument(
+        "--evaluation",
+        action="append",
+        required=True,
+        metavar="MODEL:SEED:FOLDER",
+        help="an imply evaluate report of model calib|nocalib and data seed SEED (repeatable)",
+    )
+    s5.add_argument(
+        "--suite",
+        action="append",
+        required=True,
+        metavar="MODEL:FOLDER",
+        help="the suite the model's reports were scored on (calib and nocalib)",
+    )
     s5.add_argument("--table", type=existing_file, required=True, help="the push table (results/table/table.npz)")
     s5.add_argument(
         "--train-clips",

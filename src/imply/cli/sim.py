@@ -45,19 +45,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     pu.add_argument("pushes", help="CSV of pushes to simulate")
     pu.add_argument("--model", help="user MJCF file (default: the built-in scene)")
     add_scene_options(pu)
-    pu.add_argument("-o", "--output", required=True,
-                    help="the push log to write (.csv); --track-rate and --probes write files beside it")  # fmt: skip
     pu.add_argument(
-        "--track-rate", type=positive_float, default=None, metavar="HZ",
+        "-o",
+        "--output",
+        required=True,
+        help="the push log to write (.csv); --track-rate and --probes write files beside it",
+    )
+    pu.add_argument(
+        "--track-rate",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
         help="also film each push: the box's track at HZ frames per second, written beside the log as "
         "<output stem>.track.csv (where `imply diagnose` finds it)",
-    )  # fmt: skip
+    )
     pu.add_argument(
-        "--probes", action="store_true",
+        "--probes",
+        action="store_true",
         help="also run the calibration probes a lab would (a free stroke at every speed, a pull test of every object's "
         "friction, every object pushed with a load of half its mass at its lowest and highest speed), written beside "
         "the log as <output stem>.probes.csv (where `imply diagnose` finds it; format: the formats reference)",
-    )  # fmt: skip
+    )
     pu.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
     pu.set_defaults(func=cmd_pushes)
 
@@ -112,8 +120,9 @@ def cmd_pushes(args: argparse.Namespace) -> int:
         model = load_push_model(args.model) if args.model else None
     scene = scene_from_args(args) if model is None else None
     with user_errors(KeyError, ValueError, message="cannot simulate on this model: {error}"), user_errors(InputError):
-        log_frame, track = simulate_push_table(pushes, model=model, scene=scene, nthread=args.threads, progress=True,
-                                               track_rate=args.track_rate)  # fmt: skip
+        log_frame, track = simulate_push_table(
+            pushes, model=model, scene=scene, nthread=args.threads, progress=True, track_rate=args.track_rate
+        )
     if args.probes:
         probes_path = output.with_name(f"{output.stem}.probes.csv")
         with user_errors(KeyError, ValueError, message="cannot run the probes on this model: {error}"):

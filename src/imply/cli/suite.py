@@ -24,9 +24,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument("--table", required=True, help="the push table (.npz of imply table build), copied into the suite")
     b.add_argument("--threads", type=int_range(1), default=1, help="simulation threads")
-    b.add_argument("-o", "--output", required=True,
-                   help="the suite folder to write: manifest.json, suite.npz, truth.npz, table.npz, README.md "
-                   "(a previous suite there is replaced)")  # fmt: skip
+    b.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="the suite folder to write: manifest.json, suite.npz, truth.npz, table.npz, README.md "
+        "(a previous suite there is replaced)",
+    )
     b.set_defaults(func=cmd_build)
     e = ssub.add_parser(
         "export",
@@ -34,13 +38,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "PNG), cases.csv and cases.json naming the video each case must produce; never the truth",
     )
     e.add_argument("suite", help="the suite folder")
-    e.add_argument("-o", "--output", required=True,
-                   help="the package folder to write (new or empty): manifest.json, cases.csv, cases.json, the context "
-                   "frames and calibration videos")  # fmt: skip
+    e.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="the package folder to write (new or empty): manifest.json, cases.csv, cases.json, the context "
+        "frames and calibration videos",
+    )
     e.add_argument("--size", type=_size, help="HEIGHTxWIDTH of the exported frames (default: the suite's camera)")
     e.add_argument("--fps", type=positive_float, default=30.0, help="frame rate of the videos (default %(default)g)")
-    e.add_argument("--conditions", default="own,other,none",
-                   help="calibration conditions to export cases of, comma-separated (default %(default)s)")  # fmt: skip
+    e.add_argument(
+        "--conditions",
+        default="own,other,none",
+        help="calibration conditions to export cases of, comma-separated (default %(default)s)",
+    )
     e.set_defaults(func=cmd_export)
     w = ssub.add_parser("show", help="check a suite's checksums and print its sizes, camera and settings")
     w.add_argument("suite", help="the suite folder")
@@ -60,8 +71,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     speeds = config_from_json(ScoreConfig, args.score_json, "--score-json")
     scene = config_from_json(SceneConfig, args.scene_json, "--scene-json")
     with user_errors(SuiteError, OutputError):
-        build_suite(cfg, clips=clips, scene=scene, speeds=speeds, table_path=args.table, out_dir=out,
-                    nthread=args.threads)  # fmt: skip
+        build_suite(
+            cfg, clips=clips, scene=scene, speeds=speeds, table_path=args.table, out_dir=out, nthread=args.threads
+        )
     return 0
 
 
@@ -88,8 +100,14 @@ def cmd_export(args: argparse.Namespace) -> int:
         suite = load_suite(args.suite)
     with user_errors(ValueError):
         m = export_package(suite, output_dir(args.output), conditions=conditions, size=args.size, fps=args.fps)
-    log.info("exported %d cases (%dx%d px, %g fps) -> %s", m["n_cases"], m["size"]["height"], m["size"]["width"],
-             m["fps"], args.output)  # fmt: skip
+    log.info(
+        "exported %d cases (%dx%d px, %g fps) -> %s",
+        m["n_cases"],
+        m["size"]["height"],
+        m["size"]["width"],
+        m["fps"],
+        args.output,
+    )
     return 0
 
 

@@ -89,8 +89,9 @@ class ClipsConfig(Config):
 
     seed: int = option(5, doc="seed of the objects' draws", minimum=0, required=True)
     n_train_episodes: int = option(1500, doc="training objects (3 clips each)", minimum=2, required=True)
-    n_heldout_calib: int = option(300, doc="held-out objects for the model with calibration context", minimum=1,
-                                  required=True)  # fmt: skip
+    n_heldout_calib: int = option(
+        300, doc="held-out objects for the model with calibration context", minimum=1, required=True
+    )
     n_heldout_nocalib: int = option(500, doc="held-out objects for the model without it", minimum=1, required=True)
     n_pretrain_episodes: int = option(
         600, doc="frames for the CPU encoder's JEPA pretraining only", minimum=1, required=True
@@ -103,9 +104,12 @@ class ClipsConfig(Config):
     frictions: Range = option(Range(min=0.1, max=0.6), doc="log-uniform")
     size_scale: Range = option(Range(min=0.85, max=1.15), doc="per-axis scale of the canonical box")
     frame_times: tuple[float, ...] = option(
-        (0.0, 0.03, 0.06, 0.1, 0.15, 0.25, 0.4), doc="s; an 8th frame shows the box at rest", min_items=1,
-        items={"minimum": 0}, required=True,
-    )  # fmt: skip
+        (0.0, 0.03, 0.06, 0.1, 0.15, 0.25, 0.4),
+        doc="s; an 8th frame shows the box at rest",
+        min_items=1,
+        items={"minimum": 0},
+        required=True,
+    )
     camera: CameraConfig = option(CameraConfig(), doc="the top-down view", required=True)
     batch: int = option(500, doc="pushes simulated per batch", minimum=1)
 
@@ -233,8 +237,14 @@ def render_split(
     n_img = n * n_frames
     log.info(
         "%s: %d clips, %d frames; simulation %.1f s, drawing %.1f s (%.0f frames/s drawn, %.0f frames/s overall)",
-        split, n, n_img, t_sim, t_draw, n_img / max(t_draw, 1e-9), n_img / max(t_sim + t_draw, 1e-9),
-    )  # fmt: skip
+        split,
+        n,
+        n_img,
+        t_sim,
+        t_draw,
+        n_img / max(t_draw, 1e-9),
+        n_img / max(t_sim + t_draw, 1e-9),
+    )
     if not ok.all():
         log.warning("%s: %d of %d pushes failed the simulator's checks (kept, ok=0)", split, int((~ok).sum()), n)
     meta = plan.copy()

@@ -84,8 +84,9 @@ Projection = Callable[[np.ndarray], np.ndarray]
 def _projector(problem: Problem, fit: ObjectFit) -> tuple[Projection, Projection, Projection]:
     """Functions removing each object's (log m, log mu) directions (both, or each alone) from row vectors."""
     lm, lu = fit.lm[None, :], fit.lu[None, :]
-    r = problem.residuals(Model(), np.zeros((3, 0)), np.concatenate([lm, lm + 1e-4, lm]),
-                          np.concatenate([lu, lu, lu + 1e-4]))  # fmt: skip
+    r = problem.residuals(
+        Model(), np.zeros((3, 0)), np.concatenate([lm, lm + 1e-4, lm]), np.concatenate([lu, lu, lu + 1e-4])
+    )
     jm, ju = (r[1] - r[0]) / 1e-4, (r[2] - r[0]) / 1e-4
     jm, ju = problem._free_columns(jm, ju)
     ro = problem._row_obj()
@@ -116,8 +117,9 @@ def _canonical(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max())
 
 
-def fit_alias_text(c: Candidate, *, absorbed: float, by_mass: float, by_friction: float, k_free: int,
-                   share: float) -> str:  # fmt: skip
+def fit_alias_text(
+    c: Candidate, *, absorbed: float, by_mass: float, by_friction: float, k_free: int, share: float
+) -> str:
     """A sentence when the per-object (mass, friction) fit absorbs at least ``share`` of what ``c`` does."""
     if absorbed < share:
         return ""
@@ -128,8 +130,10 @@ def fit_alias_text(c: Candidate, *, absorbed: float, by_mass: float, by_friction
     else:
         param = "a change of mass and friction together"
         fix = "mass or friction is measured" if k_free == 2 else "both are measured"
-    return (f"{c.phrase} here is {absorbed:.0%} indistinguishable from {param} of each object (the per-object fit "
-            f"absorbs it) unless {fix}")  # fmt: skip
+    return (
+        f"{c.phrase} here is {absorbed:.0%} indistinguishable from {param} of each object (the per-object fit "
+        f"absorbs it) unless {fix}"
+    )
 
 
 def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, opts: Config) -> Aliasing:
@@ -174,14 +178,23 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
             if problem.fixed_lu is None:
                 by_fric = 1.0 - float(sum((fric_only(S[:, j]) ** 2).sum() for j in range(c.dim))) / raw2
         rows[c.name] = dict(
-            raw_rms_at_bound=rms_part(S, dpart, problem.sd_d) * ext, visible_rms_at_bound=vis_d,
+            raw_rms_at_bound=rms_part(S, dpart, problem.sd_d) * ext,
+            visible_rms_at_bound=vis_d,
             visible_stop_time_rms_at_bound=vis_t if problem.use_t else None,
-            visible_share=1.0 - absorbed, absorbed_by_fit=absorbed,
-            absorbed_by_mass=by_mass, absorbed_by_friction=by_fric,
+            visible_share=1.0 - absorbed,
+            absorbed_by_fit=absorbed,
+            absorbed_by_mass=by_mass,
+            absorbed_by_friction=by_fric,
             identifiable=bool(max(vis_d, vis_t) >= opts.min_visible),
-            fit_alias=fit_alias_text(c, absorbed=absorbed, by_mass=by_mass, by_friction=by_fric,
-                                     k_free=problem.k_free, share=opts.fit_alias_share),
-        )  # fmt: skip
+            fit_alias=fit_alias_text(
+                c,
+                absorbed=absorbed,
+                by_mass=by_mass,
+                by_friction=by_fric,
+                k_free=problem.k_free,
+                share=opts.fit_alias_share,
+            ),
+        )
         vecs[c.name] = P
     restricted = {c.name: r for c in candidates if (r := _restriction(c, vecs[c.name], problem, opts)) is not None}
     for name, r in restricted.items():  # the unseen combination is no part of what it can be confused with
@@ -190,8 +203,11 @@ def aliasing(problem: Problem, candidates: list[Candidate], *, fit: ObjectFit, o
     disc = next((c.name for c in candidates if not c.is_library), None)
     mimics = {}
     if disc is not None:
-        mimics = {c.name: _canonical(vecs[disc], vecs[c.name]) for c in candidates
-                  if c.is_library and rows[c.name]["identifiable"]}  # fmt: skip
+        mimics = {
+            c.name: _canonical(vecs[disc], vecs[c.name])
+            for c in candidates
+            if c.is_library and rows[c.name]["identifiable"]
+        }
     ident = [c.name for c in candidates if rows[c.name]["identifiable"] and c.is_library]
     cos: dict[str, float] = {}
     parent = {n: n for n in ident}
@@ -248,11 +264,15 @@ def _restriction(c: Candidate, P: np.ndarray, problem: Problem, opts: Config) ->
     u = vt[0] / np.linalg.norm(vt[0])
     if c.kind == FRICTION2:
         axis = float(np.degrees(np.arctan2(u[1], u[0]) / 2.0)) % 180.0
-        note = (f"these pushes' directions show only how friction along {axis:.0f}/{(axis + 180) % 360:.0f} degrees "
-                f"differs from friction along {(axis + 90) % 180:.0f}/{(axis + 270) % 360:.0f} degrees (a cos 2 theta "
-                "part), not the anisotropy's axis; push along the diagonals between them to find it")  # fmt: skip
+        note = (
+            f"these pushes' directions show only how friction along {axis:.0f}/{(axis + 180) % 360:.0f} degrees "
+            f"differs from friction along {(axis + 90) % 180:.0f}/{(axis + 270) % 360:.0f} degrees (a cos 2 theta "
+            "part), not the anisotropy's axis; push along the diagonals between them to find it"
+        )
     else:
         az = float(np.degrees(np.arctan2(u[1], u[0]))) % 360.0
-        note = (f"these pushes' directions show only the slope along {az:.0f} degrees, not across it; push in other "
-                "directions to find its azimuth")  # fmt: skip
+        note = (
+            f"these pushes' directions show only the slope along {az:.0f} degrees, not across it; push in other "
+            "directions to find its azimuth"
+        )
     return Restriction(direction=(float(u[0]), float(u[1])), weak_rms_at_bound=weak, note=note)

@@ -62,10 +62,11 @@ class DiagnosisConfig(Config):
     grid: int = option(101, doc="(m, mu) grid per axis for the objects' global search (at most 61 used)", minimum=11)
     folds: int = option(0, doc="held-out folds of objects (0: leave one object out)", minimum=0)
     alpha: float = option(
-        0.05, doc="level of the localisation's tests and of the ranking's likelihood-ratio test (Bonferroni)",
+        0.05,
+        doc="level of the localisation's tests and of the ranking's likelihood-ratio test (Bonferroni)",
         exclusive_minimum=0,
         exclusive_maximum=1,
-    )  # fmt: skip
+    )
     alias_cos: float = option(
         0.95, doc="|cos| of projected sensitivities that makes two effects one class", minimum=0, maximum=1
     )
@@ -73,9 +74,11 @@ class DiagnosisConfig(Config):
         0.005, doc="RMS at an effect's largest magnitude below which it is not identifiable", minimum=0
     )
     fit_alias_share: float = option(
-        0.5, doc="report a candidate as aliased with the per-object fit when the fit absorbs this share", minimum=0,
+        0.5,
+        doc="report a candidate as aliased with the per-object fit when the fit absorbs this share",
+        minimum=0,
         maximum=1,
-    )  # fmt: skip
+    )
     noise_sd: float | None = option(None, doc="log d noise sd (null: estimated from the log)", exclusive_minimum=0)
     stop_time_noise_sd: float | None = option(
         None, doc="log stop time noise sd (null: estimated from the log)", exclusive_minimum=0
@@ -84,28 +87,37 @@ class DiagnosisConfig(Config):
         None, doc="log pusher speed noise sd (null: estimated from the log)", exclusive_minimum=0
     )
     track_noise_sd: float | None = option(
-        None, doc="noise sd of the log of the track's crossing times, each fraction alike (null: each estimated from "
-        "the log)", exclusive_minimum=0,
-    )  # fmt: skip
+        None,
+        doc="noise sd of the log of the track's crossing times, each fraction alike (null: each estimated from "
+        "the log)",
+        exclusive_minimum=0,
+    )
     model_floor: float | None = option(None, doc="the model's own log d error (null: measured)", minimum=0)
     stop_time_floor: float | None = option(None, doc="the model's own stop time error (null: measured)", minimum=0)
     min_share: float = option(
-        0.8, doc="share of the held-out gap above the noise floor the leading hypothesis must close for the gap to be "
-        "explained (below 1 - min_share it is not explained; between, partly)", minimum=0.5, maximum=1,
-    )  # fmt: skip
+        0.8,
+        doc="share of the held-out gap above the noise floor the leading hypothesis must close for the gap to be "
+        "explained (below 1 - min_share it is not explained; between, partly)",
+        minimum=0.5,
+        maximum=1,
+    )
     contender_ratio: float = option(
-        0.05, doc="weight, relative to the leading explanation's, that keeps an explanation in contention",
-        exclusive_minimum=0, maximum=1,
-    )  # fmt: skip
+        0.05,
+        doc="weight, relative to the leading explanation's, that keeps an explanation in contention",
+        exclusive_minimum=0,
+        maximum=1,
+    )
     use_measured: bool = option(True, doc="use weighed masses where the log has them")
     use_stop_time: bool = option(True, doc="use stop_time where the log has it")
     use_pusher_speed: bool = option(
-        False, doc="use pusher_speed (the pusher's measured mean speed) where the log has it (off: chosen on the "
+        False,
+        doc="use pusher_speed (the pusher's measured mean speed) where the log has it (off: chosen on the "
         "development sets, where it made null logs of other contact models state a speed error)",
-    )  # fmt: skip
+    )
     use_track: bool = option(
-        False, doc="use the box's track (the times it covers fractions of its travel) where the log has one",
-    )  # fmt: skip
+        False,
+        doc="use the box's track (the times it covers fractions of its travel) where the log has one",
+    )
     max_effects: int = option(3, doc="library effects in one hypothesis at most", minimum=0, maximum=3)
     screen: int = option(4, doc="alias classes, best alone first, whose combinations are fitted", minimum=0)
     outlier_sd: float = option(
@@ -114,20 +126,24 @@ class DiagnosisConfig(Config):
     scan: int = option(7, doc="magnitudes scanned per candidate effect", minimum=2)
     discrepancy: bool = option(True, doc="fit a smooth model discrepancy beside the library effects")
     discrepancy_sd: float = option(
-        0.1, doc="prior sd of each discrepancy coefficient (log units, speed/mass/friction scaled to [-1, 1])",
+        0.1,
+        doc="prior sd of each discrepancy coefficient (log units, speed/mass/friction scaled to [-1, 1])",
         exclusive_minimum=0,
-    )  # fmt: skip
+    )
     discrepancy_bound: float = option(1.0, doc="largest |discrepancy coefficient| (log units)", exclusive_minimum=0)
     discrepancy_scales: int = option(
-        1, doc="prior sds of the discrepancy the evidence averages over, halving from discrepancy_sd (1: that one)",
+        1,
+        doc="prior sds of the discrepancy the evidence averages over, halving from discrepancy_sd (1: that one)",
         minimum=1,
-    )  # fmt: skip
+    )
     discrepancy_holds: tuple[str, ...] = option(
         ("speed_gain", "speed_offset", "pusher_softness"),
         doc="library effects no hypothesis holds beside the discrepancy: a contact that differs from the table's "
         "changes the pushes as they do, so beside it they would only absorb the contact (chosen on the development "
-        "sets)", unique=True, items={"choices": tuple(c.name for c in get())},
-    )  # fmt: skip
+        "sets)",
+        unique=True,
+        items={"choices": tuple(c.name for c in get())},
+    )
     next_pushes: int = option(12, doc="pushes recommended to separate the contenders", minimum=0)
     next_speeds: int = option(9, doc="candidate speeds of the next pushes, across the table's range", minimum=2)
     next_directions: int = option(12, doc="candidate directions of the next pushes (logs with directions)", minimum=1)
@@ -241,8 +257,10 @@ def _observables(problem: Problem) -> tuple[list[str], str]:
     probes = problem.log.probes
     if probes is not None:
         c = probes.counts()
-        note += (f"; the log's calibration probes ({c['free_stroke']} free strokes, {c['friction']} friction "
-                 f"measurements, {c['added_mass']} added-mass pushes) were read and checked, and no fit uses them")  # fmt: skip
+        note += (
+            f"; the log's calibration probes ({c['free_stroke']} free strokes, {c['friction']} friction "
+            f"measurements, {c['added_mass']} added-mass pushes) were read and checked, and no fit uses them"
+        )
     return used, note
 
 
@@ -264,7 +282,7 @@ def _outliers(problem: Problem, noise: Noise) -> dict[str, list[Outlier]]:
                 direction=float(problem.phi[i]),
             )
             for i in est.outliers
-        ]  # fmt: skip
+        ]
         for name, est in out.items()
     }
 
@@ -284,61 +302,95 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     where = localise(problem, base.objects, resid_d, alpha=opts.alpha)  # 2. where
     pool = list(candidates)
     if opts.discrepancy:
-        pool.append(discrepancy_candidate(aux=problem.aux, prior_sd=opts.discrepancy_sd,
-                                          bound=opts.discrepancy_bound))  # fmt: skip
+        pool.append(discrepancy_candidate(aux=problem.aux, prior_sd=opts.discrepancy_sd, bound=opts.discrepancy_bound))
     alias = aliasing(problem, pool, fit=base.objects, opts=opts)  # 3. what these pushes can tell apart
     # a two-component effect of which these directions show one combination is fitted along it alone
     pool = [c.restricted(alias.restricted[c.name].direction) if c.name in alias.restricted else c for c in pool]
-    hyps = enumerate_hypotheses(problem, base, pool, alias=alias, max_effects=opts.max_effects, screen=opts.screen,
-                                scan=opts.scan, n_folds=opts.folds,
-                                scales=opts.discrepancy_scales,
-                                held=set(opts.discrepancy_holds))  # 4. every explanation, weighed  # fmt: skip
+    hyps = enumerate_hypotheses(
+        problem,
+        base,
+        pool,
+        alias=alias,
+        max_effects=opts.max_effects,
+        screen=opts.screen,
+        scan=opts.scan,
+        n_folds=opts.folds,
+        scales=opts.discrepancy_scales,
+        held=set(opts.discrepancy_holds),
+    )  # 4. every explanation, weighed
     final = hyps.fits[0]  # the leading hypothesis
     held = heldout(problem, final, opts.folds)  # 5. how far, held out
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
     share = shrink.judged if shrink.judged is not None else shrink.gap_share_closed
-    verdict = judge(hyps.table, share=share, min_share=opts.min_share,
-                    contender_ratio=opts.contender_ratio)  # 6. adequacy and identification  # fmt: skip
+    verdict = judge(
+        hyps.table, share=share, min_share=opts.min_share, contender_ratio=opts.contender_ratio
+    )  # 6. adequacy and identification
     cov = np.linalg.pinv(posterior_precision(final, hyps.dispersion)) if final.model.dim else np.zeros((0, 0))
     effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)
     disc = describe(problem, final, mimics=alias.mimicked)
     by_label = {h.label: f for h, f in zip(hyps.table, hyps.fits, strict=True)}
-    design = design_pushes(problem, [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
-                           n=opts.next_pushes, speeds=opts.next_speeds, directions=opts.next_directions,
-                           opts=opts)  # 7. the pushes that would tell the contenders apart  # fmt: skip
+    design = design_pushes(
+        problem,
+        [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
+        n=opts.next_pushes,
+        speeds=opts.next_speeds,
+        directions=opts.next_directions,
+        opts=opts,
+    )  # 7. the pushes that would tell the contenders apart
     singles = screened(problem, base, hyps.singles, alpha=opts.alpha, fold_of=folds(problem.n_obj, opts.folds))
 
     # 8. the report's summary and residuals
     observables, note = _observables(problem)
     outliers = _outliers(problem, noise)
     summary = Summary(
-        pushlog=problem.log.path, n_pushes=int(problem.y.size), n_objects=int(problem.n_obj),
+        pushlog=problem.log.path,
+        n_pushes=int(problem.y.size),
+        n_objects=int(problem.n_obj),
         has_direction=problem.log.has_direction,
         measured={"mass": problem.fixed_lm is not None, "friction": problem.fixed_lu is not None},
-        observables=observables, observables_note=note,
-        noise=NoiseReport(displacement=noise.displacement, stop_time=noise.stop_time,
-                          pusher_speed=noise.aux.get("pusher_speed"), sd=problem.noise_d,
-                          stop_time_sd=noise.aux["stop_time"].sd if "stop_time" in noise.aux else None,
-                          pusher_speed_sd=noise.aux["pusher_speed"].sd if "pusher_speed" in noise.aux else None,
-                          aux_sd={name: float(n.sd) for name, n in noise.aux.items()},
-                          source=noise.displacement.source),
-        outliers=outliers, n_outliers=int(sum(len(v) for v in outliers.values())),
+        observables=observables,
+        observables_note=note,
+        noise=NoiseReport(
+            displacement=noise.displacement,
+            stop_time=noise.stop_time,
+            pusher_speed=noise.aux.get("pusher_speed"),
+            sd=problem.noise_d,
+            stop_time_sd=noise.aux["stop_time"].sd if "stop_time" in noise.aux else None,
+            pusher_speed_sd=noise.aux["pusher_speed"].sd if "pusher_speed" in noise.aux else None,
+            aux_sd={name: float(n.sd) for name, n in noise.aux.items()},
+            source=noise.displacement.source,
+        ),
+        outliers=outliers,
+        n_outliers=int(sum(len(v) for v in outliers.values())),
         baseline=Baseline(rms=shrink.before_rms, sse_whitened=base.sse),
-        localisation=where, aliasing=alias,
-        ranking=ranked(singles, alias, model_before=Model(), n=problem.n_rows), hypotheses=hyps.table,
-        inclusion=inclusion_weights(hyps.table), dispersion=hyps.dispersion, effects=effects, verdict=verdict,
-        sentence="", shrinkage=shrink, options=opts,
+        localisation=where,
+        aliasing=alias,
+        ranking=ranked(singles, alias, model_before=Model(), n=problem.n_rows),
+        hypotheses=hyps.table,
+        inclusion=inclusion_weights(hyps.table),
+        dispersion=hyps.dispersion,
+        effects=effects,
+        verdict=verdict,
+        sentence="",
+        shrinkage=shrink,
+        options=opts,
         model_floor=problem.etables.meta.get("model_floor") if problem.etables is not None else None,
-        seconds=round(time.perf_counter() - t0, 3), next_pushes=design, discrepancy=disc,
-    )  # fmt: skip
+        seconds=round(time.perf_counter() - t0, 3),
+        next_pushes=design,
+        discrepancy=disc,
+    )
     summary = replace(summary, sentence=verdict_text(summary))
     with_effects = bool(final.model.dim)
     residuals = Residuals(
-        speed=problem.v, direction=problem.phi, log_d=problem.y, resid_before=resid_d,
-        resid_after=held.resid_d if with_effects else None, flagged=problem.w_d == 0,
+        speed=problem.v,
+        direction=problem.phi,
+        log_d=problem.y,
+        resid_before=resid_d,
+        resid_after=held.resid_d if with_effects else None,
+        flagged=problem.w_d == 0,
         stop_resid_before=_aux_part(problem, resid_t, "stop_time"),
         stop_resid_after=_aux_part(problem, held.resid_t, "stop_time") if with_effects else None,
         pusher_resid_before=_aux_part(problem, resid_t, "pusher_speed"),
         pusher_resid_after=_aux_part(problem, held.resid_t, "pusher_speed") if with_effects else None,
-    )  # fmt: skip
+    )
     return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log)

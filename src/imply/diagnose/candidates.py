@@ -86,8 +86,9 @@ class Candidate:
         u = np.asarray(direction, float)
         u = u / np.linalg.norm(u)
         r = float(self.radius)
-        return dataclasses.replace(self, components=(f"{self.name}_along",), lo=(-r,), hi=(r,), radius=None,
-                                   basis=(float(u[0]), float(u[1])))  # fmt: skip
+        return dataclasses.replace(
+            self, components=(f"{self.name}_along",), lo=(-r,), hi=(r,), radius=None, basis=(float(u[0]), float(u[1]))
+        )
 
     def restricted_axis_deg(self) -> float | None:
         """A restricted candidate's fixed azimuth (degrees, in [0, period)) for a positive component."""
@@ -150,8 +151,10 @@ def _faster(m: float) -> str:
 
 def speed_clause(gain: float, offset: float) -> str:
     """The verdict's words for a speed gain and a speed offset found together: v' = (1 + gain) v + offset."""
-    text = (f"the pusher's speed is {abs(gain):.1%} {'above' if gain > 0 else 'below'} the command, "
-            f"{'plus' if offset > 0 else 'less'} {abs(offset) * 1000:.2g} mm/s")  # fmt: skip
+    text = (
+        f"the pusher's speed is {abs(gain):.1%} {'above' if gain > 0 else 'below'} the command, "
+        f"{'plus' if offset > 0 else 'less'} {abs(offset) * 1000:.2g} mm/s"
+    )
     if gain * offset < 0:  # the two cross: slower on one side of a speed, faster on the other
         cross = -offset / gain
         below, above = ("slower", "faster") if gain > 0 else ("faster", "slower")
@@ -163,9 +166,18 @@ def _one(name: str, title: str, unit: str, phrase: str, clause, kind: str = TABL
     """A one-component candidate on the library effect ``name`` (its bounds and tabulated levels)."""
     e = EFFECTS[name]
     return Candidate(
-        name, title, unit, phrase, clause, kind, (name,), (float(e.bounds[0]),), (float(e.bounds[1]),),
-        table_keys=(e.table_key,) if kind == TABLE else (), levels=tuple(e.levels),
-    )  # fmt: skip
+        name,
+        title,
+        unit,
+        phrase,
+        clause,
+        kind,
+        (name,),
+        (float(e.bounds[0]),),
+        (float(e.bounds[1]),),
+        table_keys=(e.table_key,) if kind == TABLE else (),
+        levels=tuple(e.levels),
+    )
 
 
 def _library() -> list[Candidate]:
@@ -174,35 +186,94 @@ def _library() -> list[Candidate]:
     tilt = float(max(abs(tx.bounds[0]), abs(tx.bounds[1])))
     aniso = float(max(abs(an.bounds[0]), abs(an.bounds[1])))
     return [
-        _one("torsional", "torsional friction (condim 4)", "m", "torsional friction",
-             lambda m, az: f"torsional friction (condim 4) of {m:.3g} m"),
-        _one("rolling", "rolling friction (condim 6)", "m", "rolling friction",
-             lambda m, az: f"rolling friction (condim 6) of {m:.3g} m"),
-        _one("viscous", "viscous (velocity-proportional) friction on the box", "N s/m", "viscous friction",
-             lambda m, az: f"the box feels viscous friction of {m:.3g} N s/m"),
-        _one("pusher_softness", "pusher contact softness (extra solref time constant)", "s", "a softer pusher",
-             lambda m, az: f"the pusher's contact is softer (solref time constant +{m:.3g} s)"),
-        Candidate(
-            "tilt", "table tilt: a slope toward an azimuth (along and across every push)", "rad", "a tilted table",
-            lambda m, az: f"the table slopes {m:.3g} rad toward {round(az) % 360:.0f} degrees (table frame)",
-            TILT, ("tilt_x", "tilt_y"), (-tilt, -tilt), (tilt, tilt), radius=tilt, period=2 * np.pi,
-            table_keys=("slope", "slope_across"), levels=tuple(tx.levels),
+        _one(
+            "torsional",
+            "torsional friction (condim 4)",
+            "m",
+            "torsional friction",
+            lambda m, az: f"torsional friction (condim 4) of {m:.3g} m",
         ),
-        _one("air_drag", "fluid drag (medium density, MuJoCo fluid model)", "kg/m^3", "air drag",
-             lambda m, az: f"the box feels air drag as of a medium of {m:.3g} kg/m^3"),
-        _one("height", "box height deviation from the canonical box (fraction)", "1", "a different box height",
-             lambda m, az: f"the boxes are {abs(m):.0%} {'taller' if m > 0 else 'shorter'} than the table's"),
-        _one("speed_gain", "commanded-vs-actual speed gain (v' = (1+g) v)", "1", "a speed gain",
-             lambda m, az: f"the pusher runs {abs(m):.1%} {_faster(m)} than commanded", SPEED_GAIN),
-        _one("speed_offset", "commanded-vs-actual speed offset (v' = v + c)", "m/s", "a speed offset",
-             lambda m, az: f"the pusher runs {abs(m):.3g} m/s {_faster(m)} than commanded", SPEED_OFFSET),
+        _one(
+            "rolling",
+            "rolling friction (condim 6)",
+            "m",
+            "rolling friction",
+            lambda m, az: f"rolling friction (condim 6) of {m:.3g} m",
+        ),
+        _one(
+            "viscous",
+            "viscous (velocity-proportional) friction on the box",
+            "N s/m",
+            "viscous friction",
+            lambda m, az: f"the box feels viscous friction of {m:.3g} N s/m",
+        ),
+        _one(
+            "pusher_softness",
+            "pusher contact softness (extra solref time constant)",
+            "s",
+            "a softer pusher",
+            lambda m, az: f"the pusher's contact is softer (solref time constant +{m:.3g} s)",
+        ),
         Candidate(
-            "anisotropic", "anisotropic friction: mu (1 + a cos 2(phi - axis))", "1", "anisotropic friction",
+            "tilt",
+            "table tilt: a slope toward an azimuth (along and across every push)",
+            "rad",
+            "a tilted table",
+            lambda m, az: f"the table slopes {m:.3g} rad toward {round(az) % 360:.0f} degrees (table frame)",
+            TILT,
+            ("tilt_x", "tilt_y"),
+            (-tilt, -tilt),
+            (tilt, tilt),
+            radius=tilt,
+            period=2 * np.pi,
+            table_keys=("slope", "slope_across"),
+            levels=tuple(tx.levels),
+        ),
+        _one(
+            "air_drag",
+            "fluid drag (medium density, MuJoCo fluid model)",
+            "kg/m^3",
+            "air drag",
+            lambda m, az: f"the box feels air drag as of a medium of {m:.3g} kg/m^3",
+        ),
+        _one(
+            "height",
+            "box height deviation from the canonical box (fraction)",
+            "1",
+            "a different box height",
+            lambda m, az: f"the boxes are {abs(m):.0%} {'taller' if m > 0 else 'shorter'} than the table's",
+        ),
+        _one(
+            "speed_gain",
+            "commanded-vs-actual speed gain (v' = (1+g) v)",
+            "1",
+            "a speed gain",
+            lambda m, az: f"the pusher runs {abs(m):.1%} {_faster(m)} than commanded",
+            SPEED_GAIN,
+        ),
+        _one(
+            "speed_offset",
+            "commanded-vs-actual speed offset (v' = v + c)",
+            "m/s",
+            "a speed offset",
+            lambda m, az: f"the pusher runs {abs(m):.3g} m/s {_faster(m)} than commanded",
+            SPEED_OFFSET,
+        ),
+        Candidate(
+            "anisotropic",
+            "anisotropic friction: mu (1 + a cos 2(phi - axis))",
+            "1",
+            "anisotropic friction",
             # an axis: 0 and 180 degrees are the same direction
             lambda m, az: f"friction is {m:.0%} higher along {round(az) % 180:.0f} degrees than across it",
-            FRICTION2, ("aniso_cos", "aniso_sin"), (-aniso, -aniso), (aniso, aniso), radius=aniso, period=np.pi,
+            FRICTION2,
+            ("aniso_cos", "aniso_sin"),
+            (-aniso, -aniso),
+            (aniso, aniso),
+            radius=aniso,
+            period=np.pi,
         ),
-    ]  # fmt: skip
+    ]
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in _library()}
@@ -337,10 +408,17 @@ def discrepancy_candidate(*, aux: tuple[str, ...] = (), prior_sd: float, bound: 
     N(0, ``prior_sd``^2) prior and within +-``bound``."""
     comps = DISCREPANCY_D + tuple(f"{AUX_PREFIX[a]}{name[1:]}" for a in aux for name in DISCREPANCY_T)
     return Candidate(
-        DISCREPANCY, "model discrepancy: a smooth function of speed, mass and friction", "log units",
-        "a smooth discrepancy between the table and these pushes", lambda m, az: "a smooth discrepancy", DISCREPANCY,
-        comps, tuple([-bound] * len(comps)), tuple([bound] * len(comps)), prior_sd=prior_sd,
-    )  # fmt: skip
+        DISCREPANCY,
+        "model discrepancy: a smooth function of speed, mass and friction",
+        "log units",
+        "a smooth discrepancy between the table and these pushes",
+        lambda m, az: "a smooth discrepancy",
+        DISCREPANCY,
+        comps,
+        tuple([-bound] * len(comps)),
+        tuple([bound] * len(comps)),
+        prior_sd=prior_sd,
+    )
 
 
 def scaled(x: np.ndarray, lo: float, hi: float) -> np.ndarray:

@@ -62,12 +62,17 @@ def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> Discrepan
     return DiscrepancyReport(
         coefficients=dict(zip(c.components, beta.tolist(), strict=True)),
         rms_log_d=float(np.sqrt(np.mean(rows**2))) if rows.size else 0.0,
-        speed_trend=trend, speed_trend_rough_minus_smooth=float(4.0 * beta[k["d_vu"]]),
+        speed_trend=trend,
+        speed_trend_rough_minus_smooth=float(4.0 * beta[k["d_vu"]]),
         speed_trend_heavy_minus_light=float(4.0 * beta[k["d_vm"]]),
-        stop_time_offset=(float(np.mean(dt[problem.cond][keep, problem.aux.index('stop_time')]))
-                          if 'stop_time' in problem.aux else None),
-        implied_mass_ratio=implied_mass_ratio(problem, fit), mimics=list(mimics),
-    )  # fmt: skip
+        stop_time_offset=(
+            float(np.mean(dt[problem.cond][keep, problem.aux.index("stop_time")]))
+            if "stop_time" in problem.aux
+            else None
+        ),
+        implied_mass_ratio=implied_mass_ratio(problem, fit),
+        mimics=list(mimics),
+    )
 
 
 def implied_mass_ratio(problem: Problem, fit: JointFit) -> float | None:

@@ -201,9 +201,14 @@ def _fill(values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
 def _points(axes, v, m, mu) -> tuple[np.ndarray, tuple[int, ...]]:
     """(n, 3) interpolation points (v, log m, log mu) clipped to ``axes``, and the broadcast shape."""
     v, m, mu = np.broadcast_arrays(*(np.asarray(x, float) for x in (v, m, mu)))
-    pts = np.stack([np.clip(v.ravel(), axes[0][0], axes[0][-1]),
-                    np.clip(np.log(m).ravel(), np.log(axes[1][0]), np.log(axes[1][-1])),
-                    np.clip(np.log(mu).ravel(), np.log(axes[2][0]), np.log(axes[2][-1]))], -1)  # fmt: skip
+    pts = np.stack(
+        [
+            np.clip(v.ravel(), axes[0][0], axes[0][-1]),
+            np.clip(np.log(m).ravel(), np.log(axes[1][0]), np.log(axes[1][-1])),
+            np.clip(np.log(mu).ravel(), np.log(axes[2][0]), np.log(axes[2][-1])),
+        ],
+        -1,
+    )
     return pts, v.shape
 
 
@@ -249,8 +254,9 @@ class EffectTables:
         if self.aux_base is None or self.aux_axes is None:
             return None
         v, m, u = self.aux_axes
-        return RegularGridInterpolator((v, np.log(m), np.log(u)), self.aux_base, method="cubic",
-                                       solver_args={"atol": 1e-12, "rtol": 1e-12})  # fmt: skip
+        return RegularGridInterpolator(
+            (v, np.log(m), np.log(u)), self.aux_base, method="cubic", solver_args={"atol": 1e-12, "rtol": 1e-12}
+        )
 
     @cached_property
     def _aux_linear(self) -> RegularGridInterpolator | None:
@@ -334,8 +340,15 @@ def _key_accuracy(scene, key, levels, axes, delta, delta_t, pushes, base: PushOb
         sel = np.round(s, 12) == lev
         res = simulate_observables(_spec_model(scene, key, float(lev)), v[sel], m[sel], mu[sel], nthread=nthread)
         obs_d[sel], obs_t[sel] = res.log_d - base.log_d[sel], aux_values(res) - aux_values(base)[sel]
-    tmp = EffectTables(axes=axes, levels={key: levels}, deltas={key: delta}, meta={}, deltas_t={key: delta_t},
-                       aux_axes=axes, aux_base=np.zeros((*delta.shape[1:], len(AUX))))  # fmt: skip
+    tmp = EffectTables(
+        axes=axes,
+        levels={key: levels},
+        deltas={key: delta},
+        meta={},
+        deltas_t={key: delta_t},
+        aux_axes=axes,
+        aux_base=np.zeros((*delta.shape[1:], len(AUX))),
+    )
     out = {}
     for name, obs, which in (("log_d", obs_d, "d"), *((a, obs_t[:, i], a) for i, a in enumerate(AUX))):
         pred = tmp.delta(key, v, m, mu, s, which)
@@ -349,8 +362,11 @@ def _key_accuracy(scene, key, levels, axes, delta, delta_t, pushes, base: PushOb
 def _random_pushes(table: PushTable, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     (v0, v1), (m0, m1), (u0, u1) = table.speed_range, table.mass_range, table.friction_range
-    return (rng.uniform(v0, v1, n), np.exp(rng.uniform(np.log(m0), np.log(m1), n)),
-            np.exp(rng.uniform(np.log(u0), np.log(u1), n)))  # fmt: skip
+    return (
+        rng.uniform(v0, v1, n),
+        np.exp(rng.uniform(np.log(m0), np.log(m1), n)),
+        np.exp(rng.uniform(np.log(u0), np.log(u1), n)),
+    )
 
 
 def model_floor(
@@ -478,12 +494,17 @@ def load_or_build(
                 rows_t.append(_fill(aux_values(res), shape) - base_t)
                 bar.update(1)
             deltas[key], deltas_t[key] = np.stack(rows), np.stack(rows_t)
-            accuracy = _key_accuracy(scene, key, np.array(lv), axes, deltas[key], deltas_t[key], (cv, cm, cu),
-                                     check_base, nthread)  # fmt: skip
+            accuracy = _key_accuracy(
+                scene, key, np.array(lv), axes, deltas[key], deltas_t[key], (cv, cm, cu), check_base, nthread
+            )
             meta["keys"][key] = {**kmeta, "failed_cells": failed, "accuracy": accuracy}
             if path is not None:
-                write_npz(path, delta=deltas[key], delta_t=deltas_t[key],
-                          meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)))  # fmt: skip
+                write_npz(
+                    path,
+                    delta=deltas[key],
+                    delta_t=deltas_t[key],
+                    meta=np.array(json.dumps(meta["keys"][key], sort_keys=True)),
+                )
     aux_axes = aux_base = None
     if aux:
         aux_axes = grid.axes(table, stop=True)
@@ -500,14 +521,25 @@ def load_or_build(
             if spath is not None:
                 write_npz(spath, aux=aux_base, meta=np.array(json.dumps(smeta, sort_keys=True)))
         bar.update(1)
-    tables = EffectTables(axes=axes, levels={k: np.array(x) for k, x in levels.items()}, deltas=deltas, meta=meta,
-                          deltas_t=deltas_t, aux_axes=aux_axes, aux_base=aux_base)  # fmt: skip
+    tables = EffectTables(
+        axes=axes,
+        levels={k: np.array(x) for k, x in levels.items()},
+        deltas=deltas,
+        meta=meta,
+        deltas_t=deltas_t,
+        aux_axes=aux_axes,
+        aux_base=aux_base,
+    )
     digest, fmeta = _digest(
-        table, grid,
-        {"model_floor": {"n": grid.floor_pushes, "seed": 0}, "numerical_error": table.meta.get("numerical_error"),
-         "stop_grid": [getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")] if aux else None,
-         "aux": list(AUX) if aux else None},
-    )  # fmt: skip
+        table,
+        grid,
+        {
+            "model_floor": {"n": grid.floor_pushes, "seed": 0},
+            "numerical_error": table.meta.get("numerical_error"),
+            "stop_grid": [getattr(grid, k) for k in ("stop_speeds", "stop_masses", "stop_frictions")] if aux else None,
+            "aux": list(AUX) if aux else None,
+        },
+    )
     fpath = cache / f"floor-{digest}.json" if cache else None
     if fpath is not None and fpath.is_file():
         with open(fpath) as fh:

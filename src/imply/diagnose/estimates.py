@@ -66,13 +66,21 @@ class RankedCandidate(EffectEstimate):
 def estimate_fields(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
     """The fields of an :class:`EffectEstimate` of ``c`` at ``theta`` with covariance ``cov``."""
     theta = np.asarray(theta, float)
-    out: dict = {"effect": c.name, "title": c.title, "unit": c.unit,
-                 "components": dict(zip(c.components, theta.tolist(), strict=True))}  # fmt: skip
+    out: dict = {
+        "effect": c.name,
+        "title": c.title,
+        "unit": c.unit,
+        "components": dict(zip(c.components, theta.tolist(), strict=True)),
+    }
     if c.dim == 1:
         sd = float(np.sqrt(max(cov[0, 0], 0.0)))
         lo, hi = c.lo[0], c.hi[0]
-        out.update(magnitude=float(theta[0]), ci95=(float(max(theta[0] - Z95 * sd, lo)), float(min(theta[0] + Z95 * sd, hi))),
-                   sd=sd, at_bound=bool(np.isclose(theta[0], lo) or np.isclose(theta[0], hi)))  # fmt: skip
+        out.update(
+            magnitude=float(theta[0]),
+            ci95=(float(max(theta[0] - Z95 * sd, lo)), float(min(theta[0] + Z95 * sd, hi))),
+            sd=sd,
+            at_bound=bool(np.isclose(theta[0], lo) or np.isclose(theta[0], hi)),
+        )
         if c.basis is not None:  # restricted to one direction: its azimuth is the design's, not fitted
             out.update(azimuth_deg=c.restricted_axis_deg())
         return out
@@ -80,8 +88,12 @@ def estimate_fields(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
         a = float(np.linalg.norm(theta))
         g = theta / a if a > 0 else np.zeros_like(theta)
         sd_a = float(np.sqrt(max(g @ cov @ g, 0.0)))
-        out.update(magnitude=a, ci95=(max(a - Z95 * sd_a, 0.0), a + Z95 * sd_a), sd=sd_a,
-                   at_bound=bool(np.any(np.isclose(np.abs(theta), c.hi))))  # fmt: skip
+        out.update(
+            magnitude=a,
+            ci95=(max(a - Z95 * sd_a, 0.0), a + Z95 * sd_a),
+            sd=sd_a,
+            at_bound=bool(np.any(np.isclose(np.abs(theta), c.hi))),
+        )
         return out
     a = float(np.hypot(*theta))
     g = theta / a if a > 0 else np.array([1.0, 0.0])
@@ -94,9 +106,14 @@ def estimate_fields(c: Candidate, theta: np.ndarray, cov: np.ndarray) -> dict:
     ang = c.azimuth(theta)
     factor = 0.5 if c.period and c.period < 2 * np.pi - 1e-9 else 1.0
     half = min(Z95 * sd_ang * factor, c.period / 2)
-    out.update(magnitude=a, ci95=(max(a - Z95 * sd_a, 0.0), min(a + Z95 * sd_a, float(c.radius))), sd=sd_a,
-               azimuth_deg=float(np.degrees(ang)), azimuth_ci95_deg=(float(np.degrees(ang - half)),
-               float(np.degrees(ang + half))), at_bound=bool(a >= c.radius * (1 - 1e-6)))  # fmt: skip
+    out.update(
+        magnitude=a,
+        ci95=(max(a - Z95 * sd_a, 0.0), min(a + Z95 * sd_a, float(c.radius))),
+        sd=sd_a,
+        azimuth_deg=float(np.degrees(ang)),
+        azimuth_ci95_deg=(float(np.degrees(ang - half)), float(np.degrees(ang + half))),
+        at_bound=bool(a >= c.radius * (1 - 1e-6)),
+    )
     return out
 
 
@@ -108,13 +125,23 @@ def ranked(results: list[StepResult], alias: Aliasing, *, model_before: Model, n
         c = r.candidate
         th = r.fit.theta[k0 : k0 + c.dim]
         cov = r.fit.covariance()[k0 : k0 + c.dim, k0 : k0 + c.dim]
-        rows.append(RankedCandidate(
-            **estimate_fields(c, th, cov), cls=alias.effects[c.name].cls,
-            identifiable=alias.effects[c.name].identifiable, lr_stat=r.lr, df=r.df, lr_critical=r.critical,
-            heldout_gain=r.heldout_gain, heldout_improvement=r.heldout_share, explained_ms=r.explained_ms,
-            floor_ms=r.floor_ms, qualifies=r.qualifies, reasons=r.reasons,
-            delta_bic=float(-r.lr + c.dim * np.log(max(n, 2))),
-        ))  # fmt: skip
+        rows.append(
+            RankedCandidate(
+                **estimate_fields(c, th, cov),
+                cls=alias.effects[c.name].cls,
+                identifiable=alias.effects[c.name].identifiable,
+                lr_stat=r.lr,
+                df=r.df,
+                lr_critical=r.critical,
+                heldout_gain=r.heldout_gain,
+                heldout_improvement=r.heldout_share,
+                explained_ms=r.explained_ms,
+                floor_ms=r.floor_ms,
+                qualifies=r.qualifies,
+                reasons=r.reasons,
+                delta_bic=float(-r.lr + c.dim * np.log(max(n, 2))),
+            )
+        )
     return rows
 
 
@@ -125,7 +152,7 @@ def accepted_effects(fit_model: Model, theta: np.ndarray, *, cov: np.ndarray, al
             **estimate_fields(c, theta[sl], cov[sl, sl]),
             cls=alias.effects[c.name].cls,
             fit_alias=alias.effects[c.name].fit_alias,
-        )  # fmt: skip
+        )
         for c, sl in zip(fit_model.candidates, fit_model.slices(), strict=True)
         if c.is_library  # the discrepancy is described apart (imply.diagnose.discrepancy)
     ]

@@ -47,8 +47,12 @@ def distinct_blocks(n_blocks: int, *columns: np.ndarray) -> tuple[np.ndarray | N
         return None, None
     size = columns[0].size // n_blocks
     seen: dict[bytes, int] = {}
-    which = np.array([seen.setdefault(b"".join(c[b * size : (b + 1) * size].tobytes() for c in columns), len(seen))
-                      for b in range(n_blocks)])  # fmt: skip
+    which = np.array(
+        [
+            seen.setdefault(b"".join(c[b * size : (b + 1) * size].tobytes() for c in columns), len(seen))
+            for b in range(n_blocks)
+        ]
+    )
     if len(seen) == n_blocks:
         return None, None
     firsts = np.unique(which, return_index=True)[1]
@@ -254,20 +258,39 @@ class Problem:
         key = np.stack([obj.astype(float), np.round(v, 9), np.round(np.mod(phi, 2 * np.pi), 6)], 1)
         uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
         n_obj = len(pushlog.objects)
-        wanted = {"stop_time": use_stop_time, "pusher_speed": use_pusher_speed,
-                  **dict.fromkeys(TRACK_OBSERVABLES, use_track)}  # fmt: skip
+        wanted = {
+            "stop_time": use_stop_time,
+            "pusher_speed": use_pusher_speed,
+            **dict.fromkeys(TRACK_OBSERVABLES, use_track),
+        }
         held = etables.aux if etables is not None else ()
         aux = tuple(a for a in held if wanted.get(a) and pushlog.aux(a) is not None)
         use_t = bool(aux)
         return cls(
-            log=pushlog, table=table, etables=etables, grid=grid, obj=obj, n_obj=n_obj, v=v, phi=phi,
-            y=pushlog.log_d, cond=cond.ravel(), n_cond=uniq.shape[0], c_obj=obj[first], c_v=v[first],
-            c_phi=phi[first], counts=np.bincount(obj, minlength=n_obj).astype(float),
-            lm_range=np.log(table.mass_range), lu_range=np.log(table.friction_range), v_range=table.speed_range,
+            log=pushlog,
+            table=table,
+            etables=etables,
+            grid=grid,
+            obj=obj,
+            n_obj=n_obj,
+            v=v,
+            phi=phi,
+            y=pushlog.log_d,
+            cond=cond.ravel(),
+            n_cond=uniq.shape[0],
+            c_obj=obj[first],
+            c_v=v[first],
+            c_phi=phi[first],
+            counts=np.bincount(obj, minlength=n_obj).astype(float),
+            lm_range=np.log(table.mass_range),
+            lu_range=np.log(table.friction_range),
+            v_range=table.speed_range,
             fixed_lm=np.log(pushlog.mass) if use_measured and pushlog.mass is not None else None,
             fixed_lu=np.log(pushlog.friction) if use_measured and pushlog.friction is not None else None,
-            use_t=use_t, y_t=np.concatenate([pushlog.aux(a) for a in aux]) if use_t else None, aux=aux,
-        )  # fmt: skip
+            use_t=use_t,
+            y_t=np.concatenate([pushlog.aux(a) for a in aux]) if use_t else None,
+            aux=aux,
+        )
 
     # -- noise, weights and model error: each a new problem ---------------------------
     def with_noise(self, sd_d: float, sd_t) -> Problem:
@@ -281,15 +304,21 @@ class Problem:
     def with_model_error(self, err_d: np.ndarray, err_t: np.ndarray | None) -> Problem:
         """The model's own error per row (RMS, log units), counted as variance beside the noise."""
         keep_t = not (self.use_t and err_t is not None)
-        return replace(self, model_err_d=np.asarray(err_d, float),
-                       model_err_t=self.model_err_t if keep_t else np.asarray(err_t, float))  # fmt: skip
+        return replace(
+            self,
+            model_err_d=np.asarray(err_d, float),
+            model_err_t=self.model_err_t if keep_t else np.asarray(err_t, float),
+        )
 
     def with_weights(self, w_d: np.ndarray, w_t: np.ndarray | None) -> Problem:
         """Per-row weights (0 leaves a flagged outlier out of every fit)."""
         if not self.use_t:
             return replace(self, w_d=np.asarray(w_d, float))
-        return replace(self, w_d=np.asarray(w_d, float),
-                       w_t=np.asarray(w_t if w_t is not None else np.ones(self.t_row.size), float))  # fmt: skip
+        return replace(
+            self,
+            w_d=np.asarray(w_d, float),
+            w_t=np.asarray(w_t if w_t is not None else np.ones(self.t_row.size), float),
+        )
 
     @cached_property
     def k_free(self) -> int:
@@ -523,8 +552,13 @@ class Problem:
 
     def refine(self, model: Model, theta, start: ObjectFit, iters: int = 8) -> ObjectFit:
         """Levenberg-Marquardt on every object's (log m, log mu) at fixed theta."""
-        out = self.refine_many(model, np.atleast_2d(np.asarray(theta, float)) if model.dim else np.zeros((1, 0)),
-                               start.lm[None, :], start.lu[None, :], iters=iters)  # fmt: skip
+        out = self.refine_many(
+            model,
+            np.atleast_2d(np.asarray(theta, float)) if model.dim else np.zeros((1, 0)),
+            start.lm[None, :],
+            start.lu[None, :],
+            iters=iters,
+        )
         return ObjectFit(out[0][0], out[1][0], out[2][0])
 
     def refine_many(self, model: Model, thetas: np.ndarray, lm: np.ndarray, lu: np.ndarray, iters: int = 8):
@@ -641,8 +675,7 @@ class Problem:
             thetas.append(up)
             signs.append(up[j] - theta[j])
         th = np.stack(thetas) if p else np.zeros((3, 0))
-        rs = self.residuals(model, th, np.stack([lm, lm + _H, lm] + [lm] * p),
-                            np.stack([lu, lu, lu + _H] + [lu] * p))  # fmt: skip
+        rs = self.residuals(model, th, np.stack([lm, lm + _H, lm] + [lm] * p), np.stack([lu, lu, lu + _H] + [lu] * p))
         r0 = rs[0]
         jm, ju = self._free_columns((rs[1] - r0) / _H, (rs[2] - r0) / _H)
         jt = (

@@ -161,8 +161,11 @@ def _weights(log_z: np.ndarray) -> np.ndarray:
 def _estimates(fit: JointFit, dispersion: float) -> list[EffectEstimate]:
     p = fit.theta.size
     cov = np.linalg.pinv(posterior_precision(fit, dispersion)) if p else np.zeros((0, 0))
-    return [EffectEstimate(**estimate_fields(c, fit.theta[sl], cov[sl, sl]))
-            for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True) if c.is_library]  # fmt: skip
+    return [
+        EffectEstimate(**estimate_fields(c, fit.theta[sl], cov[sl, sl]))
+        for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
+        if c.is_library
+    ]
 
 
 def at_zero(c: Candidate, theta: np.ndarray, rtol: float = 1e-3) -> bool:
@@ -175,8 +178,11 @@ def at_zero(c: Candidate, theta: np.ndarray, rtol: float = 1e-3) -> bool:
 def at_bound(fit: JointFit) -> list[str]:
     """The library effects of ``fit`` at the bound of their library range that is not zero (their largest
     magnitude): the pushes ask for at least as much as the library holds, so the effect is no cause to state."""
-    return [c.name for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
-            if c.bound_direction(fit.theta[sl]) is not None and not at_zero(c, fit.theta[sl])]  # fmt: skip
+    return [
+        c.name
+        for c, sl in zip(fit.model.candidates, fit.model.slices(), strict=True)
+        if c.bound_direction(fit.theta[sl]) is not None and not at_zero(c, fit.theta[sl])
+    ]
 
 
 def degenerate(fit: JointFit) -> bool:
@@ -185,9 +191,18 @@ def degenerate(fit: JointFit) -> bool:
 
 
 def enumerate_hypotheses(
-    problem: Problem, base: JointFit, pool: list[Candidate], *, alias: Aliasing, max_effects: int, screen: int,
-    scan: int, n_folds: int, scales: int = 1, held: set[str] = frozenset(),
-) -> FittedHypotheses:  # fmt: skip
+    problem: Problem,
+    base: JointFit,
+    pool: list[Candidate],
+    *,
+    alias: Aliasing,
+    max_effects: int,
+    screen: int,
+    scan: int,
+    n_folds: int,
+    scales: int = 1,
+    held: set[str] = frozenset(),
+) -> FittedHypotheses:
     """Fit and weigh every hypothesis (module docstring) of the identifiable candidates in ``pool`` (the discrepancy
     among them where it is used) on top of the baseline fit ``base``; no hypothesis holds an effect of ``held`` (the
     effects the discrepancy holds) beside the discrepancy."""
@@ -251,7 +266,7 @@ def enumerate_hypotheses(
             n_parameters=f.model.dim,
             at_bound=at_bound(f),
             estimates=_estimates(f, dispersion),
-        )  # fmt: skip
+        )
         for f, z, w in zip(ordered, log_z, weights, strict=True)
     ]
     order = np.argsort(-weights, kind="stable")

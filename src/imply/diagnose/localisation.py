@@ -73,9 +73,14 @@ def _band_stats(label: str, values: np.ndarray, *, obj: np.ndarray, n_obj: int) 
     half = float(stats.t.ppf(0.975, k - 1) * means.std(ddof=1) / np.sqrt(k)) if k >= 2 else float("nan")
     lo, hi = mean - half, mean + half
     return Band(
-        band=label, n_pushes=int(values.size), n_objects=int(k), mean=mean, ci95=(lo, hi),
-        rms=float(np.sqrt(np.mean(values**2))), differs=bool(np.isfinite(half) and (lo > 0 or hi < 0)),
-    )  # fmt: skip
+        band=label,
+        n_pushes=int(values.size),
+        n_objects=int(k),
+        mean=mean,
+        ci95=(lo, hi),
+        rms=float(np.sqrt(np.mean(values**2))),
+        differs=bool(np.isfinite(half) and (lo > 0 or hi < 0)),
+    )
 
 
 def _bands(x: np.ndarray, n_bins: int, distinct_max: int = 12) -> tuple[np.ndarray, list[str]]:
@@ -118,11 +123,17 @@ def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, *, alpha: floa
     objects = []
     for i, name in enumerate(problem.log.objects):
         p = float(stats.chi2.sf(wsse[i], dof[i]))
-        objects.append(ObjectResidual(
-            object_id=name, n_pushes=int(cnt[i]), rms=float(np.sqrt(sse[i] / max(cnt[i], 1))),
-            mass_hat=float(np.exp(fit.lm[i])), friction_hat=float(np.exp(fit.lu[i])), p_value=p,
-            differs=bool(p < alpha / n_obj),
-        ))  # fmt: skip
+        objects.append(
+            ObjectResidual(
+                object_id=name,
+                n_pushes=int(cnt[i]),
+                rms=float(np.sqrt(sse[i] / max(cnt[i], 1))),
+                mass_hat=float(np.exp(fit.lm[i])),
+                friction_hat=float(np.exp(fit.lu[i])),
+                p_value=p,
+                differs=bool(p < alpha / n_obj),
+            )
+        )
     regions = [f"{name}={band.band}" for name, bands in banded.items() for band in bands if band.differs]
     regions += [f"object={o.object_id}" for o in objects if o.differs]
     return Localisation(**banded, object=objects, regions_beyond_noise=regions)

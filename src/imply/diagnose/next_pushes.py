@@ -95,12 +95,21 @@ def candidate_log(log: PushLog, v_range: tuple[float, float], *, speeds: int, di
     phi = np.tile(dirs, n_obj * sp.size)
     ones = np.ones(v.size)
     frame = pd.DataFrame({"object_id": [log.objects[i] for i in obj], "speed": v, "direction": phi})
-    return PushLog(path="<next pushes>", frame=frame, objects=list(log.objects), obj=obj, speed=v, displacement=ones,
-                   direction=phi, has_direction=log.has_direction, mass=log.mass, friction=log.friction,
-                   stop_time=ones if log.stop_time is not None else None,
-                   pusher_speed=ones if log.pusher_speed is not None else None,
-                   crossing_times=np.ones((ones.size, len(TRACK_OBSERVABLES))) if log.crossing_times is not None
-                   else None)  # fmt: skip
+    return PushLog(
+        path="<next pushes>",
+        frame=frame,
+        objects=list(log.objects),
+        obj=obj,
+        speed=v,
+        displacement=ones,
+        direction=phi,
+        has_direction=log.has_direction,
+        mass=log.mass,
+        friction=log.friction,
+        stop_time=ones if log.stop_time is not None else None,
+        pusher_speed=ones if log.pusher_speed is not None else None,
+        crossing_times=np.ones((ones.size, len(TRACK_OBSERVABLES))) if log.crossing_times is not None else None,
+    )
 
 
 def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray | None]:
@@ -130,9 +139,10 @@ def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str,
     out = {}
     for name, parts in measured.items():
         rows = [full.aux.index(a) for a in parts]
-        out[name] = {f"{labels[i]} | {labels[j]}":
-                     float(np.sqrt(np.sum(((preds[i][rows] - preds[j][rows]) / ASSUMED_SD) ** 2)))
-                     for i, j in pairs}  # fmt: skip
+        out[name] = {
+            f"{labels[i]} | {labels[j]}": float(np.sqrt(np.sum(((preds[i][rows] - preds[j][rows]) / ASSUMED_SD) ** 2)))
+            for i, j in pairs
+        }
     return out
 
 
@@ -158,16 +168,27 @@ def _greedy(sep: np.ndarray, pair_w: np.ndarray, n: int, groups: np.ndarray) -> 
 
 
 def design_pushes(
-    problem: Problem, contenders: list[tuple[str, JointFit, float]], *, n: int, speeds: int, directions: int,
-    opts: Config, seed: int = 0,
-) -> PushDesign | None:  # fmt: skip
+    problem: Problem,
+    contenders: list[tuple[str, JointFit, float]],
+    *,
+    n: int,
+    speeds: int,
+    directions: int,
+    opts: Config,
+    seed: int = 0,
+) -> PushDesign | None:
     """The ``n`` pushes that best separate ``contenders`` ((label, fit, weight), at least two; None otherwise)."""
     if len(contenders) < 2 or n < 1:
         return None
-    cand = Problem.of(candidate_log(problem.log, problem.v_range, speeds=speeds, directions=directions), problem.table,
-                      problem.etables, grid=problem.grid, use_stop_time="stop_time" in problem.aux,
-                      use_pusher_speed="pusher_speed" in problem.aux,
-                      use_track=any(a in problem.aux for a in TRACK_OBSERVABLES))  # fmt: skip
+    cand = Problem.of(
+        candidate_log(problem.log, problem.v_range, speeds=speeds, directions=directions),
+        problem.table,
+        problem.etables,
+        grid=problem.grid,
+        use_stop_time="stop_time" in problem.aux,
+        use_pusher_speed="pusher_speed" in problem.aux,
+        use_track=any(a in problem.aux for a in TRACK_OBSERVABLES),
+    )
     num_d, num_t = numerical_floors(problem, opts)
     lead = contenders[0][1]
     ind_d, ind_t = cand.interpolation_indicator(lead.objects, lead.model, lead.theta)
@@ -207,20 +228,25 @@ def design_pushes(
         by_observable[pair] = {name: float(np.sqrt(x[keep].sum())) for name, x in parts.items()}
     pushes = []
     for k in picks:
-        pushes.append(NextPush(
-            object_id=cand.log.objects[cand.obj[k]], speed=float(cand.v[k]),
-            direction=float(cand.phi[k]) if problem.log.has_direction else None,
-            expected_displacement={lab: float(np.exp(p[0][k])) for lab, p in zip(labels, preds, strict=True)},
-            expected_stop_time=_expected(cand, "stop_time", labels, preds, k),
-            expected_pusher_speed=_expected(cand, "pusher_speed", labels, preds, k),
-        ))  # fmt: skip
+        pushes.append(
+            NextPush(
+                object_id=cand.log.objects[cand.obj[k]],
+                speed=float(cand.v[k]),
+                direction=float(cand.phi[k]) if problem.log.has_direction else None,
+                expected_displacement={lab: float(np.exp(p[0][k])) for lab, p in zip(labels, preds, strict=True)},
+                expected_stop_time=_expected(cand, "stop_time", labels, preds, k),
+                expected_pusher_speed=_expected(cand, "pusher_speed", labels, preds, k),
+            )
+        )
     total = sep[picks].sum(0)
     return PushDesign(
-        contenders=labels, pushes=pushes,
+        contenders=labels,
+        pushes=pushes,
         separation_sd={f"{labels[a]} | {labels[b]}": float(np.sqrt(total[j])) for j, (a, b) in enumerate(pairs)},
-        log_design_separation_sd=log_sep, measure=_measure(problem, contenders, pairs, labels),
+        log_design_separation_sd=log_sep,
+        measure=_measure(problem, contenders, pairs, labels),
         by_observable=by_observable,
-    )  # fmt: skip
+    )
 
 
 def _expected(cand: Problem, name: str, labels: list[str], preds, k: int) -> dict[str, float] | None:

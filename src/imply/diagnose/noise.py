@@ -151,9 +151,15 @@ def _observable(
         sd = float(np.sqrt(np.sum(resid[keep] ** 2) / dof)) or 1e-3
         source = "residual variance (no replicate pushes and no noise option)"
     est = ObservableNoise(
-        robust_sd=scale, replicate_pairs=npairs, pure_error_ss=ss, pure_error_df=df,
-        outliers=np.flatnonzero(flags).tolist(), set_aside=np.flatnonzero(partners).tolist(), sd=sd, source=source,
-    )  # fmt: skip
+        robust_sd=scale,
+        replicate_pairs=npairs,
+        pure_error_ss=ss,
+        pure_error_df=df,
+        outliers=np.flatnonzero(flags).tolist(),
+        set_aside=np.flatnonzero(partners).tolist(),
+        sd=sd,
+        source=source,
+    )
     return est, w
 
 
@@ -175,6 +181,7 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
         for name in unit.aux:
             rows = unit.aux_rows(name)
             option_sd = opts.track_noise_sd if name in TRACK_OBSERVABLES else getattr(opts, f"{name}_noise_sd")
-            aux[name], w_t[rows] = _observable(unit, unit.y_t[rows], rt[rows], groups=groups, option_sd=option_sd,
-                                               k=opts.outlier_sd)  # fmt: skip
+            aux[name], w_t[rows] = _observable(
+                unit, unit.y_t[rows], rt[rows], groups=groups, option_sd=option_sd, k=opts.outlier_sd
+            )
     return Noise(displacement=disp, aux=aux, weights_d=w_d, weights_t=w_t)

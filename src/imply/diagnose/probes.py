@@ -76,8 +76,11 @@ class Probes:
 
     def counts(self) -> dict[str, int]:
         """How many probes of each kind."""
-        return {"free_stroke": int(self.free_stroke_speed.size), "friction": int(np.isfinite(self.friction).sum()),
-                "added_mass": self.n_added}  # fmt: skip
+        return {
+            "free_stroke": int(self.free_stroke_speed.size),
+            "friction": int(np.isfinite(self.friction).sum()),
+            "added_mass": self.n_added,
+        }
 
 
 def read_probes(
@@ -127,23 +130,44 @@ def read_probes(
             if values[col][i] <= 0:
                 raise row_error(path, i, col, f"{values[col][i]:g} must be positive", lines)
         v = values["speed"][i]
-        if speed_range is not None and not np.isnan(v) and not speed_range[0] * (1 - 1e-9) <= v <= speed_range[1] * (
-                1 + 1e-9):  # fmt: skip
-            raise row_error(path, i, "speed", f"{v:g} is outside the table's speed range "
-                            f"[{speed_range[0]:g}, {speed_range[1]:g}]", lines)  # fmt: skip
+        if (
+            speed_range is not None
+            and not np.isnan(v)
+            and not speed_range[0] * (1 - 1e-9) <= v <= speed_range[1] * (1 + 1e-9)
+        ):
+            raise row_error(
+                path,
+                i,
+                "speed",
+                f"{v:g} is outside the table's speed range [{speed_range[0]:g}, {speed_range[1]:g}]",
+                lines,
+            )
         if values["pusher_speed"][i] > 2.0 * v:
-            raise row_error(path, i, "pusher_speed", f"{values['pusher_speed'][i]:g} m/s is more than twice the "
-                            "commanded speed; is it in m/s and of this probe?", lines)  # fmt: skip
+            raise row_error(
+                path,
+                i,
+                "pusher_speed",
+                f"{values['pusher_speed'][i]:g} m/s is more than twice the "
+                "commanded speed; is it in m/s and of this probe?",
+                lines,
+            )
         if abs(values["direction"][i]) > 2 * np.pi + 1e-9:
-            raise row_error(path, i, "direction", f"{values['direction'][i]:g} is not an angle in radians in "
-                            "[-2 pi, 2 pi]", lines)  # fmt: skip
+            raise row_error(
+                path, i, "direction", f"{values['direction'][i]:g} is not an angle in radians in [-2 pi, 2 pi]", lines
+            )
     n_obj = len(objects)
     friction, friction_sd = np.full(n_obj, np.nan), np.full(n_obj, np.nan)
     for i in np.flatnonzero(kinds == "friction"):
         k = index[ids[i]]
         if np.isfinite(friction[k]):
-            raise row_error(path, int(i), "object_id", f"{ids[i]!r} has a friction measurement in an earlier row; "
-                            "give one per object (their mean, with its uncertainty)", lines)  # fmt: skip
+            raise row_error(
+                path,
+                int(i),
+                "object_id",
+                f"{ids[i]!r} has a friction measurement in an earlier row; "
+                "give one per object (their mean, with its uncertainty)",
+                lines,
+            )
         friction[k] = values["friction"][i]
         friction_sd[k] = values["friction_sd"][i] if np.isfinite(values["friction_sd"][i]) else DEFAULT_FRICTION_SD
     added = np.flatnonzero(kinds == "added_mass")
@@ -153,16 +177,29 @@ def read_probes(
         over = np.flatnonzero(loaded > mass_range[1] * (1 + 1e-9))
         if over.size:
             i = int(added[over[0]])
-            raise row_error(path, i, "added_mass", f"the loaded box weighs {loaded[over[0]]:g} kg, above the "
-                            f"table's mass range [{mass_range[0]:g}, {mass_range[1]:g}]", lines)  # fmt: skip
+            raise row_error(
+                path,
+                i,
+                "added_mass",
+                f"the loaded box weighs {loaded[over[0]]:g} kg, above the "
+                f"table's mass range [{mass_range[0]:g}, {mass_range[1]:g}]",
+                lines,
+            )
     free = kinds == "free_stroke"
     return Probes(
-        path=str(path), free_stroke_speed=values["speed"][free], free_stroke_pusher_speed=values["pusher_speed"][free],
-        friction=friction, friction_sd=friction_sd, added_obj=added_obj, added_speed=values["speed"][added],
-        added_displacement=values["displacement"][added], added_mass=values["added_mass"][added],
-        added_direction=values["direction"][added], added_stop_time=values["stop_time"][added],
+        path=str(path),
+        free_stroke_speed=values["speed"][free],
+        free_stroke_pusher_speed=values["pusher_speed"][free],
+        friction=friction,
+        friction_sd=friction_sd,
+        added_obj=added_obj,
+        added_speed=values["speed"][added],
+        added_displacement=values["displacement"][added],
+        added_mass=values["added_mass"][added],
+        added_direction=values["direction"][added],
+        added_stop_time=values["stop_time"][added],
         added_pusher_speed=values["pusher_speed"][added],
-    )  # fmt: skip
+    )
 
 
 def probes_beside(log_path: str | os.PathLike) -> str | None:

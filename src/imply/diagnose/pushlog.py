@@ -142,8 +142,11 @@ def read_pushlog(
         p = frame["pusher_speed"].to_numpy()
         first_bad(p <= 0, "pusher_speed", lambda x: f"{x:g} must be positive (the pusher's mean speed, m/s)")
         # a pusher cannot average more than it was commanded by much: a column of another unit or another push
-        first_bad(p > 2.0 * v, "pusher_speed",
-                  lambda x: f"{x:g} m/s is more than twice the commanded speed; is it in m/s and of this push?")  # fmt: skip
+        first_bad(
+            p > 2.0 * v,
+            "pusher_speed",
+            lambda x: f"{x:g} m/s is more than twice the commanded speed; is it in m/s and of this push?",
+        )
     for col in [*SIZE_COLUMNS, "mass", "friction"]:
         if col in frame:
             first_bad(frame[col].to_numpy() <= 0, col, lambda x: f"{x:g} must be positive")
@@ -164,8 +167,11 @@ def read_pushlog(
             lambda x: "the push failed the simulator's checks (ok=false); remove the row or fix the model",
         )
     if "push" in frame:
-        first_bad(frame["push"].duplicated().to_numpy(), "push",
-                  lambda x: f"{x:g} names an earlier push too; push numbers must be unique (a track refers to them)")  # fmt: skip
+        first_bad(
+            frame["push"].duplicated().to_numpy(),
+            "push",
+            lambda x: f"{x:g} names an earlier push too; push numbers must be unique (a track refers to them)",
+        )
 
     objects = list(dict.fromkeys(frame["object_id"]))
     index = {o: i for i, o in enumerate(objects)}
@@ -174,10 +180,13 @@ def read_pushlog(
         rows = np.flatnonzero(obj == i)
         if rows.size < min_pushes or np.unique(v[rows]).size < 2:
             raise row_error(
-                path, int(rows[0]), "object_id",
+                path,
+                int(rows[0]),
+                "object_id",
                 f"object {o!r} has {rows.size} push(es) at {np.unique(v[rows]).size} speed(s); at least "
-                f"{min_pushes} pushes at 2 or more speeds are needed to fit its mass and friction", lines,
-            )  # fmt: skip
+                f"{min_pushes} pushes at 2 or more speeds are needed to fit its mass and friction",
+                lines,
+            )
     measured: dict[str, np.ndarray | None] = {"mass": None, "friction": None}
     for col, rng in (("mass", mass_range), ("friction", friction_range)):
         if col not in frame:
@@ -188,19 +197,35 @@ def read_pushlog(
             rows = np.flatnonzero(obj == i)
             if np.ptp(vals[rows]) > 1e-9 * abs(vals[rows[0]]):
                 bad = rows[np.flatnonzero(vals[rows] != vals[rows[0]])[0]]
-                raise row_error(path, int(bad), col, f"differs from the object's first row ({vals[rows[0]]:g}); "
-                                "a measured value must be the same on every push of an object", lines)  # fmt: skip
+                raise row_error(
+                    path,
+                    int(bad),
+                    col,
+                    f"differs from the object's first row ({vals[rows[0]]:g}); "
+                    "a measured value must be the same on every push of an object",
+                    lines,
+                )
             per_obj[i] = vals[rows[0]]
         if rng is not None:
             lo, hi = rng
-            first_bad((vals < lo * (1 - 1e-9)) | (vals > hi * (1 + 1e-9)), col,
-                      lambda x, lo=lo, hi=hi: f"{x:g} is outside the table's range [{lo:g}, {hi:g}]")  # fmt: skip
+            first_bad(
+                (vals < lo * (1 - 1e-9)) | (vals > hi * (1 + 1e-9)),
+                col,
+                lambda x, lo=lo, hi=hi: f"{x:g} is outside the table's range [{lo:g}, {hi:g}]",
+            )
         measured[col] = per_obj
     has_dir = "direction" in frame
     return PushLog(
-        path=str(path), frame=frame, objects=objects, obj=obj, speed=v.astype(float), displacement=d.astype(float),
-        direction=frame["direction"].to_numpy(float) if has_dir else np.zeros(v.size), has_direction=has_dir,
-        mass=measured["mass"], friction=measured["friction"],
+        path=str(path),
+        frame=frame,
+        objects=objects,
+        obj=obj,
+        speed=v.astype(float),
+        displacement=d.astype(float),
+        direction=frame["direction"].to_numpy(float) if has_dir else np.zeros(v.size),
+        has_direction=has_dir,
+        mass=measured["mass"],
+        friction=measured["friction"],
         stop_time=frame["stop_time"].to_numpy(float) if "stop_time" in frame else None,
         pusher_speed=frame["pusher_speed"].to_numpy(float) if "pusher_speed" in frame else None,
-    )  # fmt: skip
+    )

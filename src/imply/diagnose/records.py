@@ -21,9 +21,12 @@ R = TypeVar("R", bound="Record")
 
 
 def json_field(
-    *, key: str | None = None, omit_none: bool = False, default: Any = dataclasses.MISSING,
+    *,
+    key: str | None = None,
+    omit_none: bool = False,
+    default: Any = dataclasses.MISSING,
     default_factory: Any = dataclasses.MISSING,
-) -> Any:  # fmt: skip
+) -> Any:
     """A record field written under ``key`` (default: its name), left out when None if ``omit_none``.
 
     A field with a default (or ``default_factory``) may be missing from what is read: summaries written before

@@ -72,12 +72,16 @@ def restricted_clause(effect: str, magnitude: float, axis_deg: float) -> str:
     (signed) along ``axis_deg``."""
     if effect == "anisotropic":
         a = axis_deg % 180 if magnitude >= 0 else (axis_deg + 90) % 180
-        return (f"friction along {a:.0f}/{a + 180:.0f} degrees is {abs(magnitude):.0%} higher than along "
-                f"{(a + 90) % 360:.0f}/{(a + 270) % 360:.0f} degrees (these directions cannot show the anisotropy's "
-                "axis)")  # fmt: skip
+        return (
+            f"friction along {a:.0f}/{a + 180:.0f} degrees is {abs(magnitude):.0%} higher than along "
+            f"{(a + 90) % 360:.0f}/{(a + 270) % 360:.0f} degrees (these directions cannot show the anisotropy's "
+            "axis)"
+        )
     toward = axis_deg % 360 if magnitude >= 0 else (axis_deg + 180) % 360
-    return (f"the table slopes {abs(magnitude):.3g} rad toward {toward:.0f} degrees along the pushes' line (the slope "
-            "across it cannot be seen from these directions)")  # fmt: skip
+    return (
+        f"the table slopes {abs(magnitude):.3g} rad toward {toward:.0f} degrees along the pushes' line (the slope "
+        "across it cannot be seen from these directions)"
+    )
 
 
 def clauses(effects: list[EffectEstimate]) -> list[str]:
@@ -120,11 +124,15 @@ def discrepancy_words(d: DiscrepancyReport) -> str:
     """How the table's slides differ from these pushes', as the fitted discrepancy describes it."""
     t = d.speed_trend
     if abs(t) >= 0.005:
-        text = (f"relative to the table, these pushes' slides grow {_pct(t)} {'more' if t > 0 else 'less'} from the "
-                "slowest push to the fastest")  # fmt: skip
+        text = (
+            f"relative to the table, these pushes' slides grow {_pct(t)} {'more' if t > 0 else 'less'} from the "
+            "slowest push to the fastest"
+        )
         details = []
-        for value, hi, lo in ((d.speed_trend_rough_minus_smooth, "rough", "smooth"),
-                              (d.speed_trend_heavy_minus_light, "heavy", "light")):  # fmt: skip
+        for value, hi, lo in (
+            (d.speed_trend_rough_minus_smooth, "rough", "smooth"),
+            (d.speed_trend_heavy_minus_light, "heavy", "light"),
+        ):
             if abs(value) >= 0.01:
                 more = (value < 0) == (t < 0)
                 details.append(f"{'more' if more else 'less'} so for {hi} objects than {lo} ones")
@@ -167,9 +175,11 @@ def headline(summary: Summary) -> str:
     # the explanation the verdict rests on: the contenders' common core where it is one of them, else the leading one
     stands = v.contenders[v.core] if v.core >= 0 else v.contenders[0]
     if v.adequacy == Adequacy.NO_GAP:
-        return (f"No gap beyond noise: the table agrees with these pushes within their noise (RMS residual "
-                f"{sh.before_rms:.3g} against a noise floor of {sh.noise_floor_rms:.3g} in log d), and no effect is "
-                "needed.")  # fmt: skip
+        return (
+            f"No gap beyond noise: the table agrees with these pushes within their noise (RMS residual "
+            f"{sh.before_rms:.3g} against a noise floor of {sh.noise_floor_rms:.3g} in log d), and no effect is "
+            "needed."
+        )
     adequacy = {
         Adequacy.EXPLAINED: f"The gap is explained (the leading hypothesis closes {_closes(v.share_closed)})",
         Adequacy.PARTLY_EXPLAINED: f"The gap is partly explained (the leading hypothesis closes {_closes(v.share_closed)})",
@@ -177,13 +187,13 @@ def headline(summary: Summary) -> str:
             f"The gap is not explained by any hypothesis (the leading one closes "
             f"{_closes(v.share_closed)}, and {sh.unexplained_rms_above_floor:.3g} RMS log d "
             "remains above the noise floor)"
-        ),  # fmt: skip
+        ),
     }[v.adequacy]
     ident = {
         Identification.ONE_CAUSE: f", and by one cause: {contender_words(summary, stands)}.",
         Identification.NO_LIBRARY_CAUSE: (
             f", by a contact that differs from the table's and no library effect: {contender_words(summary, stands)}."
-        ),  # fmt: skip
+        ),
         Identification.OUTSIDE_LIBRARY: (
             f"; the library's best explanation, {contender_words(summary, stands)}, "
             + (
@@ -192,7 +202,7 @@ def headline(summary: Summary) -> str:
                 else "leaves too much of the gap open"
             )
             + ": most likely a mechanism outside the library, so no cause is stated."
-        ),  # fmt: skip
+        ),
         Identification.UNDECIDED: (
             f", and the pushes cannot tell {len(v.contenders)} explanations apart: "
             + "; ".join(contender_words(summary, c) for c in v.contenders[:LISTED])
@@ -212,25 +222,33 @@ def verdict_text(summary: Summary) -> str:
     v = summary.verdict
     parts = [headline(summary)]
     if v.adequacy == Adequacy.NO_GAP and len(v.contenders) > 1:
-        parts.append("A small effect cannot be ruled out: "
-                     + "; ".join(contender_words(summary, c) for c in v.contenders[1:LISTED]) + ".")  # fmt: skip
+        parts.append(
+            "A small effect cannot be ruled out: "
+            + "; ".join(contender_words(summary, c) for c in v.contenders[1:LISTED])
+            + "."
+        )
     if v.identification == Identification.UNDECIDED and v.effects:
         stated = [e for e in summary.effects if e.effect in v.effects]
         one = len(v.effects) == 1
-        parts.append(f"Every one of them holds {'; '.join(clauses(stated))}, so {'it is' if one else 'they are'} "
-                     f"stated as {'a cause' if one else 'causes'}.")  # fmt: skip
+        parts.append(
+            f"Every one of them holds {'; '.join(clauses(stated))}, so {'it is' if one else 'they are'} "
+            f"stated as {'a cause' if one else 'causes'}."
+        )
     if v.not_ruled_out and v.identification not in (Identification.UNDECIDED, Identification.NOTHING_TO_IDENTIFY):
         weights = ", ".join(f"{summary.inclusion.get(e, 0.0):.2f}" for e in v.not_ruled_out)
-        parts.append(f"These pushes cannot rule out {phrases(v.not_ruled_out)} beside it (inclusion weight "
-                     f"{weights}).")  # fmt: skip
+        parts.append(f"These pushes cannot rule out {phrases(v.not_ruled_out)} beside it (inclusion weight {weights}).")
     if v.not_separable:
-        parts.append(f"On these pushes {phrases(v.not_separable)} cannot be told from a smooth discrepancy between the "
-                     "table and the pushes.")  # fmt: skip
+        parts.append(
+            f"On these pushes {phrases(v.not_separable)} cannot be told from a smooth discrepancy between the "
+            "table and the pushes."
+        )
     if v.at_bound and v.identification != Identification.OUTSIDE_LIBRARY:
         one = len(v.at_bound) == 1
         named = phrases(v.at_bound)
-        parts.append(f"{named[0].upper()}{named[1:]} would go past the library's largest "
-                     f"magnitude, so {'it is' if one else 'they are'} not stated.")  # fmt: skip
+        parts.append(
+            f"{named[0].upper()}{named[1:]} would go past the library's largest "
+            f"magnitude, so {'it is' if one else 'they are'} not stated."
+        )
     lead = next((h for h in summary.hypotheses if h.label == v.leading), None)
     if summary.discrepancy is not None and lead is not None and lead.discrepancy:
         text = discrepancy_words(summary.discrepancy)
@@ -238,9 +256,11 @@ def verdict_text(summary: Summary) -> str:
     design = summary.next_pushes
     if design is not None and design.pushes:
         first = f"{design.contenders[0]} | {design.contenders[1]}"
-        parts.append(f"The {len(design.pushes)} pushes in next_pushes.csv would separate the two leading explanations "
-                     f"by {design.separation_sd[first]:.1f} noise sds (as many pushes of this log's own kind: "
-                     f"{design.log_design_separation_sd[first]:.1f}).")  # fmt: skip
+        parts.append(
+            f"The {len(design.pushes)} pushes in next_pushes.csv would separate the two leading explanations "
+            f"by {design.separation_sd[first]:.1f} noise sds (as many pushes of this log's own kind: "
+            f"{design.log_design_separation_sd[first]:.1f})."
+        )
         undecided = [e for c in v.contenders for e in c.effects if e not in v.effects]
         how = separators(list(dict.fromkeys(undecided + ([DISCREPANCY] if v.not_separable else []))))
         if how:

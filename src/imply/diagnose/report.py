@@ -41,9 +41,15 @@ from imply.io import atomic_path, write_csv, write_json, write_text
 
 # every file write_report puts in the report folder
 REPORT_FILES = (
-    "summary.json", "residuals.csv", "next_pushes.csv", "residuals_vs_speed.png", "before_after.png", "ranking.png",
-    "hypotheses.png", "report.md",
-)  # fmt: skip
+    "summary.json",
+    "residuals.csv",
+    "next_pushes.csv",
+    "residuals_vs_speed.png",
+    "before_after.png",
+    "ranking.png",
+    "hypotheses.png",
+    "report.md",
+)
 
 
 def _fmt(x, spec: str = ".4g") -> str:
@@ -60,8 +66,7 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike, *, plots: bool = Tr
     s = diag.summary
     write_json(out / "summary.json", s.to_dict())
     r = diag.residuals
-    frame = pd.DataFrame({"speed": r.speed, "direction": r.direction, "log_d": r.log_d,
-                          "resid_before": r.resid_before})  # fmt: skip
+    frame = pd.DataFrame({"speed": r.speed, "direction": r.direction, "log_d": r.log_d, "resid_before": r.resid_before})
     if r.resid_after is not None:
         frame["resid_after"] = r.resid_after
     if r.stop_resid_before is not None:
@@ -95,8 +100,9 @@ def _plots(diag: Diagnosis, out: Path) -> None:
     flagged = np.asarray(r.flagged, bool)
     ax.scatter(r.speed[~flagged], r.resid_before[~flagged], s=6, alpha=0.4, color="0.4", label="pushes")
     if flagged.any():
-        ax.scatter(r.speed[flagged], r.resid_before[flagged], s=18, marker="x", color="C1",
-                   label="gross outliers (left out)")  # fmt: skip
+        ax.scatter(
+            r.speed[flagged], r.resid_before[flagged], s=18, marker="x", color="C1", label="gross outliers (left out)"
+        )
     bands = s.localisation.speed
     xs = [float(b.band) if b.band.replace(".", "", 1).isdigit() else i for i, b in enumerate(bands)]
     means = [b.mean for b in bands]
@@ -220,9 +226,12 @@ def _effect_line(e: AcceptedEffect) -> str:
     elif e.azimuth_deg is not None:
         lo, hi = e.azimuth_ci95_deg
         az = f", toward {e.azimuth_deg:.0f} deg (95% CI {lo:.0f} to {hi:.0f} deg, table frame)"
-    return (f"- **{e.effect}** ({e.title}): {_fmt(e.magnitude)} {e.unit} (95% CI {_fmt(e.ci95[0])} to "
-            f"{_fmt(e.ci95[1])}){az}" + (f"; alias class {e.cls}" if "+" in (e.cls or "") else "")
-            + (" (at the edge of the searched range)" if e.at_bound else ""))  # fmt: skip
+    return (
+        f"- **{e.effect}** ({e.title}): {_fmt(e.magnitude)} {e.unit} (95% CI {_fmt(e.ci95[0])} to "
+        f"{_fmt(e.ci95[1])}){az}"
+        + (f"; alias class {e.cls}" if "+" in (e.cls or "") else "")
+        + (" (at the edge of the searched range)" if e.at_bound else "")
+    )
 
 
 def _discrepancy_lines(s: Summary) -> list[str]:
@@ -231,18 +240,28 @@ def _discrepancy_lines(s: Summary) -> list[str]:
     d, al = s.discrepancy, s.aliasing
     if d is not None:
         coef = ", ".join(f"{k} {v:+.3g}" for k, v in d.coefficients.items())
-        lines += ["", f"**Model discrepancy** (a smooth function of speed, mass and friction fitted beside the effects; "
-                  f"log units): RMS {_fmt(d.rms_log_d)} in log d; change from the slowest to the fastest push "
-                  f"{_fmt(d.speed_trend, '+.3f')} (rough minus smooth objects {_fmt(d.speed_trend_rough_minus_smooth, '+.3f')}, "
-                  f"heavy minus light {_fmt(d.speed_trend_heavy_minus_light, '+.3f')})"
-                  + (f"; stop-time offset {_fmt(d.stop_time_offset, '+.3f')}" if d.stop_time_offset is not None else "")
-                  + (f"; implied masses {_fmt(d.implied_mass_ratio, '.2f')}x the weighed ones (median, table alone, "
-                     "masses fitted freely)" if d.implied_mass_ratio is not None else "")
-                  + f". Coefficients: {coef}."]  # fmt: skip
+        lines += [
+            "",
+            f"**Model discrepancy** (a smooth function of speed, mass and friction fitted beside the effects; "
+            f"log units): RMS {_fmt(d.rms_log_d)} in log d; change from the slowest to the fastest push "
+            f"{_fmt(d.speed_trend, '+.3f')} (rough minus smooth objects {_fmt(d.speed_trend_rough_minus_smooth, '+.3f')}, "
+            f"heavy minus light {_fmt(d.speed_trend_heavy_minus_light, '+.3f')})"
+            + (f"; stop-time offset {_fmt(d.stop_time_offset, '+.3f')}" if d.stop_time_offset is not None else "")
+            + (
+                f"; implied masses {_fmt(d.implied_mass_ratio, '.2f')}x the weighed ones (median, table alone, "
+                "masses fitted freely)"
+                if d.implied_mass_ratio is not None
+                else ""
+            )
+            + f". Coefficients: {coef}.",
+        ]
     if al.discrepancy_mimics:
         can = [f"{k} ({v:.2f})" for k, v in sorted(al.discrepancy_mimics.items(), key=lambda x: -x[1])]
-        lines += ["", "What the discrepancy could imitate on these pushes (canonical correlation of projected changes; "
-                  f"at least {s.options.alias_cos:g} counts as imitating): " + ", ".join(can) + "."]  # fmt: skip
+        lines += [
+            "",
+            "What the discrepancy could imitate on these pushes (canonical correlation of projected changes; "
+            f"at least {s.options.alias_cos:g} counts as imitating): " + ", ".join(can) + ".",
+        ]
     for name, r in al.restricted.items():
         lines += ["", f"Identifiable from these directions: {name}: {r.note}."]
     return lines
@@ -252,24 +271,37 @@ def _next_push_lines(s: Summary) -> list[str]:
     d = s.next_pushes
     if d is None or not d.pushes:
         return ["", "Next pushes: none needed (a single explanation is in contention); `next_pushes.csv` has no rows."]
-    lines = ["", f"**Next pushes** (`next_pushes.csv`, {len(d.pushes)} pushes chosen to separate "
-             f"{', '.join(d.contenders)}; separation in noise sds, against as many pushes of this log's own kind):", "",
-             "| pair | these pushes | the log's kind |", "|---|---|---|"]  # fmt: skip
+    lines = [
+        "",
+        f"**Next pushes** (`next_pushes.csv`, {len(d.pushes)} pushes chosen to separate "
+        f"{', '.join(d.contenders)}; separation in noise sds, against as many pushes of this log's own kind):",
+        "",
+        "| pair | these pushes | the log's kind |",
+        "|---|---|---|",
+    ]
     for pair, sd in d.separation_sd.items():
         lines.append(f"| {pair} | {sd:.1f} | {d.log_design_separation_sd.get(pair, float('nan')):.1f} |")
     if d.by_observable:
         names = list(next(iter(d.by_observable.values())))
-        lines += ["", "How far the log's own pushes set each pair apart, observable by observable (noise sds):", "",
-                  "| pair | " + " | ".join(OBSERVABLE_WORDS.get(n, n) for n in names) + " |",
-                  "|---" * (len(names) + 1) + "|"]  # fmt: skip
+        lines += [
+            "",
+            "How far the log's own pushes set each pair apart, observable by observable (noise sds):",
+            "",
+            "| pair | " + " | ".join(OBSERVABLE_WORDS.get(n, n) for n in names) + " |",
+            "|---" * (len(names) + 1) + "|",
+        ]
         for pair, parts in d.by_observable.items():
             lines.append(f"| {pair} | " + " | ".join(f"{parts[n]:.1f}" for n in names) + " |")
     if d.measure:
         names = list(d.measure)
-        lines += ["", "What measuring what this log lacks, on its own pushes, would add (noise sds, at an assumed "
-                  "noise of 0.02 in its log):", "",
-                  "| pair | " + " | ".join(f"measure {OBSERVABLE_WORDS.get(n, n)}" for n in names) + " |",
-                  "|---" * (len(names) + 1) + "|"]  # fmt: skip
+        lines += [
+            "",
+            "What measuring what this log lacks, on its own pushes, would add (noise sds, at an assumed "
+            "noise of 0.02 in its log):",
+            "",
+            "| pair | " + " | ".join(f"measure {OBSERVABLE_WORDS.get(n, n)}" for n in names) + " |",
+            "|---" * (len(names) + 1) + "|",
+        ]
         for pair in d.separation_sd:
             lines.append(
                 f"| {pair} | " + " | ".join(f"{d.measure[n].get(pair, float('nan')):.1f}" for n in names) + " |"
@@ -314,8 +346,10 @@ def markdown(s: Summary) -> str:
         "|---|---|---|---|",
     ]
     for c in v.contenders:
-        lines.append(f"| {' + '.join(c.effects) or 'no library effect'} | {c.weight:.3f} | "
-                     f"{c.discrepancy_weight:.3f} | {', '.join(c.at_bound) or ''} |")  # fmt: skip
+        lines.append(
+            f"| {' + '.join(c.effects) or 'no library effect'} | {c.weight:.3f} | "
+            f"{c.discrepancy_weight:.3f} | {', '.join(c.at_bound) or ''} |"
+        )
     lines += ["", f"The leading hypothesis ({v.leading}), fitted jointly with every object's mass and friction:", ""]
     lines += [_effect_line(e) for e in s.effects] or ["- no library effect"]
     lines += _next_push_lines(s)
@@ -329,17 +363,23 @@ def markdown(s: Summary) -> str:
         f"{' + '.join(sh.effects) or 'no effect added'} (each object's mass and friction refitted at the effects "
         f"fitted without it); noise floor {_fmt(sh.noise_floor_rms)}; share of the gap above the floor closed: "
         f"{_fmt(sh.gap_share_closed, '.2f')}"
-        + (f" (stop times: {_fmt(sh.stop_time_share_closed, '.2f')})" if sh.stop_time_share_closed is not None
-           else "") + ".",
-    ]  # fmt: skip
+        + (f" (stop times: {_fmt(sh.stop_time_share_closed, '.2f')})" if sh.stop_time_share_closed is not None else "")
+        + ".",
+    ]
     n_out = sum(len(x) for x in s.outliers.values())
     if n_out:
-        lines += ["", f"**Gross outliers** ({n_out}, left out of every fit so they cannot decide the verdict; "
-                  "their replicates were set aside with them):", ""]  # fmt: skip
+        lines += [
+            "",
+            f"**Gross outliers** ({n_out}, left out of every fit so they cannot decide the verdict; "
+            "their replicates were set aside with them):",
+            "",
+        ]
         for obs, rows in s.outliers.items():
             for r in rows:
-                lines.append(f"- {obs}: row {r.row + 1} (object {r.object_id}, speed {r.speed:g} m/s, "
-                             f"direction {r.direction:.3g} rad)")  # fmt: skip
+                lines.append(
+                    f"- {obs}: row {r.row + 1} (object {r.object_id}, speed {r.speed:g} m/s, "
+                    f"direction {r.direction:.3g} rad)"
+                )
     lines += [
         "",
         "## Where (baseline fit residuals)",
@@ -361,8 +401,10 @@ def markdown(s: Summary) -> str:
             "|---|---|---|---|---|",
         ]
         for b in rows:
-            lines.append(f"| {b.band} | {b.n_pushes} | {_fmt(b.mean, '+.4f')} | "
-                         f"[{_fmt(b.ci95[0], '+.4f')}, {_fmt(b.ci95[1], '+.4f')}] | {'yes' if b.differs else ''} |")  # fmt: skip
+            lines.append(
+                f"| {b.band} | {b.n_pushes} | {_fmt(b.mean, '+.4f')} | "
+                f"[{_fmt(b.ci95[0], '+.4f')}, {_fmt(b.ci95[1], '+.4f')}] | {'yes' if b.differs else ''} |"
+            )
         lines.append("")
     lines += [
         "## Which (candidate effects)",
@@ -379,8 +421,10 @@ def markdown(s: Summary) -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for h in s.hypotheses[:20]:
-        lines.append(f"| {h.label} | {h.weight:.3g} | {h.log_evidence:.1f} | {h.chi2:.1f} | {h.heldout_chi2:.1f} | "
-                     f"{h.n_parameters} | {', '.join(h.at_bound)} |")  # fmt: skip
+        lines.append(
+            f"| {h.label} | {h.weight:.3g} | {h.log_evidence:.1f} | {h.chi2:.1f} | {h.heldout_chi2:.1f} | "
+            f"{h.n_parameters} | {', '.join(h.at_bound)} |"
+        )
     if len(s.hypotheses) > 20:
         lines.append(f"| ({len(s.hypotheses) - 20} more in summary.json) | | | | | | |")
     lines += [
@@ -392,9 +436,11 @@ def markdown(s: Summary) -> str:
     ]
     for r in s.ranking:
         az = f" @ {r.azimuth_deg:.0f} deg" if r.azimuth_deg is not None else ""
-        lines.append(f"| {r.effect} | {r.cls} | {_fmt(r.magnitude)} {r.unit}{az} | [{_fmt(r.ci95[0])}, "
-                     f"{_fmt(r.ci95[1])}] | {_fmt(r.lr_stat, '.1f')} ({_fmt(r.lr_critical, '.1f')}) | "
-                     f"{_fmt(r.heldout_gain, '.1f')} |")  # fmt: skip
+        lines.append(
+            f"| {r.effect} | {r.cls} | {_fmt(r.magnitude)} {r.unit}{az} | [{_fmt(r.ci95[0])}, "
+            f"{_fmt(r.ci95[1])}] | {_fmt(r.lr_stat, '.1f')} ({_fmt(r.lr_critical, '.1f')}) | "
+            f"{_fmt(r.heldout_gain, '.1f')} |"
+        )
     lines.append("")
     al = s.aliasing
     lines += [

@@ -79,17 +79,29 @@ def effect_tables(
 ) -> EffectTables:
     """The effect tables the candidates need (from the cache, or simulated into it)."""
     return load_or_build(
-        table, library_effects(list(candidates)), grid, cache_dir, nthread=nthread, progress=progress,
+        table,
+        library_effects(list(candidates)),
+        grid,
+        cache_dir,
+        nthread=nthread,
+        progress=progress,
         across=needs_across(list(candidates)),
         aux=options.use_stop_time or options.use_pusher_speed or options.use_track,
-    )  # fmt: skip
+    )
 
 
 def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
     """Load (or simulate and cache) the effect tables; the floors default to the tables' measured ones."""
     options = request.options
-    etables = effect_tables(request.table, request.candidates, options=options, grid=request.grid,
-                            cache_dir=request.cache_dir, nthread=request.threads, progress=progress)  # fmt: skip
+    etables = effect_tables(
+        request.table,
+        request.candidates,
+        options=options,
+        grid=request.grid,
+        cache_dir=request.cache_dir,
+        nthread=request.threads,
+        progress=progress,
+    )
     floor = etables.meta.get("model_floor") or {}
     if options.model_floor is None:
         options = options.replace(model_floor=floor.get("rms"))
@@ -108,8 +120,14 @@ def read_checked_pushlog(path: str | os.PathLike, table: PushTable, track: str |
     pushlog = read_track(track, pushlog) if track else pushlog
     probes = probes_beside(path)
     if probes:
-        checked = read_probes(probes, objects=pushlog.objects, log_path=pushlog.path, mass=pushlog.mass,
-                              speed_range=table.speed_range, mass_range=table.mass_range)  # fmt: skip
+        checked = read_probes(
+            probes,
+            objects=pushlog.objects,
+            log_path=pushlog.path,
+            mass=pushlog.mass,
+            speed_range=table.speed_range,
+            mass_range=table.mass_range,
+        )
         pushlog = replace(pushlog, probes=checked)
     return pushlog
 
@@ -123,9 +141,15 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
     """Diagnose one push log into its report folder; returns the summary."""
     opts = session.options
     problem = Problem.of(
-        report.pushlog, session.table, session.effect_tables, grid=opts.grid, use_measured=opts.use_measured,
-        use_stop_time=opts.use_stop_time, use_pusher_speed=opts.use_pusher_speed, use_track=opts.use_track,
-    )  # fmt: skip
+        report.pushlog,
+        session.table,
+        session.effect_tables,
+        grid=opts.grid,
+        use_measured=opts.use_measured,
+        use_stop_time=opts.use_stop_time,
+        use_pusher_speed=opts.use_pusher_speed,
+        use_track=opts.use_track,
+    )
     diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)
     v = diag.summary.verdict

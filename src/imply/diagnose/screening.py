@@ -91,8 +91,9 @@ def model_error_ms(problem: Problem) -> float:
     return out
 
 
-def screened(problem: Problem, base: JointFit, singles: list[JointFit], *, alpha: float,
-             fold_of: np.ndarray) -> list[StepResult]:  # fmt: skip
+def screened(
+    problem: Problem, base: JointFit, singles: list[JointFit], *, alpha: float, fold_of: np.ndarray
+) -> list[StepResult]:
     """Each candidate fitted alone on top of ``base`` (``singles``, the candidate last in each model), described by
     the ranking's three tests, largest held-out gain first."""
     n = max(problem.n_rows, 1)
@@ -112,6 +113,9 @@ def screened(problem: Problem, base: JointFit, singles: list[JointFit], *, alpha
             reasons.append("does not lower the held-out sum of squares")
         if explained <= floor_ms:
             reasons.append("explains less than the model's own accuracy")
-        out.append(StepResult(c, jf, lr, c.dim, crit, gain, gain / cv0 if cv0 > 0 else 0.0, explained, floor_ms,
-                              not reasons, reasons))  # fmt: skip
+        out.append(
+            StepResult(
+                c, jf, lr, c.dim, crit, gain, gain / cv0 if cv0 > 0 else 0.0, explained, floor_ms, not reasons, reasons
+            )
+        )
     return sorted(out, key=lambda r: (-r.heldout_gain, r.candidate.name))

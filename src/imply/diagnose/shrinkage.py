@@ -131,8 +131,11 @@ def shrinkage(
     # both observables, whitened: what the verdict's adequacy is judged on
     ro_w = np.concatenate([problem.w_d, problem.w_t]) if use_t else problem.w_d
     rw0 = np.concatenate([rd0 / problem.sd_d, rt0 / problem.sd_t]) if use_t else rd0 / problem.sd_d
-    rw1 = (np.concatenate([held.resid_d / problem.sd_d, held.resid_t / problem.sd_t]) if use_t
-           else held.resid_d / problem.sd_d)  # fmt: skip
+    rw1 = (
+        np.concatenate([held.resid_d / problem.sd_d, held.resid_t / problem.sd_t])
+        if use_t
+        else held.resid_d / problem.sd_d
+    )
     nw = int((ro_w > 0).sum())
     # whitened by noise and model error together: an adequate model leaves unit variance
     floor_w = float(np.sqrt(max(nw - k * N * (1 + len(problem.aux)), 0) / nw)) if nw else None
@@ -152,20 +155,24 @@ def shrinkage(
 
     def observable(r0: np.ndarray, r1: np.ndarray, w: np.ndarray) -> ObservableFit:
         kk = w > 0
-        return ObservableFit(baseline_chi2=float(np.sum(r0[kk] ** 2)), heldout_chi2=float(np.sum(r1[kk] ** 2)),
-                             n=int(kk.sum()))  # fmt: skip
+        return ObservableFit(
+            baseline_chi2=float(np.sum(r0[kk] ** 2)), heldout_chi2=float(np.sum(r1[kk] ** 2)), n=int(kk.sum())
+        )
 
     aux_fits = {}
     for name in problem.aux:
         rows = problem.aux_rows(name)
         aux_fits[name] = observable((rt0 / problem.sd_t)[rows], (held.resid_t / problem.sd_t)[rows], problem.w_t[rows])
     lof = LackOfFit(
-        heldout_chi2=lof_ss, dof=lof_dof, p_value=float(stats.chi2.sf(lof_ss, lof_dof)), in_sample_chi2=final.sse,
+        heldout_chi2=lof_ss,
+        dof=lof_dof,
+        p_value=float(stats.chi2.sf(lof_ss, lof_dof)),
+        in_sample_chi2=final.sse,
         baseline_chi2=float(np.sum(rw0[keep_w] ** 2)),
         displacement=observable(rd0 / problem.sd_d, held.resid_d / problem.sd_d, problem.w_d),
         **{k: f for k, f in aux_fits.items() if k not in TRACK_OBSERVABLES},
         track={k: f for k, f in aux_fits.items() if k in TRACK_OBSERVABLES} or None,
-    )  # fmt: skip
+    )
     dispersion = max(final.sse / max(nw - k * N - final.model.dim, 1), 1.0)
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1
     anch0 = np.sqrt(np.bincount(problem.obj, (problem.w_d * rd0) ** 2, minlength=N) / np.maximum(problem.counts, 1))
@@ -174,10 +181,19 @@ def shrinkage(
     )
     anch_floor = float(np.mean(sd * np.sqrt(np.maximum(problem.counts - k, 0) / np.maximum(problem.counts, 1))))
     return Shrinkage(
-        effects=final.model.names, effect="+".join(final.model.names) or None,
-        before_rms=rms0, after_rms=rms1, noise_floor_rms=floor, gap_share_closed=gap_share,
-        stop_time_share_closed=stop_share, both_share_closed=both_share, lack_of_fit=lof, dispersion=dispersion,
-        anchored_before_mean=float(anch0.mean()), anchored_after_mean=float(anch1.mean()), anchored_floor=anch_floor,
+        effects=final.model.names,
+        effect="+".join(final.model.names) or None,
+        before_rms=rms0,
+        after_rms=rms1,
+        noise_floor_rms=floor,
+        gap_share_closed=gap_share,
+        stop_time_share_closed=stop_share,
+        both_share_closed=both_share,
+        lack_of_fit=lof,
+        dispersion=dispersion,
+        anchored_before_mean=float(anch0.mean()),
+        anchored_after_mean=float(anch1.mean()),
+        anchored_floor=anch_floor,
         anchored_share_closed=share_closed(float(anch0.mean()), float(anch1.mean()), anch_floor),
         unexplained_rms_above_floor=unexplained,
-    )  # fmt: skip
+    )

@@ -79,8 +79,14 @@ def read_track(path: str | os.PathLike, pushlog: PushLog) -> PushLog:
     for a, b in zip(starts, ends, strict=True):
         p = float(push[a])
         if p in seen:
-            raise row_error(path, a, "push", f"push {p:g} continues here after other pushes' frames (from "
-                            f"{row_label(path, seen[p], lines)}); a push's frames must be consecutive rows", lines)  # fmt: skip
+            raise row_error(
+                path,
+                a,
+                "push",
+                f"push {p:g} continues here after other pushes' frames (from "
+                f"{row_label(path, seen[p], lines)}); a push's frames must be consecutive rows",
+                lines,
+            )
         seen[p] = a
         if p not in where:
             raise row_error(path, a, "push", f"{p:g} is not a push of {pushlog.path}", lines)
@@ -88,38 +94,73 @@ def read_track(path: str | os.PathLike, pushlog: PushLog) -> PushLog:
         wrong = np.flatnonzero(ids[a:b] != pushlog.objects[pushlog.obj[i]])
         if wrong.size:
             r = a + int(wrong[0])
-            raise row_error(path, r, "object_id", f"{str(ids[r])!r}, but push {p:g} of the log is of "
-                            f"{pushlog.objects[pushlog.obj[i]]!r}", lines)  # fmt: skip
+            raise row_error(
+                path,
+                r,
+                "object_id",
+                f"{str(ids[r])!r}, but push {p:g} of the log is of {pushlog.objects[pushlog.obj[i]]!r}",
+                lines,
+            )
         back = np.flatnonzero(np.diff(t[a:b]) <= 0)
         if back.size:
             r = a + int(back[0]) + 1
-            raise row_error(path, r, "t", f"{t[r]:g} does not come after the frame before it ({t[r - 1]:g}); "
-                            "times must increase within a push", lines)  # fmt: skip
+            raise row_error(
+                path,
+                r,
+                "t",
+                f"{t[r]:g} does not come after the frame before it ({t[r - 1]:g}); times must increase within a push",
+                lines,
+            )
         if not 0.0 <= t[a] <= MAX_START:
-            raise row_error(path, a, "t", f"the track of push {p:g} starts at {t[a]:g} s; it must start with the "
-                            f"push (0 <= t <= {MAX_START:g} s from the pusher's first motion)", lines)  # fmt: skip
+            raise row_error(
+                path,
+                a,
+                "t",
+                f"the track of push {p:g} starts at {t[a]:g} s; it must start with the "
+                f"push (0 <= t <= {MAX_START:g} s from the pusher's first motion)",
+                lines,
+            )
         if b - a < MIN_FRAMES:
-            raise row_error(path, a, "push", f"the track of push {p:g} has {b - a} frame(s); at least {MIN_FRAMES} "
-                            "are needed", lines)  # fmt: skip
+            raise row_error(
+                path,
+                a,
+                "push",
+                f"the track of push {p:g} has {b - a} frame(s); at least {MIN_FRAMES} are needed",
+                lines,
+            )
         phi = pushlog.direction[i]
         travel = (x[a:b] - x[a]) * np.cos(phi) + (y[a:b] - y[a]) * np.sin(phi)
         final, d = round(float(travel[-1]), 6), float(pushlog.displacement[i])
         if not d / TRAVEL_FACTOR - TRAVEL_SLACK <= final <= d * TRAVEL_FACTOR + TRAVEL_SLACK:
-            raise row_error(path, b - 1, "x", f"the track of push {p:g} ends {final:.4g} m along the push from where "
-                            f"it starts; the log's displacement is {d:.4g} m: is it this push's track, in metres, "
-                            "in the frame of the log's direction?", lines)  # fmt: skip
+            raise row_error(
+                path,
+                b - 1,
+                "x",
+                f"the track of push {p:g} ends {final:.4g} m along the push from where "
+                f"it starts; the log's displacement is {d:.4g} m: is it this push's track, in metres, "
+                "in the frame of the log's direction?",
+                lines,
+            )
         times[i] = crossing_times(t[a:b], travel, np.array([final]))[0]
     missing = [i for i, p in enumerate(log_numbers) if float(p) not in seen]
     if missing:
-        raise InputError(f"{pushlog.path}: {row_label(pushlog.path, missing[0])}: push {log_numbers[missing[0]]:g} "
-                         f"has no track in {path} while {len(seen)} other push(es) have one; give every push a "
-                         "track or none")  # fmt: skip
+        raise InputError(
+            f"{pushlog.path}: {row_label(pushlog.path, missing[0])}: push {log_numbers[missing[0]]:g} "
+            f"has no track in {path} while {len(seen)} other push(es) have one; give every push a "
+            "track or none"
+        )
     bad = np.flatnonzero(~np.all(np.isfinite(times) & (times > 0), axis=1))
     if bad.size:
         i = int(bad[0])
-        raise row_error(path, seen[float(log_numbers[i])], "t", f"the track of push {log_numbers[i]:g} gives no "
-                        "positive crossing time of every fraction of its travel (it starts already moved, or "
-                        "never moves)", lines)  # fmt: skip
+        raise row_error(
+            path,
+            seen[float(log_numbers[i])],
+            "t",
+            f"the track of push {log_numbers[i]:g} gives no "
+            "positive crossing time of every fraction of its travel (it starts already moved, or "
+            "never moves)",
+            lines,
+        )
     return replace(pushlog, crossing_times=times, track_path=str(path))
 
 

@@ -111,9 +111,15 @@ def explanations(table: list[Hypothesis]) -> list[Contender]:
     out = []
     for hs in groups.values():
         lead = max(hs, key=lambda h: h.weight)
-        out.append(Contender(effects=list(lead.effects), weight=float(sum(h.weight for h in hs)),
-                             discrepancy_weight=float(sum(h.weight for h in hs if h.discrepancy)), label=lead.label,
-                             at_bound=list(lead.at_bound)))  # fmt: skip
+        out.append(
+            Contender(
+                effects=list(lead.effects),
+                weight=float(sum(h.weight for h in hs)),
+                discrepancy_weight=float(sum(h.weight for h in hs if h.discrepancy)),
+                label=lead.label,
+                at_bound=list(lead.at_bound),
+            )
+        )
     out.sort(key=lambda c: (-c.weight, c.label))
     return out
 
@@ -164,7 +170,14 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
                 continue
             (not_separable if any(e not in w for w in with_disc) else open_).append(e)
     return Verdict(
-        adequacy=share_adequacy, identification=ident, effects=causes, contenders=contenders,
-        core=contenders.index(stands) if stands is not None else -1, not_separable=not_separable,
-        not_ruled_out=open_, at_bound=bound, share_closed=share, leading=leading.label,
-    )  # fmt: skip
+        adequacy=share_adequacy,
+        identification=ident,
+        effects=causes,
+        contenders=contenders,
+        core=contenders.index(stands) if stands is not None else -1,
+        not_separable=not_separable,
+        not_ruled_out=open_,
+        at_bound=bound,
+        share_closed=share,
+        leading=leading.label,
+    )

@@ -190,9 +190,12 @@ def read_source(
                 if got is None:
                     request = make_request(suite, index, condition=condition, sample=sample)
                     out = check_output(
-                        source.outputs(request, index), kind=source.kind, request=request,
-                        frame_shape=suite.frame_shape, token_shape=token_shape,
-                    )  # fmt: skip
+                        source.outputs(request, index),
+                        kind=source.kind,
+                        request=request,
+                        frame_shape=suite.frame_shape,
+                        token_shape=token_shape,
+                    )
                     got = readout.read(out, index=index, true_rest=truth.rest_frames[index])
                     cache.save(condition, sample, lo, got)
                 sl = (ci, sample, slice(lo, lo + len(index)))
@@ -231,17 +234,30 @@ def evaluate_source(
     readout = fit_readout(source.kind, suite=suite, truth=truth, train_tokens=train, check_tokens=check)
     if source.kind == "frames" and source.encoding:  # lossy videos: the readout checked through the same encoding
         readout = codec_checked(readout, suite=suite, truth=truth, encoding=source.encoding)
-    log.info("%s: %s readout, R^2 %.3f on %d real check clips", source.name, readout.info.name,
-             readout.info.r2_check, readout.info.n_check)  # fmt: skip
+    log.info(
+        "%s: %s readout, R^2 %.3f on %d real check clips",
+        source.name,
+        readout.info.name,
+        readout.info.r2_check,
+        readout.info.n_check,
+    )
     readings = read_source(
-        source, suite=suite, truth=truth, readout=readout, conditions=settings.conditions,
-        cache_root=cache_root, progress=progress,
-    )  # fmt: skip
+        source,
+        suite=suite,
+        truth=truth,
+        readout=readout,
+        conditions=settings.conditions,
+        cache_root=cache_root,
+        progress=progress,
+    )
     with one_blas_thread():
         scored = score_readings(
-            readings, score.scorer(table), bootstrap=settings.bootstrap, seed=settings.seed,
+            readings,
+            score.scorer(table),
+            bootstrap=settings.bootstrap,
+            seed=settings.seed,
             static_limit=settings.static_limit,
-        )  # fmt: skip
+        )
     return Evaluation(
         **{f.name: getattr(scored, f.name) for f in fields(scored)},
         model=source.name,
@@ -312,6 +328,6 @@ def evaluate(
             score=score,
             cache_root=root,
             progress=progress,
-        )  # fmt: skip
+        )
         for src in sources
     ]

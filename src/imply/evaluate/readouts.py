@@ -146,9 +146,13 @@ class LatentReadout(Readout):
 
 class GivenReadout(Readout):
     info = ReadoutInfo(
-        name="as given", fitted_on="nothing: the model returns slides", n_fit=0, n_check=0,
-        r2_check=float("nan"), error_check=float("nan"),
-    )  # fmt: skip
+        name="as given",
+        fitted_on="nothing: the model returns slides",
+        n_fit=0,
+        n_check=0,
+        r2_check=float("nan"),
+        error_check=float("nan"),
+    )
     fingerprint = "displacements"
 
     def read(self, outputs: np.ndarray, *, index: np.ndarray, true_rest: np.ndarray) -> BatchReadings:
@@ -183,10 +187,12 @@ def codec_checked(readout: Readout, *, suite: Suite, truth: SuiteTruth, encoding
     r2, err = _check_scores(truth.check_displacement, readout.line.predict(coded))
     kbps = encoding.get("bit_rate", 0) / 1000
     readout.info = dataclasses.replace(
-        readout.info, r2_codec=r2, error_codec=err,
+        readout.info,
+        r2_codec=r2,
+        error_codec=err,
         encoding=f"{encoding['codec']}, {encoding['width']}x{encoding['height']} px, {encoding['fps']:g} fps"
         + (f", {kbps:.0f} kb/s" if kbps else ""),
-    )  # fmt: skip
+    )
     return readout
 
 

@@ -37,9 +37,16 @@ REPORT_FORMAT = "imply-evaluation"
 REPORT_VERSION = 1
 # every file write_report may put in the report folder (selection.* only when some model has a selection)
 REPORT_FILES: tuple[str, ...] = (
-    "results.json", "report.md", "per_object.csv", "slides.png", "slides.pdf", "scores.png", "scores.pdf",
-    "selection.png", "selection.pdf",
-)  # fmt: skip
+    "results.json",
+    "report.md",
+    "per_object.csv",
+    "slides.png",
+    "slides.pdf",
+    "scores.png",
+    "scores.pdf",
+    "selection.png",
+    "selection.pdf",
+)
 PNG_DPI = 150
 CONDITION_NAMES = {"own": "own calibration", "other": "another object's calibration", "none": "no calibration"}
 CONDITION_COLOURS = {"own": "C0", "other": "C3", "none": "C7"}
@@ -322,7 +329,7 @@ def _model_section(ev: Evaluation) -> list[str]:
                     "anchored disagreement",
                     "r(self, error)",
                     "r(anchored, error)",
-                ],  # fmt: skip
+                ],
                 (
                     [
                         c.condition,
@@ -333,7 +340,7 @@ def _model_section(ev: Evaluation) -> list[str]:
                         c.anchored_disagreement.format(LOG_SPEC),
                         c.corr_self.format(R_SPEC),
                         c.corr_anchored.format(R_SPEC),
-                    ]  # fmt: skip
+                    ]
                     for c in ev.conditions
                 ),
             ),
@@ -431,7 +438,7 @@ def _degenerate_lines(ev: Evaluation) -> list[str]:
             (
                 [d.condition, str(d.n_sets), str(d.static), str(d.not_growing), str(d.n_rollouts), str(d.no_box)]
                 for d in ev.degenerate
-            ),  # fmt: skip
+            ),
         ),
         "",
     ]
@@ -479,7 +486,7 @@ def _per_object_csv(evaluations: Sequence[Evaluation], path: Path) -> None:
             "read_displacement_m",
             "true_displacement_m",
             "box_found",
-        )  # fmt: skip
+        )
     }
     for ev in evaluations:
         r = ev.readings
@@ -516,8 +523,9 @@ def _pyplot():
 def _save(fig, stem: Path) -> None:
     """``stem``.png and ``stem``.pdf, without dates or versions in them (the same figure gives the same files)."""
     fig.savefig(stem.with_suffix(".png"), format="png", dpi=PNG_DPI, metadata={"Software": None})
-    fig.savefig(stem.with_suffix(".pdf"), format="pdf", metadata={"CreationDate": None, "Creator": None,
-                                                                  "Producer": None})  # fmt: skip
+    fig.savefig(
+        stem.with_suffix(".pdf"), format="pdf", metadata={"CreationDate": None, "Creator": None, "Producer": None}
+    )
 
 
 def _log_ticks(axis) -> None:
@@ -545,9 +553,13 @@ def _slides_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
     with plt.rc_context({"font.size": 8}):
         fig, axes = plt.subplots(n_rows, n_cols, figsize=(width, height), squeeze=False)
         fig.subplots_adjust(
-            left=left / width, right=1 - right / width, bottom=bottom / height, top=1 - top / height,
-            wspace=gap_w / panel, hspace=gap_h / panel,
-        )  # fmt: skip
+            left=left / width,
+            right=1 - right / width,
+            bottom=bottom / height,
+            top=1 - top / height,
+            wspace=gap_w / panel,
+            hspace=gap_h / panel,
+        )
         scatter = None
         for row, ev in enumerate(evaluations):
             r = ev.readings
@@ -562,12 +574,28 @@ def _slides_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
                 found = np.asarray(r.box_found[col, 0], bool) & np.isfinite(read)
                 read = np.maximum(np.where(np.isfinite(read), read, DEFAULT_FLOOR), DEFAULT_FLOOR) * 1000
                 scatter = ax.scatter(
-                    truth[found], read[found], c=all_speeds[found], s=5, alpha=0.7, cmap="viridis", linewidths=0,
-                    vmin=speeds.min(), vmax=speeds.max(), rasterized=True,
-                )  # fmt: skip
+                    truth[found],
+                    read[found],
+                    c=all_speeds[found],
+                    s=5,
+                    alpha=0.7,
+                    cmap="viridis",
+                    linewidths=0,
+                    vmin=speeds.min(),
+                    vmax=speeds.max(),
+                    rasterized=True,
+                )
                 if (~found).any():
-                    ax.scatter(truth[~found], read[~found], s=8, marker="x", color="0.5", linewidths=0.6,
-                               label="no box", rasterized=True)  # fmt: skip
+                    ax.scatter(
+                        truth[~found],
+                        read[~found],
+                        s=8,
+                        marker="x",
+                        color="0.5",
+                        linewidths=0.6,
+                        label="no box",
+                        rasterized=True,
+                    )
                     ax.legend(loc="upper left", frameon=False, fontsize=6)
                 lo = min(truth.min(), read.min()) / 1.3
                 hi = max(truth.max(), read.max()) * 1.3
@@ -621,8 +649,17 @@ def _scores_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
                         continue
                     value, bars = _error_bars(getattr(scores, field))
                     x = i + (j - (len(present) - 1) / 2) * width
-                    ax.errorbar(x, value, yerr=bars, fmt="o", ms=4, color=colour, capsize=2, lw=1,
-                                label=None if name in labelled else name)  # fmt: skip
+                    ax.errorbar(
+                        x,
+                        value,
+                        yerr=bars,
+                        fmt="o",
+                        ms=4,
+                        color=colour,
+                        capsize=2,
+                        lw=1,
+                        label=None if name in labelled else name,
+                    )
                     labelled.add(name)
                     values += [v for v in (getattr(scores, field).low, value) if math.isfinite(v)]
             positive = [v for v in values if v > 0]
@@ -633,8 +670,14 @@ def _scores_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
         handles, labels = axes[0].get_legend_handles_labels()
         unique = dict(zip(labels, handles, strict=True))
         if unique:
-            fig.legend(unique.values(), [f"{c}: {CONDITION_NAMES.get(c, c)}" for c in unique], loc="outside upper center",
-                       ncol=len(unique), frameon=False, fontsize=7)  # fmt: skip
+            fig.legend(
+                unique.values(),
+                [f"{c}: {CONDITION_NAMES.get(c, c)}" for c in unique],
+                loc="outside upper center",
+                ncol=len(unique),
+                frameon=False,
+                fontsize=7,
+            )
         _save(fig, stem)
         plt.close(fig)
 
@@ -648,9 +691,12 @@ def _selection_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
     per selection (among conditions, among the sample sets of each condition)."""
     plt = _pyplot()
     panels = [
-        (ev.model, ([ev.selection_conditions] if ev.selection_conditions is not None else []) + list(ev.selection_samples))
+        (
+            ev.model,
+            ([ev.selection_conditions] if ev.selection_conditions is not None else []) + list(ev.selection_samples),
+        )
         for ev in evaluations
-    ]  # fmt: skip
+    ]
     panels = [(model, selections) for model, selections in panels if selections]
     rules = [list(dict.fromkeys(row.rule for sel in selections for row in sel.rows)) for _, selections in panels]
     among = list(dict.fromkeys(sel.among for _, selections in panels for sel in selections))
@@ -661,13 +707,20 @@ def _selection_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
     height = bottom + sum(heights) + gap * (len(panels) - 1) + top + legend
     with plt.rc_context({"font.size": 8}):
         fig, axes = plt.subplots(
-            len(panels), 1, figsize=(width, height), sharex=True, squeeze=False,
+            len(panels),
+            1,
+            figsize=(width, height),
+            sharex=True,
+            squeeze=False,
             gridspec_kw={"height_ratios": heights},
-        )  # fmt: skip
+        )
         fig.subplots_adjust(
-            left=left / width, right=1 - 0.15 / width, bottom=bottom / height, top=1 - (top + legend) / height,
+            left=left / width,
+            right=1 - 0.15 / width,
+            bottom=bottom / height,
+            top=1 - (top + legend) / height,
             hspace=gap / np.mean(heights),
-        )  # fmt: skip
+        )
         for ax, (model, selections), names in zip(axes[:, 0], panels, rules, strict=True):
             step = 0.6 / max(len(selections), 1)
             for sel in selections:
@@ -677,8 +730,9 @@ def _selection_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
                     if not math.isfinite(row.error.value):
                         continue
                     value, bars = _error_bars(row.error)
-                    ax.errorbar(value, names.index(row.rule) + offset, xerr=bars, fmt="o", ms=3.5, color=colour,
-                                capsize=2, lw=1)  # fmt: skip
+                    ax.errorbar(
+                        value, names.index(row.rule) + offset, xerr=bars, fmt="o", ms=3.5, color=colour, capsize=2, lw=1
+                    )
             ax.set_yticks(range(len(names)))
             ax.set_yticklabels(names)
             ax.set_ylim(len(names) - 0.5, -0.5)
@@ -686,7 +740,13 @@ def _selection_figure(evaluations: Sequence[Evaluation], stem: Path) -> None:
             ax.grid(axis="x", lw=0.4, color="0.85")
         axes[-1, 0].set_xlabel("mean log error of the chosen rollouts")
         handles = [plt.Line2D([], [], marker="o", ls="", ms=4, color=f"C{i % 10}") for i in range(len(among))]
-        fig.legend(handles, [f"among {a}" for a in among], loc="upper left", frameon=False, fontsize=7,
-                   bbox_to_anchor=(left / width, 1 - 0.05 / height))  # fmt: skip
+        fig.legend(
+            handles,
+            [f"among {a}" for a in among],
+            loc="upper left",
+            frameon=False,
+            fontsize=7,
+            bbox_to_anchor=(left / width, 1 - 0.05 / height),
+        )
         _save(fig, stem)
         plt.close(fig)

@@ -97,15 +97,22 @@ def run_request(request: EvaluateRequest) -> list:
     suite = load_suite(request.suite)
     videos = list(request.videos)
     if request.command:
-        videos.append(generate_videos(request.command, suite=suite, conditions=settings.conditions, out=out,
-                                      name=request.name))  # fmt: skip
+        videos.append(
+            generate_videos(request.command, suite=suite, conditions=settings.conditions, out=out, name=request.name)
+        )
     read = checked_videos(videos, suite, settings.conditions)  # always before any scoring
     if request.check:
         log.info("%d folder(s) of videos checked: nothing wrong", len(read))
         return []
     cache = None if not request.keep_cache else request.cache or out.with_name(out.name + ".cache")
-    evaluations = evaluate(list(request.models), suite=suite, rollouts=[*request.rollouts, *read], settings=settings,
-                           cache_dir=cache, progress=request.progress)  # fmt: skip
+    evaluations = evaluate(
+        list(request.models),
+        suite=suite,
+        rollouts=[*request.rollouts, *read],
+        settings=settings,
+        cache_dir=cache,
+        progress=request.progress,
+    )
     write_report(evaluations, out, force=request.force, inputs=list(request.inputs))
     if cache is not None and request.cache is None and cache.exists():
         shutil.rmtree(cache, ignore_errors=True)

@@ -203,22 +203,33 @@ def read_rollouts_file(path: str | Path, *, suite: Suite, conditions: Sequence[s
     if (count > 1).any():
         dup = int(np.flatnonzero(count > 1)[0])
         i = int(rows[np.flatnonzero(flat == dup)[1]])
-        raise _fail(path, f"{line(i)}: a second rollout of object {obj[i]}, condition {cond[i]}, "
-                          f"speed {speed[i]:g} m/s, sample {sample[i]}")  # fmt: skip
+        raise _fail(
+            path,
+            f"{line(i)}: a second rollout of object {obj[i]}, condition {cond[i]}, "
+            f"speed {speed[i]:g} m/s, sample {sample[i]}",
+        )
     if (count == 0).any():
         c, s, n, k = np.unravel_index(int(np.flatnonzero(count == 0)[0]), shape)
-        raise _fail(path, f"no rollout of object {suite.object_ids[n]}, condition {conditions[c]}, speed "
-                          f"{suite.query_speeds[k]:g} m/s, sample {s} (give --conditions to evaluate fewer)")  # fmt: skip
+        raise _fail(
+            path,
+            f"no rollout of object {suite.object_ids[n]}, condition {conditions[c]}, speed "
+            f"{suite.query_speeds[k]:g} m/s, sample {s} (give --conditions to evaluate fewer)",
+        )
     row = np.empty(int(np.prod(shape)), dtype=np.int64)
     row[flat] = rows
     enc_train = enc_check = None
     if kind == "latents":
         if "encoded_train" not in data or "encoded_check" not in data:
-            raise _fail(path, "a latents file needs encoded_train and encoded_check (its encode() of the suite's "
-                              "train_frames[:, -1] and check_frames[:, -1])")  # fmt: skip
+            raise _fail(
+                path,
+                "a latents file needs encoded_train and encoded_check (its encode() of the suite's "
+                "train_frames[:, -1] and check_frames[:, -1])",
+            )
         enc_train, enc_check = np.asarray(data["encoded_train"]), np.asarray(data["encoded_check"])
-        for name, arr, n in (("encoded_train", enc_train, len(suite.train_frames)),
-                             ("encoded_check", enc_check, len(suite.check_frames))):  # fmt: skip
+        for name, arr, n in (
+            ("encoded_train", enc_train, len(suite.train_frames)),
+            ("encoded_check", enc_check, len(suite.check_frames)),
+        ):
             if arr.ndim < 2 or len(arr) != n:
                 raise _fail(path, f"{name} has shape {arr.shape}, expected ({n}, ...)")
             if not np.issubdtype(arr.dtype, np.number) or not np.isfinite(arr).all():

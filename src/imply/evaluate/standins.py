@@ -105,9 +105,9 @@ class Jitter(RestFrameModel):
         k = len(request.query_speeds)
         cond = zlib.crc32(request.condition.encode())
         # one stream per (object, condition, sample): the same request gives the same rollouts
-        z = np.stack([
-            np.random.default_rng([self._seed, int(n), cond, request.sample]).standard_normal((2, k)) for n in objects
-        ])  # fmt: skip
+        z = np.stack(
+            [np.random.default_rng([self._seed, int(n), cond, request.sample]).standard_normal((2, k)) for n in objects]
+        )
         mass = np.clip(self.truth.mass[objects, None] * np.exp(self._sd * z[:, 0]), *self._table.mass_range)
         friction = np.clip(self.truth.friction[objects, None] * np.exp(self._sd * z[:, 1]), *self._table.friction_range)
         speeds = np.broadcast_to(request.query_speeds, mass.shape)

@@ -82,14 +82,33 @@ BUILD = "build one with `snakemake --cores 2 results/suite/manifest.json` (or `i
 EXPORT = "write one with `imply suite export SUITE -o FOLDER`"
 # the clips keys a build reads (what the workflow rule passes)
 CLIPS_KEYS = (
-    "seed", "masses", "frictions", "size_scale", "train_speed", "n_train_episodes", "n_heldout_calib",
-    "n_heldout_nocalib", "frame_times", "camera", "batch",
-)  # fmt: skip
+    "seed",
+    "masses",
+    "frictions",
+    "size_scale",
+    "train_speed",
+    "n_train_episodes",
+    "n_heldout_calib",
+    "n_heldout_nocalib",
+    "frame_times",
+    "camera",
+    "batch",
+)
 SUITE_ARRAYS = (
-    "object_ids", "partner", "calibration_speeds", "calibration_frames", "calibration_displacement",
-    "query_speeds", "context_frames", "frame_times", "train_frames", "train_speed", "train_displacement",
-    "check_frames", "metres_per_pixel",
-)  # fmt: skip
+    "object_ids",
+    "partner",
+    "calibration_speeds",
+    "calibration_frames",
+    "calibration_displacement",
+    "query_speeds",
+    "context_frames",
+    "frame_times",
+    "train_frames",
+    "train_speed",
+    "train_displacement",
+    "check_frames",
+    "metres_per_pixel",
+)
 TRUTH_ARRAYS = ("displacement", "mass", "friction", "half_extents", "rest_frames", "check_displacement")
 
 
@@ -117,8 +136,9 @@ class SuiteConfig(Config):
         100, doc="the next training objects (3 clips each) on which a readout's R^2 is measured", minimum=1
     )
     context_frames: int = option(1, doc="frames of each query push shown as context (fewer than a clip's)", minimum=1)
-    partner_seed: int = option(11, doc="seed of the fixed partners (Section 5's swap: model.derangement_seed)",
-                               minimum=0)  # fmt: skip
+    partner_seed: int = option(
+        11, doc="seed of the fixed partners (Section 5's swap: model.derangement_seed)", minimum=0
+    )
     frame_times: tuple[float, ...] | None = option(
         None, doc="s, frames before the rest frame (null: clips.frame_times)", min_items=1, items={"minimum": 0}
     )
@@ -352,9 +372,14 @@ def _simulate_and_draw(
     log.info(
         "suite: %d pushes simulated in %.1f s (%.0f pushes/s); %d frames drawn in %.1f s (%.0f frames/s); "
         "%.0f frames/s overall",
-        n_push, t_sim, n_push / max(t_sim, 1e-9), n_draw, t_draw, n_draw / max(t_draw, 1e-9),
+        n_push,
+        t_sim,
+        n_push / max(t_sim, 1e-9),
+        n_draw,
+        t_draw,
+        n_draw / max(t_draw, 1e-9),
         n_draw / max(t_sim + t_draw, 1e-9),
-    )  # fmt: skip
+    )
     return {**out, "displacement": displacement, "ok": ok}
 
 
@@ -437,9 +462,15 @@ def build_suite(
         "check_displacement": drawn["displacement"][check],
     }
     sizes = {
-        "N": n, "K": k, "C": cfg.context_frames, "T": len(frame_times) + 1, "M": plan.n_train,
-        "M_c": plan.n_check, "H": camera.height, "W": camera.width,
-    }  # fmt: skip
+        "N": n,
+        "K": k,
+        "C": cfg.context_frames,
+        "T": len(frame_times) + 1,
+        "M": plan.n_train,
+        "M_c": plan.n_check,
+        "H": camera.height,
+        "W": camera.width,
+    }
 
     def write(tmp: Path) -> None:
         import mujoco

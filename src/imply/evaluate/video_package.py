@@ -108,8 +108,15 @@ def _write_png(path: Path, frame: np.ndarray) -> None:
     Image.fromarray(frame).save(path, format="PNG")
 
 
-def write_mp4(path: Path, frames: np.ndarray, fps: float, *, codec: str = "libx264", crf: int | None = 18,
-              bit_rate: int | None = None) -> None:  # fmt: skip
+def write_mp4(
+    path: Path,
+    frames: np.ndarray,
+    fps: float,
+    *,
+    codec: str = "libx264",
+    crf: int | None = 18,
+    bit_rate: int | None = None,
+) -> None:
     """Frames (F, H, W, 3) uint8 as an MP4 (yuv420p; H and W must be even): H.264 at constant quality ``crf`` by
     default, or ``codec`` at ``bit_rate`` (bits/s) as another file was encoded."""
     import av
@@ -146,8 +153,13 @@ def read_video(path: Path) -> tuple[np.ndarray, float, dict]:
         fps = float(stream.average_rate) if stream.average_rate else float("nan")
         frames = [f.to_ndarray(format="rgb24") for f in src.decode(stream)]
         rate = stream.bit_rate or src.bit_rate or 0
-        encoding = {"codec": stream.codec_context.name, "height": stream.codec_context.height,
-                    "width": stream.codec_context.width, "fps": fps, "bit_rate": int(rate)}  # fmt: skip
+        encoding = {
+            "codec": stream.codec_context.name,
+            "height": stream.codec_context.height,
+            "width": stream.codec_context.width,
+            "fps": fps,
+            "bit_rate": int(rate),
+        }
     if not frames:
         raise ValueError("no frame")
     return np.stack(frames), fps, encoding
@@ -162,8 +174,14 @@ def through_codec(clips: np.ndarray, encoding: dict, shape: tuple[int, int]) -> 
     with tempfile.TemporaryDirectory() as tmp:
         for m, clip in enumerate(clips):
             path = Path(tmp) / f"clip{m}.mp4"
-            write_mp4(path, _resized(clip, (encoding["height"], encoding["width"])), encoding["fps"],
-                      codec=encoding["codec"], crf=None, bit_rate=encoding.get("bit_rate"))  # fmt: skip
+            write_mp4(
+                path,
+                _resized(clip, (encoding["height"], encoding["width"])),
+                encoding["fps"],
+                codec=encoding["codec"],
+                crf=None,
+                bit_rate=encoding.get("bit_rate"),
+            )
             back, _, _ = read_video(path)
             out.append(_resized(back, shape))
     return np.stack(out)
@@ -173,8 +191,9 @@ def _resized(frames: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.stack([to_camera(f, shape) for f in frames])
 
 
-def export_package(suite: Suite, out: Path, *, conditions: tuple[str, ...], size: tuple[int, int] | None = None,
-                   fps: float = 30.0) -> dict:  # fmt: skip
+def export_package(
+    suite: Suite, out: Path, *, conditions: tuple[str, ...], size: tuple[int, int] | None = None, fps: float = 30.0
+) -> dict:
     """Write the package of ``suite`` (module docstring) into ``out``, a new or empty folder (written beside it and
     moved in whole); returns its manifest. ``size`` (height, width): the frames' size (default the suite's
     camera)."""
@@ -188,21 +207,32 @@ def export_package(suite: Suite, out: Path, *, conditions: tuple[str, ...], size
     cases = case_list(suite, conditions)
     C = suite.context_frames.shape[2]
     manifest = {
-        "format": PACKAGE_FORMAT, "version": PACKAGE_VERSION, "suite": suite.checksum,
-        "size": {"height": int(size[0]), "width": int(size[1])}, "fps": float(fps),
+        "format": PACKAGE_FORMAT,
+        "version": PACKAGE_VERSION,
+        "suite": suite.checksum,
+        "size": {"height": int(size[0]), "width": int(size[1])},
+        "fps": float(fps),
         "camera": {"height": int(cam[0]), "width": int(cam[1])},
-        "frame_times": [float(t) for t in suite.frame_times], "context_frames": int(C),
+        "frame_times": [float(t) for t in suite.frame_times],
+        "context_frames": int(C),
         "metres_per_pixel": float(suite.metres_per_pixel) * cam[1] / size[1],
         "query_speeds": [float(v) for v in suite.query_speeds],
-        "calibration_speeds": [float(v) for v in suite.calibration_speeds], "conditions": list(conditions),
+        "calibration_speeds": [float(v) for v in suite.calibration_speeds],
+        "conditions": list(conditions),
         "n_cases": len(cases),
         "output": "<case_id>.mp4, or <case_id>_s<index>.mp4 for several sample sets (from 0); or folders of PNG "
-                  "frames of the same names; any fps and resolution; the last frame shows the box at rest",
-    }  # fmt: skip
+        "frames of the same names; any fps and resolution; the last frame shows the box at rest",
+    }
     rows = []
     for c in cases:
-        row = {"case_id": c.case_id, "object_id": c.object_id, "condition": c.condition, "speed": c.speed,
-               "context": f"context/{c.object_id}_q{c.k}", "calibration_object_id": ""}  # fmt: skip
+        row = {
+            "case_id": c.case_id,
+            "object_id": c.object_id,
+            "condition": c.condition,
+            "speed": c.speed,
+            "context": f"context/{c.object_id}_q{c.k}",
+            "calibration_object_id": "",
+        }
         for j in range(2):
             row[f"calibration_speed_{j + 1}"] = float(suite.calibration_speeds[j]) if c.shown is not None else None
             row[f"calibration_slide_{j + 1}"] = (
@@ -364,8 +394,14 @@ def check_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...]) 
     return CheckedFolder(frames=frames, n_samples=n_samples, fps=fps_all, encoding=encoding)
 
 
-def read_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...], *, model: str | None = None,
-                checked: CheckedFolder | None = None) -> RolloutsFile:  # fmt: skip
+def read_videos(
+    folder: str | Path,
+    suite: Suite,
+    conditions: tuple[str, ...],
+    *,
+    model: str | None = None,
+    checked: CheckedFolder | None = None,
+) -> RolloutsFile:
     """A checked folder of generated videos as rollouts (kind ``frames``: each rollout's first and last frame at
     the suite's camera), named ``model`` (default the folder's name)."""
     folder = Path(folder)
@@ -379,9 +415,17 @@ def read_videos(folder: str | Path, suite: Suite, conditions: tuple[str, ...], *
         for s in range(S):
             row[conditions.index(c.condition), s, c.n, c.k] = len(outputs)
             outputs.append(checked.frames[(c.case_id, s)])
-    return RolloutsFile(model=model or folder.name, kind="frames", conditions=tuple(conditions), n_samples=S,
-                        row=row, output=np.stack(outputs), encoded_train=None, encoded_check=None,
-                        encoding=checked.encoding)  # fmt: skip
+    return RolloutsFile(
+        model=model or folder.name,
+        kind="frames",
+        conditions=tuple(conditions),
+        n_samples=S,
+        row=row,
+        output=np.stack(outputs),
+        encoded_train=None,
+        encoded_check=None,
+        encoding=checked.encoding,
+    )
 
 
 def read_manifest(path: str | Path) -> dict:
@@ -418,8 +462,9 @@ def run_command(command: str, *, package: Path, videos: Path, log_path: Path, ta
     cases_path = videos.parent / f".{videos.name}.pending.csv"
     write_csv(cases_path, todo)
     try:
-        argv = [part.format(package=str(package), cases=str(cases_path), out=str(videos))
-                for part in shlex.split(command)]  # fmt: skip
+        argv = [
+            part.format(package=str(package), cases=str(cases_path), out=str(videos)) for part in shlex.split(command)
+        ]
     except (KeyError, IndexError, ValueError) as exc:
         raise CommandError(f"--command: {exc} (placeholders: {{package}}, {{cases}}, {{out}})") from None
     log_path.parent.mkdir(parents=True, exist_ok=True)

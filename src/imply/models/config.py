@@ -181,9 +181,11 @@ class TrainConfig(Config):
     config_key: ClassVar[str] = "model.train"
 
     epochs: int = option(
-        60, doc="passes over the training sequences (60: at 40 the calibrated models learned to use their calibration "
-        "or not depending on floating-point rounding)", minimum=1,
-    )  # fmt: skip
+        60,
+        doc="passes over the training sequences (60: at 40 the calibrated models learned to use their calibration "
+        "or not depending on floating-point rounding)",
+        minimum=1,
+    )
     batch_size: int = option(16, doc="sequences per step", minimum=1)
     lr: float = option(1.0e-3, doc="peak learning rate", exclusive_minimum=0)
     start_lr: float = option(1.0e-4, doc="learning rate at the first warmup step", minimum=0)
@@ -202,9 +204,11 @@ class TrainConfig(Config):
     every_push_as_query: bool = option(False, doc="also train on the calibration pushes as queries")
     init_seed: int = option(0, doc="seed of the predictor's initial weights", minimum=0)
     validate_every: int = option(
-        5, doc="epochs between validations (the first and the last are always validated; validation changes no "
-        "weight, only what the history records)", minimum=1,
-    )  # fmt: skip
+        5,
+        doc="epochs between validations (the first and the last are always validated; validation changes no "
+        "weight, only what the history records)",
+        minimum=1,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -213,8 +217,9 @@ class ModelResources(Config):
 
     config_key: ClassVar[str] = "model.resources"
 
-    gpu: int = option(0, doc="GPUs per model job (encoder_encode asks for one unless encoder.kind is cpu)", minimum=0,
-                      required=True)  # fmt: skip
+    gpu: int = option(
+        0, doc="GPUs per model job (encoder_encode asks for one unless encoder.kind is cpu)", minimum=0, required=True
+    )
     encode_threads: int = option(2, doc="CPU threads of encoder_encode", minimum=1, required=True)
     encode_mem_mb: int = option(8000, doc="memory of encoder_encode (MB)", minimum=100, required=True)
     encode_runtime: int = option(60, doc="minutes of encoder_encode", minimum=1, required=True)
@@ -254,14 +259,20 @@ class ModelConfig(Config):
     preset: str = option("tiny", doc="the predictor size, one of presets", required=True)
     presets: dict[str, PredictorPreset] = option(_study_presets(), doc="predictor sizes by name", required=True)
     token_grid: tuple[int, int] | None = option(
-        (1, 8), doc="the encoder's patch tokens average-pooled to this grid (null: keep)", required=True,
+        (1, 8),
+        doc="the encoder's patch tokens average-pooled to this grid (null: keep)",
+        required=True,
         items={"minimum": 1},
-    )  # fmt: skip
+    )
     variants: ModelVariants = option(ModelVariants(), doc="sequence layout of each variant", required=True)
     seeds: tuple[int, ...] = option(
-        (0, 1), doc="data-order seeds (the second is the replication)", required=True, min_items=1, unique=True,
+        (0, 1),
+        doc="data-order seeds (the second is the replication)",
+        required=True,
+        min_items=1,
+        unique=True,
         items={"minimum": 0},
-    )  # fmt: skip
+    )
     rest_state: float = option(1.0, doc="state token of the last frame (box at rest)", required=True)
     train: TrainConfig = option(TrainConfig(), doc="training (imply.models.config.TrainConfig)", required=True)
     rollout_batch: int = option(100, doc="objects rolled out per call of imply evaluate", minimum=1, required=True)

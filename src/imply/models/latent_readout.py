@@ -109,9 +109,13 @@ def fit_latent_readout(split: FeatureSplit, margin: float = READOUT_MARGIN) -> L
 
 
 def fit_rollout_readout(
-    model: ACPredictor, seqs: Sequences, displacement: np.ndarray, *, batch_size: int = 200,
+    model: ACPredictor,
+    seqs: Sequences,
+    displacement: np.ndarray,
+    *,
+    batch_size: int = 200,
     margin: float = READOUT_MARGIN,
-) -> LatentReadout:  # fmt: skip
+) -> LatentReadout:
     """:class:`LatentReadout` fit on the model's own rolled-out last-frame tokens of ``seqs`` (its training sequences).
 
     ``displacement``: (N,) true slide of each sequence's query push (m, > 0). A readout fit

@@ -68,9 +68,11 @@ class PixelVideoConfig(Config):
     width: int = option(32, doc="conv channels and MLP width", minimum=1)
     latent: int = option(4, doc="size of the latent z drawn once per sample set", minimum=1)
     frames: tuple[int, ...] = option(
-        (1, 4, 7), doc="clip frame indices generated after the first (the last: at rest)", min_items=1,
+        (1, 4, 7),
+        doc="clip frame indices generated after the first (the last: at rest)",
+        min_items=1,
         items={"minimum": 1},
-    )  # fmt: skip
+    )
     keypoint_sd: float = option(0.1, doc="sd of the keypoints' log slide in the ELBO's likelihood", exclusive_minimum=0)
     pixel_weight: float = option(100.0, doc="weight of the pixel error beside the ELBO's nats per push", minimum=0)
     pixels_move_box: bool = option(True, doc="false: the pixel error fits the mask and table only, not the slides")
@@ -111,10 +113,13 @@ class FrameFeatures(nn.Module):
     def __init__(self, width: int) -> None:
         super().__init__()
         self.net = nn.Sequential(
-            nn.Conv2d(3, width, 3, stride=2, padding=1), nn.GELU(),
-            nn.Conv2d(width, width, 3, stride=2, padding=1), nn.GELU(),
-            nn.Conv2d(width, width, 3, stride=2, padding=1), nn.GELU(),
-        )  # fmt: skip
+            nn.Conv2d(3, width, 3, stride=2, padding=1),
+            nn.GELU(),
+            nn.Conv2d(width, width, 3, stride=2, padding=1),
+            nn.GELU(),
+            nn.Conv2d(width, width, 3, stride=2, padding=1),
+            nn.GELU(),
+        )
         # the box's column matters, not only what it looks like: a column-weighted pooling beside the mean
         self.out = nn.Linear(2 * width, width)
 
@@ -142,8 +147,15 @@ def mlp(n_in: int, width: int, n_out: int) -> nn.Sequential:
 class PixelVideoModel(nn.Module):
     """The network: features, mask, the table per frame index, the latent's prior and posterior, the dynamics."""
 
-    def __init__(self, cfg: PixelVideoConfig, *, calibrated: bool, frame_shape: tuple[int, int],
-                 background: np.ndarray | None = None, mean_log_slide: np.ndarray | None = None):  # fmt: skip
+    def __init__(
+        self,
+        cfg: PixelVideoConfig,
+        *,
+        calibrated: bool,
+        frame_shape: tuple[int, int],
+        background: np.ndarray | None = None,
+        mean_log_slide: np.ndarray | None = None,
+    ):
         super().__init__()
         self.cfg = cfg
         self.calibrated = bool(calibrated)
@@ -214,16 +226,25 @@ class PixelVideoModel(nn.Module):
         mu, logvar = self.posterior(pooled).chunk(2, -1)
         return mu, logvar.clamp(-8, 4)
 
-    def log_slides(self, feat: torch.Tensor, log_speed: torch.Tensor, z: torch.Tensor, cal: torch.Tensor | None
-                   ) -> torch.Tensor:  # fmt: skip
+    def log_slides(
+        self, feat: torch.Tensor, log_speed: torch.Tensor, z: torch.Tensor, cal: torch.Tensor | None
+    ) -> torch.Tensor:
         """log(slide + KEYPOINT_OFFSET) (N, F) of each generated frame, slide in pixels."""
         coef = self.dynamics(torch.cat([feat, z] + ([cal] if cal is not None else []), -1))
         a, b, c = coef.view(len(feat), 3, len(self.cfg.frames)).unbind(1)
         x = (log_speed - math.log(REFERENCE_SPEED)).unsqueeze(-1)
         return a + b * x + c * x * x
 
-    def render(self, context: torch.Tensor, log_speed: torch.Tensor, z: torch.Tensor, cal: torch.Tensor | None,
-               *, features: torch.Tensor | None = None, detach_slides: bool = False):  # fmt: skip
+    def render(
+        self,
+        context: torch.Tensor,
+        log_speed: torch.Tensor,
+        z: torch.Tensor,
+        cal: torch.Tensor | None,
+        *,
+        features: torch.Tensor | None = None,
+        detach_slides: bool = False,
+    ):
         """Frames (N, F, 3, H, W) generated from context frames (N, 3, H, W), log speeds (N,), latents (N, latent)
         and calibration summaries (N, width) or None; and their log slides (N, F). ``features``: the context
         frames' features where the caller has them already."""
@@ -280,16 +301,20 @@ def training_pushes(frames: np.ndarray, meta: pd.DataFrame, cfg: PixelVideoConfi
     context, target = to_float(frames[rows, 0]), to_float(frames[rows][:, fr])
     slide = torch.stack([log_slide(context, target[:, i]) for i in range(len(fr))], 1)
     return Pushes(
-        context=context, target=target, slide=slide,
+        context=context,
+        target=target,
+        slide=slide,
         log_speed=torch.as_tensor(np.log(meta["speed"].to_numpy()[rows]), dtype=torch.float32),
         set_index=torch.as_tensor([order[o] for o in objs[rows]]),
-        calib_first=to_float(frames[cal, 0]), calib_rest=to_float(frames[cal, -1]),
+        calib_first=to_float(frames[cal, 0]),
+        calib_rest=to_float(frames[cal, -1]),
         calib_speed=torch.as_tensor(meta["speed"].to_numpy()[cal], dtype=torch.float32),
-    )  # fmt: skip
+    )
 
 
-def frame_loss(gen: torch.Tensor, target: torch.Tensor, *, profile_weight: float, scales: tuple[int, ...] = (1, 4, 16)
-               ) -> torch.Tensor:  # fmt: skip
+def frame_loss(
+    gen: torch.Tensor, target: torch.Tensor, *, profile_weight: float, scales: tuple[int, ...] = (1, 4, 16)
+) -> torch.Tensor:
     """Pixel mean squared error, plus ``profile_weight`` times that of the frames' column profiles (each column's
     mean over the rows) averaged over 1, 4 and 16 columns: a box of a few pixels is a sliver of the frame's
     squared error, its column profile is not."""
@@ -314,8 +339,9 @@ def training_loss(model: PixelVideoModel, p: Pushes, sets: torch.Tensor) -> tupl
     mu_q, lv_q = model.posterior_of(ctx_f, ls, slide[:, -1], cal, idx, len(sets))
     mu_p, lv_p = model.prior_of(cal, len(sets))
     z = mu_q + torch.randn_like(mu_q) * (0.5 * lv_q).exp()
-    gen, u = model.render(ctx, ls, z[idx], cal[idx] if cal is not None else None, features=ctx_f,
-                          detach_slides=not cfg.pixels_move_box)  # fmt: skip
+    gen, u = model.render(
+        ctx, ls, z[idx], cal[idx] if cal is not None else None, features=ctx_f, detach_slides=not cfg.pixels_move_box
+    )
     nll = ((u - slide) ** 2).sum(-1).mean() / (2 * cfg.keypoint_sd**2)
     kl = 0.5 * (lv_p - lv_q + ((lv_q.exp() + (mu_q - mu_p) ** 2) / lv_p.exp()) - 1).sum(-1)
     pixels = frame_loss(gen, tgt, profile_weight=cfg.profile_weight)
@@ -351,8 +377,9 @@ def train_pixel_video(
     torch.set_num_threads(threads)
     p = training_pushes(frames, meta, cfg, calibrated=calibrated)
     bg = empty_table(frames[:: max(1, len(frames) // 400)][:, list(cfg.frames)])
-    model = PixelVideoModel(cfg, calibrated=calibrated, frame_shape=frames.shape[2:4], background=bg,
-                            mean_log_slide=p.slide.mean(0).numpy())  # fmt: skip
+    model = PixelVideoModel(
+        cfg, calibrated=calibrated, frame_shape=frames.shape[2:4], background=bg, mean_log_slide=p.slide.mean(0).numpy()
+    )
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     steps = cfg.epochs * math.ceil(p.n_sets / cfg.batch_size)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=steps, pct_start=0.1)
@@ -408,15 +435,18 @@ def generate(
         z = mu
     else:
         seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (b,))
-        eps = torch.stack([
-            torch.randn(mu.shape[1], generator=torch.Generator().manual_seed(int(s) * 1_000_003 + int(sample)))
-            for s in seeds
-        ])  # fmt: skip
+        eps = torch.stack(
+            [
+                torch.randn(mu.shape[1], generator=torch.Generator().manual_seed(int(s) * 1_000_003 + int(sample)))
+                for s in seeds
+            ]
+        )
         z = mu + eps * (0.5 * logvar).exp()
     ls = torch.log(torch.as_tensor(np.broadcast_to(speeds, (b, k)).copy(), dtype=torch.float32)).reshape(-1)
     rep = torch.arange(b).repeat_interleave(k)
-    frames, _ = model.render(to_float(context.reshape(b * k, *context.shape[2:])), ls, z[rep],
-                             cal[rep] if cal is not None else None)  # fmt: skip
+    frames, _ = model.render(
+        to_float(context.reshape(b * k, *context.shape[2:])), ls, z[rep], cal[rep] if cal is not None else None
+    )
     out = to_uint8(frames)
     return out.reshape(b, k, *out.shape[1:])
 
@@ -479,11 +509,15 @@ class PixelVideoWorldModel:
         cf = request.calibration_frames
         seeds = np.array([zlib.crc32(str(o).encode()) + 7919 * self.seed for o in request.object_ids])
         return generate(
-            self.model, context=request.context_frames[:, :, 0], speeds=request.query_speeds,
-            sample=request.sample, seed=seeds,
-            calib_first=cf[:, :, 0] if calibrated else None, calib_rest=cf[:, :, -1] if calibrated else None,
+            self.model,
+            context=request.context_frames[:, :, 0],
+            speeds=request.query_speeds,
+            sample=request.sample,
+            seed=seeds,
+            calib_first=cf[:, :, 0] if calibrated else None,
+            calib_rest=cf[:, :, -1] if calibrated else None,
             calib_speed=request.calibration_speeds if calibrated else None,
-        )  # fmt: skip
+        )
 
 
 def trained_pixel_video(

@@ -131,7 +131,11 @@ def pretrain_encoder(
     dt = time.perf_counter() - t0
     log.info(
         "pretrained %d steps x %d frames in %.1f s; loss %.4f -> %.4f",
-        cfg.steps, cfg.batch_size, dt, float(np.mean(losses[:50])), float(np.mean(losses[-50:])),
-    )  # fmt: skip
+        cfg.steps,
+        cfg.batch_size,
+        dt,
+        float(np.mean(losses[:50])),
+        float(np.mean(losses[-50:])),
+    )
     target.eval()
     return target, {"loss": losses, "seconds": dt}

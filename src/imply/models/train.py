@@ -298,9 +298,18 @@ def train_variant(
     pred_cfg = preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid=split.grid, max_steps=layout.n_steps)
     data_key = f"{split.tokens.shape}:{split.grid}:{len(seqs)}:{layout.rest_state}"
     return train(
-        seqs, layout=layout, predictor=pred_cfg, config=config, data_seed=data_seed, out=out, checkpoint=checkpoint,
-        data_key=data_key, device=device, validate=validate, extra={"token_grid": list(split.grid)},
-    )  # fmt: skip
+        seqs,
+        layout=layout,
+        predictor=pred_cfg,
+        config=config,
+        data_seed=data_seed,
+        out=out,
+        checkpoint=checkpoint,
+        data_key=data_key,
+        device=device,
+        validate=validate,
+        extra={"token_grid": list(split.grid)},
+    )
 
 
 def load_model(path: str | os.PathLike) -> tuple[ACPredictor, Layout, dict]:

@@ -30,9 +30,13 @@ COLORS = {"oracle": "#4d4d4d", "jitter": "#1f77b4", "blind": "#d62728", "collaps
 
 
 def figure1(
-    scores: pd.DataFrame, noise: dict, *, standins: Sequence[str], pdf_path: str | os.PathLike,
+    scores: pd.DataFrame,
+    noise: dict,
+    *,
+    standins: Sequence[str],
+    pdf_path: str | os.PathLike,
     png_path: str | os.PathLike,
-) -> None:  # fmt: skip
+) -> None:
     """Draw Figure 1 from per-object scores (``scores.csv``) and the noise sweep's result (``noise.json``).
 
     ``standins``: the stand-ins in the order drawn, the oracle first (the study's
@@ -49,9 +53,15 @@ def figure1(
             x = i + (j - 0.5) * width
             y = np.maximum(sub[col].to_numpy(float), 1e-4)
             ax_a.scatter(
-                x + rng.uniform(-0.1, 0.1, y.size), y, s=3, alpha=0.35, color=COLORS[name], marker=marker,
-                linewidths=0, rasterized=True,
-            )  # fmt: skip
+                x + rng.uniform(-0.1, 0.1, y.size),
+                y,
+                s=3,
+                alpha=0.35,
+                color=COLORS[name],
+                marker=marker,
+                linewidths=0,
+                rasterized=True,
+            )
             ax_a.hlines(y.mean(), x - 0.15, x + 0.15, color="black", lw=1.2)
     ax_a.set_yscale("log")
     ax_a.set_xticks(range(len(standins)))
@@ -112,8 +122,14 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
     names = {"own": "own calibration", "swap": "other's calibration", "none": "no calibration"}
     for ctx in ("none", "swap", "own"):
         d = by[ctx]
-        ax[0].scatter(np.exp(d["mean_log_true"]) * 1000, np.exp(d["mean_log_pred"]) * 1000, s=6, alpha=0.6,
-                      color=colours[ctx], label=names[ctx])  # fmt: skip
+        ax[0].scatter(
+            np.exp(d["mean_log_true"]) * 1000,
+            np.exp(d["mean_log_pred"]) * 1000,
+            s=6,
+            alpha=0.6,
+            color=colours[ctx],
+            label=names[ctx],
+        )
     lim = ax[0].get_xlim()
     ax[0].plot(lim, lim, "k--", lw=0.8)
     ax[0].set_xlabel("true slide (mm, geometric mean)")
@@ -122,10 +138,17 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
     ax[0].legend(fontsize=7, markerscale=2)
     own, swap = by["own"], by["swap"]
     ax[1].scatter(own["self_disagreement"], swap["self_disagreement"], s=6, alpha=0.6, color="tab:orange", label="self")
-    ax[1].scatter(own["anchored_disagreement"], swap["anchored_disagreement"], s=6, alpha=0.6, color="tab:green",
-                  label="anchored")  # fmt: skip
-    hi = float(np.nanmax([own[["self_disagreement", "anchored_disagreement"]].to_numpy().max(),
-                          swap[["self_disagreement", "anchored_disagreement"]].to_numpy().max()]))  # fmt: skip
+    ax[1].scatter(
+        own["anchored_disagreement"], swap["anchored_disagreement"], s=6, alpha=0.6, color="tab:green", label="anchored"
+    )
+    hi = float(
+        np.nanmax(
+            [
+                own[["self_disagreement", "anchored_disagreement"]].to_numpy().max(),
+                swap[["self_disagreement", "anchored_disagreement"]].to_numpy().max(),
+            ]
+        )
+    )
     ax[1].plot([0, hi], [0, hi], "k--", lw=0.8)
     ax[1].set_xlabel("disagreement, own calibration")
     ax[1].set_ylabel("disagreement, other's calibration")
@@ -227,8 +250,9 @@ def figure3(
     ax = fig.add_subplot(grid[:, 2])
     colours = ("tab:blue", "tab:grey", "tab:green")
     for (label, d), colour in zip(slides.items(), colours, strict=False):
-        ax.scatter(d["true_displacement_m"] * 100, d["read_displacement_m"] * 100, s=4, alpha=0.4, color=colour,
-                   label=label)  # fmt: skip
+        ax.scatter(
+            d["true_displacement_m"] * 100, d["read_displacement_m"] * 100, s=4, alpha=0.4, color=colour, label=label
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     lim = ax.get_xlim()

@@ -41,12 +41,26 @@ TABLE2_PEER_ROWS = (
 TABLE3_NOCALIB_ROWS = (("query start only", "vjQTrack", "vjQErr", "vjQSelf", "vjQAnch", "vjQCorrSelf", "vjQCorrAnch"),)
 TABLE3_CALIB_ROWS = (
     ("own calibration $+$ query start", "vjCTrack", "vjCErr", "vjCSelf", "vjCAnch", "vjCCorrSelf", "vjCCorrAnch"),
-    ("other object's calibration $+$ query start", "vjSTrack", "vjSErr", "vjSSelf", "vjSAnch", "vjSCorrSelf",
-     "vjSCorrAnch"),
+    (
+        "other object's calibration $+$ query start",
+        "vjSTrack",
+        "vjSErr",
+        "vjSSelf",
+        "vjSAnch",
+        "vjSCorrSelf",
+        "vjSCorrAnch",
+    ),
     ("query start only", "vjCQTrack", "vjCQErr", "vjCQSelf", "vjCQAnch", "vjCQCorrSelf", "vjCQCorrAnch"),
-    ("object-blind baseline: typical slide for the speed", None, "vjBErr", "vjBSelf", "vjBAnch", "vjBCorrSelf",
-     "vjBCorrAnch"),
-)  # fmt: skip
+    (
+        "object-blind baseline: typical slide for the speed",
+        None,
+        "vjBErr",
+        "vjBSelf",
+        "vjBAnch",
+        "vjBCorrSelf",
+        "vjBCorrAnch",
+    ),
+)
 
 
 def _cell(values: Values, name: str | None, suffix: str = "") -> str:

@@ -56,9 +56,14 @@ def build_part(
 
 
 def write_part(
-    path: str | os.PathLike, *, stage: str, numbers: Mapping[str, Any], claims: list[Claim],
-    registry: Registry | None = None, read_by: str | None = None,
-) -> None:  # fmt: skip
+    path: str | os.PathLike,
+    *,
+    stage: str,
+    numbers: Mapping[str, Any],
+    claims: list[Claim],
+    registry: Registry | None = None,
+    read_by: str | None = None,
+) -> None:
     """Write a stage's part file; every name must be registered to that stage.
 
     ``read_by``: which instrument read the rollouts behind the stage's numbers (Section 5:

@@ -171,8 +171,10 @@ def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -
     ]
     for stage, c in merged.claims:
         mark = "<span class='holds'>holds</span>" if c.holds else "<span class='fails'>FAILS</span>"
-        out.append(f"<li>{mark} [{html.escape(stage)} / {html.escape(c.id)}] {html.escape(c.statement)}"
-                   f" <i>({html.escape(c.detail)})</i></li>")  # fmt: skip
+        out.append(
+            f"<li>{mark} [{html.escape(stage)} / {html.escape(c.id)}] {html.escape(c.statement)}"
+            f" <i>({html.escape(c.detail)})</i></li>"
+        )
     out += ["</ul>", "<h2>Numbers</h2>"]
     out.append(frame[["name", "section", "paper", "reproduced", "status"]].to_html(index=False, na_rep=""))
     extra = _unprinted(registry, merged)

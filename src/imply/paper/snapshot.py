@@ -87,13 +87,24 @@ def stage_times(root: Path) -> dict[str, Any]:
     rows: dict[str, list] = {}
     for r in by_rule(jobs):
         rows.setdefault(stages.get(r.rule, "other"), []).append(r)
-    table = [{"stage": stage, "rules": [r.rule for r in rs], "jobs": sum(r.jobs for r in rs),
-              "seconds": sum(r.seconds for r in rs), "longest": max(r.longest for r in rs),
-              "cpu_seconds": sum(r.cpu_seconds for r in rs)}
-             for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1]))]  # fmt: skip
+    table = [
+        {
+            "stage": stage,
+            "rules": [r.rule for r in rs],
+            "jobs": sum(r.jobs for r in rs),
+            "seconds": sum(r.seconds for r in rs),
+            "longest": max(r.longest for r in rs),
+            "cpu_seconds": sum(r.cpu_seconds for r in rs),
+        }
+        for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1]))
+    ]
     span = max(j.end for j in jobs) - min(j.start for j in jobs)
-    return {"jobs": len(jobs), "stages": table, "wall_seconds": span,
-            "ended": datetime.fromtimestamp(max(j.end for j in jobs), UTC).strftime("%Y-%m-%d")}  # fmt: skip
+    return {
+        "jobs": len(jobs),
+        "stages": table,
+        "wall_seconds": span,
+        "ended": datetime.fromtimestamp(max(j.end for j in jobs), UTC).strftime("%Y-%m-%d"),
+    }
 
 
 def write_snapshot(root: Path, out: Path, *, commit: str | None = None, kernels: str | None = None) -> dict:
@@ -139,8 +150,10 @@ def label(stamp: dict) -> str:
     m = stamp["machine"]
     wall = stamp.get("wall_seconds")
     took = f", {wall / 60:.0f} min from the first job to the last on {m['cores']} cores" if wall else ""
-    return (f"commit {(stamp.get('commit') or 'unknown')[:7]}, run on {stamp['date']} on an {m['cpu']} "
-            f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'}){took}")  # fmt: skip
+    return (
+        f"commit {(stamp.get('commit') or 'unknown')[:7]}, run on {stamp['date']} on an {m['cpu']} "
+        f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'}){took}"
+    )
 
 
 def readme_line(stamp: dict) -> str:
@@ -148,8 +161,10 @@ def readme_line(stamp: dict) -> str:
     c = stamp["claims"]
     wall = stamp.get("wall_seconds")
     took = f"took {wall / 60:.0f} minutes" if wall else "ran"
-    return (f"The last snapshot of the study in the docs ({label(stamp)}) {took}, and {c['hold']} of its "
-            f"{c['checked']} claims hold.")  # fmt: skip
+    return (
+        f"The last snapshot of the study in the docs ({label(stamp)}) {took}, and {c['hold']} of its "
+        f"{c['checked']} claims hold."
+    )
 
 
 def fill_readme(text: str, stamp: dict) -> str:

@@ -54,9 +54,16 @@ def read_benchmarks(folder: str | Path) -> list[Job]:
         if not rows:
             continue
         row = rows[-1]
-        jobs.append(Job(rule=path.parent.name, wildcards=path.stem, seconds=_number(row, "s"),
-                        cpu_seconds=_number(row, "cpu_time"), max_rss_mb=_number(row, "max_rss"),
-                        end=path.stat().st_mtime))  # fmt: skip
+        jobs.append(
+            Job(
+                rule=path.parent.name,
+                wildcards=path.stem,
+                seconds=_number(row, "s"),
+                cpu_seconds=_number(row, "cpu_time"),
+                max_rss_mb=_number(row, "max_rss"),
+                end=path.stat().st_mtime,
+            )
+        )
     return sorted(jobs, key=lambda j: j.end)
 
 
@@ -77,9 +84,17 @@ def by_rule(jobs: list[Job]) -> list[RuleTime]:
     rules: dict[str, list[Job]] = {}
     for j in jobs:
         rules.setdefault(j.rule, []).append(j)
-    out = [RuleTime(rule=r, jobs=len(js), seconds=sum(j.seconds for j in js), longest=max(j.seconds for j in js),
-                    cpu_seconds=sum(j.cpu_seconds for j in js), max_rss_mb=max(j.max_rss_mb for j in js))
-           for r, js in rules.items()]  # fmt: skip
+    out = [
+        RuleTime(
+            rule=r,
+            jobs=len(js),
+            seconds=sum(j.seconds for j in js),
+            longest=max(j.seconds for j in js),
+            cpu_seconds=sum(j.cpu_seconds for j in js),
+            max_rss_mb=max(j.max_rss_mb for j in js),
+        )
+        for r, js in rules.items()
+    ]
     return sorted(out, key=lambda r: -r.seconds)
 
 
@@ -100,20 +115,36 @@ def alone(jobs: list[Job], cores: int = 2) -> tuple[float, dict[str, float]]:
 def markdown(jobs: list[Job]) -> list[str]:
     """The report's section: the run's span, the time per rule, and the jobs that ran alone while a core idled."""
     if not jobs:
-        return ["## Time per rule", "", "No per-rule benchmarks were found (`results/benchmarks/`): the workflow's "
-                "rules write them when they run.", ""]  # fmt: skip
+        return [
+            "## Time per rule",
+            "",
+            "No per-rule benchmarks were found (`results/benchmarks/`): the workflow's rules write them when they run.",
+            "",
+        ]
     span = max(j.end for j in jobs) - min(j.start for j in jobs)
     cpu = sum(j.cpu_seconds for j in jobs)
-    lines = ["## Time per rule", "",
-             f"The last run's {len(jobs)} jobs (Snakemake's `benchmark:` files in `results/benchmarks/`) span "
-             f"{span / 60:.1f} min from the first start to the last end, {cpu / 60:.1f} CPU min in all.", "",
-             "| rule | jobs | wall s (all jobs) | longest job s | CPU s | peak MB |", "|---|---|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "## Time per rule",
+        "",
+        f"The last run's {len(jobs)} jobs (Snakemake's `benchmark:` files in `results/benchmarks/`) span "
+        f"{span / 60:.1f} min from the first start to the last end, {cpu / 60:.1f} CPU min in all.",
+        "",
+        "| rule | jobs | wall s (all jobs) | longest job s | CPU s | peak MB |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in by_rule(jobs):
-        lines.append(f"| {r.rule} | {r.jobs} | {r.seconds:.1f} | {r.longest:.1f} | {r.cpu_seconds:.1f} | "
-                     f"{r.max_rss_mb:.0f} |")  # fmt: skip
+        lines.append(
+            f"| {r.rule} | {r.jobs} | {r.seconds:.1f} | {r.longest:.1f} | {r.cpu_seconds:.1f} | {r.max_rss_mb:.0f} |"
+        )
     idle, solo = alone(jobs)
-    lines += ["", f"A core stood idle for {idle / 60:.1f} core-min of the run (fewer jobs running than the 2 cores); "
-              "the jobs that ran alone longest, what the run waited on:", "", "| job | s alone |", "|---|---|"]  # fmt: skip
+    lines += [
+        "",
+        f"A core stood idle for {idle / 60:.1f} core-min of the run (fewer jobs running than the 2 cores); "
+        "the jobs that ran alone longest, what the run waited on:",
+        "",
+        "| job | s alone |",
+        "|---|---|",
+    ]
     lines += [f"| {name} | {sec:.1f} |" for name, sec in list(solo.items())[:8]]
     return lines + [""]
 

@@ -47,8 +47,15 @@ def measure_error(
     d = np.where(ok, np.log(run.displacement) - np.log(fine.displacement), np.nan)
     t = np.where(ok, np.log(run.stop_time) - np.log(fine.stop_time), np.nan)
     n = pushes.n
-    ref = reference_log_d(nominal.speed, nominal.mass, nominal.friction, scene=scene, step=reference_step,
-                          nthread=nthread, progress=progress)  # fmt: skip
+    ref = reference_log_d(
+        nominal.speed,
+        nominal.mass,
+        nominal.friction,
+        scene=scene,
+        step=reference_step,
+        nthread=nthread,
+        progress=progress,
+    )
     d_ref = np.where(run.ok[n:], np.log(run.displacement[n:]) - ref.log_d, np.nan)
     return {
         "against_finer": {

@@ -57,9 +57,17 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
     if mass is not None:
         mass = np.clip(mass, *table.mass_range)
     v = np.clip(np.asarray(p["speed"], float)[keep], *table.speed_range)
-    pl = PushLog(path="<noise-free>", frame=pd.DataFrame(), objects=objects, obj=np.array([index[o] for o in names]),
-                 speed=v, displacement=np.exp(np.asarray(nf["log_d"], float)[keep]),
-                 direction=np.asarray(p["direction"], float)[keep], has_direction=True, mass=mass)  # fmt: skip
+    pl = PushLog(
+        path="<noise-free>",
+        frame=pd.DataFrame(),
+        objects=objects,
+        obj=np.array([index[o] for o in names]),
+        speed=v,
+        displacement=np.exp(np.asarray(nf["log_d"], float)[keep]),
+        direction=np.asarray(p["direction"], float)[keep],
+        has_direction=True,
+        mass=mass,
+    )
     prob = Problem.of(pl, table, None, grid=grid, use_stop_time=False)
     fit = prob.initial_fit(Model())
     return float(np.sqrt(fit.sse.sum() / v.size))
@@ -89,8 +97,10 @@ def wrong_share(correct: pd.Series) -> float:
 
 
 def true_theta(e: dict) -> dict:
-    return {"magnitude": abs(e["magnitude"]) if e["name"] in ("tilt", "anisotropic") else e["magnitude"],
-            "azimuth_deg": None if e.get("azimuth") is None else float(np.degrees(e["azimuth"]))}  # fmt: skip
+    return {
+        "magnitude": abs(e["magnitude"]) if e["name"] in ("tilt", "anisotropic") else e["magnitude"],
+        "azimuth_deg": None if e.get("azimuth") is None else float(np.degrees(e["azimuth"])),
+    }
 
 
 def _angle_error(a: float, b: float, period: float) -> float:
@@ -127,12 +137,18 @@ def world_error(accuracy: dict) -> dict:
     fin_t = (accuracy.get("against_finer") or {}).get("log_stop_time") or {}
     tab = accuracy.get("table_numerical_error") or {}
     return {
-        "max": fin.get("max_abs"), "rms": fin.get("rms"), "n": fin.get("n"),
-        "ref_max": ref.get("max_abs"), "ref_rms": ref.get("rms"), "ref_n": ref.get("n"),
-        "stop_max": fin_t.get("max_abs"), "stop_rms": fin_t.get("rms"),
-        "table_max": tab.get("max_abs_log_d"), "table_rms": tab.get("rms_log_d"),
+        "max": fin.get("max_abs"),
+        "rms": fin.get("rms"),
+        "n": fin.get("n"),
+        "ref_max": ref.get("max_abs"),
+        "ref_rms": ref.get("rms"),
+        "ref_n": ref.get("n"),
+        "stop_max": fin_t.get("max_abs"),
+        "stop_rms": fin_t.get("rms"),
+        "table_max": tab.get("max_abs_log_d"),
+        "table_rms": tab.get("rms_log_d"),
         "factor": (accuracy.get("against_finer") or {}).get("factor"),
-    }  # fmt: skip
+    }
 
 
 def score_cases(
@@ -187,23 +203,47 @@ def score_cases(
             if t["azimuth_deg"] is not None and hit.azimuth_deg is not None:
                 period = 180.0 if e["name"] == "anisotropic" else 360.0
                 az = _angle_error(hit.azimuth_deg, t["azimuth_deg"], period)
-            mags.append({"case": cid, "effect": e["name"], "true": t["magnitude"], "estimate": hit.magnitude,
-                         "relative_error": rel, "azimuth_error_deg": az,
-                         "in_ci": bool(hit.ci95[0] <= t["magnitude"] <= hit.ci95[1])})  # fmt: skip
+            mags.append(
+                {
+                    "case": cid,
+                    "effect": e["name"],
+                    "true": t["magnitude"],
+                    "estimate": hit.magnitude,
+                    "relative_error": rel,
+                    "azimuth_error_deg": az,
+                    "in_ci": bool(hit.ci95[0] <= t["magnitude"] <= hit.ci95[1]),
+                }
+            )
         sh = s.shrinkage
         kept = lab.get("rows_kept") or []
         flagged = {tuple(kept[r.row]) for r in s.outliers.get("displacement", []) if kept}
         true_out = {(int(j), int(r)) for r, j in lab["outliers"]}
-        rows.append({
-            "case": cid, "group": group, "effects": "+".join(true) or "null", "noise": lab["noise"]["kind"],
-            "noise_sd": sd, "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"],
-            "visible_rms": size, "size_sd": size / sd, "big": all(big_each.values()) if true else False,
-            "predicted": predicted, "accepted": "+".join(accepted) or "none", "correct": bool(correct),
-            "exact": exact, "gap_share_closed": sh.gap_share_closed if accepted else 0.0,
-            "anchored_share_closed": sh.anchored_share_closed if accepted else 0.0,
-            "before_rms": sh.before_rms, "after_rms": sh.after_rms, "true_outliers": len(true_out),
-            "flagged_outliers": len(flagged), "flagged_true": len(flagged & true_out), "seconds": s.seconds,
-        })  # fmt: skip
+        rows.append(
+            {
+                "case": cid,
+                "group": group,
+                "effects": "+".join(true) or "null",
+                "noise": lab["noise"]["kind"],
+                "noise_sd": sd,
+                "stop_time": lab["stop_time"],
+                "measured_mass": lab["measured_mass"],
+                "visible_rms": size,
+                "size_sd": size / sd,
+                "big": all(big_each.values()) if true else False,
+                "predicted": predicted,
+                "accepted": "+".join(accepted) or "none",
+                "correct": bool(correct),
+                "exact": exact,
+                "gap_share_closed": sh.gap_share_closed if accepted else 0.0,
+                "anchored_share_closed": sh.anchored_share_closed if accepted else 0.0,
+                "before_rms": sh.before_rms,
+                "after_rms": sh.after_rms,
+                "true_outliers": len(true_out),
+                "flagged_outliers": len(flagged),
+                "flagged_true": len(flagged & true_out),
+                "seconds": s.seconds,
+            }
+        )
     frame = pd.DataFrame(rows)
     mag = pd.DataFrame(
         mags, columns=["case", "effect", "true", "estimate", "relative_error", "azimuth_error_deg", "in_ci"]
@@ -243,18 +283,32 @@ def score_cases(
         "magnitudes": mags,
         "confusion": {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index},
         "n_logs": int(len(frame)),
-        "false_alarm": fa_all, "n_null": int(null.sum()),
-        "false_alarm_gaussian": fa_gauss, "n_null_gaussian": int((g == "null_gaussian").sum()),
-        "false_alarm_heavy": fa_heavy, "n_null_heavy": int((g == "null_heavy").sum()),
-        "top1_big": top1_big, "n_big": n_big, "top1_all": top1_all, "n_single": n_single,
-        "both_named_big": both_big, "n_double_big": n_both_big, "both_named_all": both_all, "n_double": n_double,
-        "none_recall_outside": none_out, "n_outside": n_out,
-        "none_recall_outside_big": none_out_big, "n_outside_big": n_out_big,
-        "none_unidentifiable": unident, "n_unidentifiable": n_unident,
+        "false_alarm": fa_all,
+        "n_null": int(null.sum()),
+        "false_alarm_gaussian": fa_gauss,
+        "n_null_gaussian": int((g == "null_gaussian").sum()),
+        "false_alarm_heavy": fa_heavy,
+        "n_null_heavy": int((g == "null_heavy").sum()),
+        "top1_big": top1_big,
+        "n_big": n_big,
+        "top1_all": top1_all,
+        "n_single": n_single,
+        "both_named_big": both_big,
+        "n_double_big": n_both_big,
+        "both_named_all": both_all,
+        "n_double": n_double,
+        "none_recall_outside": none_out,
+        "n_outside": n_out,
+        "none_recall_outside_big": none_out_big,
+        "n_outside_big": n_out_big,
+        "none_unidentifiable": unident,
+        "n_unidentifiable": n_unident,
         "exact_set_big": float(exact.mean()) if len(exact) else float("nan"),
-        "magnitude_rel_error_median": float(rel.median()) if len(rel) else float("nan"), "n_magnitudes": int(len(rel)),
+        "magnitude_rel_error_median": float(rel.median()) if len(rel) else float("nan"),
+        "n_magnitudes": int(len(rel)),
         "magnitude_in_ci": float(mag["in_ci"].mean()) if len(mag) else float("nan"),
-        "azimuth_error_median_deg": float(az.median()) if len(az) else float("nan"), "n_azimuths": int(len(az)),
+        "azimuth_error_median_deg": float(az.median()) if len(az) else float("nan"),
+        "n_azimuths": int(len(az)),
         "shrinkage_median": float(np.nanmedian(shares)) if shares.notna().any() else float("nan"),
         "n_shrinkage": int(shares.notna().sum()),
         "anchored_shrinkage_median": float(np.nanmedian(anch)) if anch.notna().any() else float("nan"),
@@ -273,7 +327,7 @@ def score_cases(
         "noise": config.noise.to_dict(),
         "world_error": world_error(accuracy),
         "world_accuracy": accuracy,
-    }  # fmt: skip
+    }
 
 
 # -- the benchmark of other contact models ----------------------------------------------------------------------
@@ -344,8 +398,10 @@ def named_classes(summary: Summary) -> list[set[str]]:
     """The alias class (a set of candidate names) of every library effect the verdict names: the causes, then the
     contenders' other effects."""
     effects = summary.aliasing.effects
-    return [set(effects[n].cls.split("+")) if n in effects and effects[n].identifiable else {n}
-            for n in summary.verdict.named]  # fmt: skip
+    return [
+        set(effects[n].cls.split("+")) if n in effects and effects[n].identifiable else {n}
+        for n in summary.verdict.named
+    ]
 
 
 def score_contact_cases(
@@ -377,13 +433,23 @@ def score_contact_cases(
         v = s.verdict
         causes = [e.effect for e in stated(s)]
         classes = _classes(s)
-        row = {"case": cid, "group": group, "engine": lab.get("engine", "mujoco"), "design": lab.get("design", "random"),
-               "effects": "+".join(true) or "null", "adequacy": str(v.adequacy),
-               "identification": str(v.identification), "causes": "+".join(causes) or "none",
-               "contenders": " | ".join("+".join(c.effects) or "none" for c in v.contenders),
-               "n_contenders": len(v.contenders), "sentence": s.sentence, "seconds": s.seconds,
-               "stop_time": lab["stop_time"], "measured_mass": lab["measured_mass"],
-               "one_cause": v.identification == Identification.ONE_CAUSE}  # fmt: skip
+        row = {
+            "case": cid,
+            "group": group,
+            "engine": lab.get("engine", "mujoco"),
+            "design": lab.get("design", "random"),
+            "effects": "+".join(true) or "null",
+            "adequacy": str(v.adequacy),
+            "identification": str(v.identification),
+            "causes": "+".join(causes) or "none",
+            "contenders": " | ".join("+".join(c.effects) or "none" for c in v.contenders),
+            "n_contenders": len(v.contenders),
+            "sentence": s.sentence,
+            "seconds": s.seconds,
+            "stop_time": lab["stop_time"],
+            "measured_mass": lab["measured_mass"],
+            "one_cause": v.identification == Identification.ONE_CAUSE,
+        }
         if group in CONTACT_SINGLE:
             e = lab["effects"][0]
             size = effect_size_on_contact(lab, e["name"])
@@ -391,9 +457,15 @@ def score_contact_cases(
             rel = stated_error(e, s)
             named = bool(named_cls and rel is not None and rel <= within)
             row.update(told_error=told_error(e, s), told_right=told_within(e, s, within))
-            row.update(size=size, big=bool(size >= min_size_sd * lab["noise"]["sd"]), named_class=named_cls,
-                       relative_error=rel, named=named, among_named=any(e["name"] in c for c in named_classes(s)),
-                       one_cause_right=bool(row["one_cause"] and named and len(classes) == 1))  # fmt: skip
+            row.update(
+                size=size,
+                big=bool(size >= min_size_sd * lab["noise"]["sd"]),
+                named_class=named_cls,
+                relative_error=rel,
+                named=named,
+                among_named=any(e["name"] in c for c in named_classes(s)),
+                one_cause_right=bool(row["one_cause"] and named and len(classes) == 1),
+            )
         rows.append(row)
     frame = pd.DataFrame(rows)
     g = frame["group"] if len(frame) else pd.Series(dtype=str)
@@ -409,10 +481,16 @@ def score_contact_cases(
     single = g.isin(CONTACT_SINGLE) & frame.get("big", pd.Series(False, index=frame.index)).fillna(False).astype(bool)
     outside = g.isin(CONTACT_OUTSIDE)
     out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
-    for key, mask, column in (("null_no_library", null, "no_library"), ("among_named", single, "among_named"),
-                              ("named", single, "named"), ("one_cause", single, "one_cause"),
-                              ("single_right", single, "one_cause_right"), ("told_right", single, "told_right"),
-                              ("wrong_single", outside, "wrong_single"), ("wrong_mechanism", outside, "wrong")):  # fmt: skip
+    for key, mask, column in (
+        ("null_no_library", null, "no_library"),
+        ("among_named", single, "among_named"),
+        ("named", single, "named"),
+        ("one_cause", single, "one_cause"),
+        ("single_right", single, "one_cause_right"),
+        ("told_right", single, "told_right"),
+        ("wrong_single", outside, "wrong_single"),
+        ("wrong_mechanism", outside, "wrong"),
+    ):
         out[key], out[f"n_{key}"] = share(mask, column)
         for engine in ("mujoco", "bullet"):
             out[f"{key}_{engine}"], out[f"n_{key}_{engine}"] = share(mask & (frame["engine"] == engine), column)

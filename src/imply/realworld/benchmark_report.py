@@ -58,36 +58,75 @@ def claims_of(r: dict) -> list[Claim]:
     """The claims on a :func:`imply.realworld.benchmark.score_cases` result (its ``targets`` and ``world_error``)."""
     targets = r["targets"]
     w = r["world_error"]
-    world_ok = (w["max"] is not None and w["table_max"] is not None and w["max"] <= w["table_max"]
-                and w["rms"] <= w["table_rms"])  # fmt: skip
+    world_ok = (
+        w["max"] is not None
+        and w["table_max"] is not None
+        and w["max"] <= w["table_max"]
+        and w["rms"] <= w["table_rms"]
+    )
     sd = r["min_size_sd"]
-    return [
-        Claim("gap-world", "gap", "The benchmark's world is converged at least as closely as the table (max and RMS "
-              "error in log d)", bool(world_ok), f"world max {_f(w['max'], '.4f')}, RMS {_f(w['rms'], '.4f')}; table "
-              f"max {_f(w['table_max'], '.4f')}, RMS {_f(w['table_rms'], '.4f')}"),
-        Claim("gap-null", "gap", f"False alarms on null logs (heavy-tailed ones included) <= {targets['false_alarm']:.0%}",
-              _meets(r, targets, MAIN_TARGETS["null"]),
-              f"{_f(r['false_alarm'], '.3f')} on {r['n_null']} null logs ({_f(r['false_alarm_heavy'], '.2f')} on "
-              f"{r['n_null_heavy']} heavy-tailed)"),
-        Claim("gap-top1", "gap", f"Top-1 accuracy >= {targets['top1']} for one-effect logs whose effect is at least "
-              f"{sd:g}x the noise", _meets(r, targets, MAIN_TARGETS["top1"]),
-              f"{_f(r['top1_big'], '.3f')} on {r['n_big']} logs"),
-        Claim("gap-both", "gap", f"Both effects named in >= {targets['both_named']:.0%} of two-effect logs (each effect "
-              f"at least {sd:g}x the noise)", _meets(r, targets, MAIN_TARGETS["both"]),
-              f"{_f(r['both_named_big'], '.3f')} on {r['n_double_big']} logs ({_f(r['both_named_all'], '.2f')} on all "
-              f"{r['n_double']})"),
-        Claim("gap-outside", "gap", f"Effects outside the library answered 'none of the candidates' in >= "
-              f"{targets['none_outside']:.0%} of logs", _meets(r, targets, MAIN_TARGETS["outside"]),
-              f"{_f(r['none_recall_outside'], '.3f')} on {r['n_outside']} logs "
-              f"({_f(r['none_recall_outside_big'], '.2f')} on the {r['n_outside_big']} at least {sd:g}x the noise)"),
-        Claim("gap-magnitude", "gap", f"Median relative magnitude error <= {targets['magnitude_error']:.0%} (effects "
-              "named, at least {:g}x the noise)".format(sd), _meets(r, targets, MAIN_TARGETS["magnitude"]),
-              f"median {_f(r['magnitude_rel_error_median'], '.3f')} on "
-              f"{r['n_magnitudes']} effects"),
-        Claim("gap-shrink", "gap", f"Median held-out shrinkage >= {targets['shrinkage']:.0%} of the gap above the noise "
-              "floor", _meets(r, targets, MAIN_TARGETS["shrink"]),
-              f"median {_f(r['shrinkage_median'], '.3f')} on {r['n_shrinkage']} logs"),
-    ] + contact_claims(r.get("contact")) + observed_claims(r)  # fmt: skip
+    return (
+        [
+            Claim(
+                "gap-world",
+                "gap",
+                "The benchmark's world is converged at least as closely as the table (max and RMS error in log d)",
+                bool(world_ok),
+                f"world max {_f(w['max'], '.4f')}, RMS {_f(w['rms'], '.4f')}; table "
+                f"max {_f(w['table_max'], '.4f')}, RMS {_f(w['table_rms'], '.4f')}",
+            ),
+            Claim(
+                "gap-null",
+                "gap",
+                f"False alarms on null logs (heavy-tailed ones included) <= {targets['false_alarm']:.0%}",
+                _meets(r, targets, MAIN_TARGETS["null"]),
+                f"{_f(r['false_alarm'], '.3f')} on {r['n_null']} null logs ({_f(r['false_alarm_heavy'], '.2f')} on "
+                f"{r['n_null_heavy']} heavy-tailed)",
+            ),
+            Claim(
+                "gap-top1",
+                "gap",
+                f"Top-1 accuracy >= {targets['top1']} for one-effect logs whose effect is at least {sd:g}x the noise",
+                _meets(r, targets, MAIN_TARGETS["top1"]),
+                f"{_f(r['top1_big'], '.3f')} on {r['n_big']} logs",
+            ),
+            Claim(
+                "gap-both",
+                "gap",
+                f"Both effects named in >= {targets['both_named']:.0%} of two-effect logs (each effect "
+                f"at least {sd:g}x the noise)",
+                _meets(r, targets, MAIN_TARGETS["both"]),
+                f"{_f(r['both_named_big'], '.3f')} on {r['n_double_big']} logs ({_f(r['both_named_all'], '.2f')} on all "
+                f"{r['n_double']})",
+            ),
+            Claim(
+                "gap-outside",
+                "gap",
+                f"Effects outside the library answered 'none of the candidates' in >= "
+                f"{targets['none_outside']:.0%} of logs",
+                _meets(r, targets, MAIN_TARGETS["outside"]),
+                f"{_f(r['none_recall_outside'], '.3f')} on {r['n_outside']} logs "
+                f"({_f(r['none_recall_outside_big'], '.2f')} on the {r['n_outside_big']} at least {sd:g}x the noise)",
+            ),
+            Claim(
+                "gap-magnitude",
+                "gap",
+                f"Median relative magnitude error <= {targets['magnitude_error']:.0%} (effects "
+                "named, at least {:g}x the noise)".format(sd),
+                _meets(r, targets, MAIN_TARGETS["magnitude"]),
+                f"median {_f(r['magnitude_rel_error_median'], '.3f')} on {r['n_magnitudes']} effects",
+            ),
+            Claim(
+                "gap-shrink",
+                "gap",
+                f"Median held-out shrinkage >= {targets['shrinkage']:.0%} of the gap above the noise floor",
+                _meets(r, targets, MAIN_TARGETS["shrink"]),
+                f"median {_f(r['shrinkage_median'], '.3f')} on {r['n_shrinkage']} logs",
+            ),
+        ]
+        + contact_claims(r.get("contact"))
+        + observed_claims(r)
+    )
 
 
 def observed_claims(r: dict) -> list[Claim]:
@@ -107,9 +146,16 @@ def observed_claims(r: dict) -> list[Claim]:
         "magnitude": f"median relative magnitude error <= {t['magnitude_error']:.0%}",
         "shrink": f"median held-out shrinkage >= {t['shrinkage']:.0%}",
     }
-    claims = [Claim(f"gap-observed-{cid}", "gap", prefix + statement, _meets(o, t, MAIN_TARGETS[cid]),
-                    f"{_f(o[MAIN_TARGETS[cid][0]])} on {o[MAIN_TARGETS[cid][1]]} logs")
-              for cid, statement in statements.items()]  # fmt: skip
+    claims = [
+        Claim(
+            f"gap-observed-{cid}",
+            "gap",
+            prefix + statement,
+            _meets(o, t, MAIN_TARGETS[cid]),
+            f"{_f(o[MAIN_TARGETS[cid][0]])} on {o[MAIN_TARGETS[cid][1]]} logs",
+        )
+        for cid, statement in statements.items()
+    ]
     c, c0 = o.get("contact"), r.get("contact")
     if not c or not c0:
         return claims
@@ -124,9 +170,16 @@ def observed_claims(r: dict) -> list[Claim]:
     told = {
         "contact-single": f"; told the cause, its own hypothesis within tolerance in {_f(c.get('told_right'), '.2f')}"
     }
-    return claims + [Claim(f"gap-observed-{cid}", "gap", prefix + statement, _meets(c, ct, CONTACT_TARGETS[cid]),
-                           f"{_f(c[CONTACT_TARGETS[cid][0]])} on {c[CONTACT_TARGETS[cid][1]]} logs{told.get(cid, '')}")
-                     for cid, statement in statements.items()]  # fmt: skip
+    return claims + [
+        Claim(
+            f"gap-observed-{cid}",
+            "gap",
+            prefix + statement,
+            _meets(c, ct, CONTACT_TARGETS[cid]),
+            f"{_f(c[CONTACT_TARGETS[cid][0]])} on {c[CONTACT_TARGETS[cid][1]]} logs{told.get(cid, '')}",
+        )
+        for cid, statement in statements.items()
+    ]
 
 
 def contact_claims(c: dict | None) -> list[Claim]:
@@ -136,36 +189,61 @@ def contact_claims(c: dict | None) -> list[Claim]:
     t = c["targets"]
 
     def split(key: str) -> str:
-        return (f"MuJoCo contact models {_f(c[f'{key}_mujoco'], '.2f')} on {c[f'n_{key}_mujoco']}, Bullet "
-                f"{_f(c[f'{key}_bullet'], '.2f')} on {c[f'n_{key}_bullet']}")  # fmt: skip
+        return (
+            f"MuJoCo contact models {_f(c[f'{key}_mujoco'], '.2f')} on {c[f'n_{key}_mujoco']}, Bullet "
+            f"{_f(c[f'{key}_bullet'], '.2f')} on {c[f'n_{key}_bullet']}"
+        )
 
     loop = c.get("closed_loop") or {}
     nxt, rnd = loop.get("next") or {}, loop.get("random") or {}
     return [
-        Claim("gap-contact-null", "gap", f"Null logs of another contact model: no library effect stated as a cause in "
-              f">= {t['null_no_library']:.0%}", _meets(c, t, CONTACT_TARGETS["contact-null"]),
-              f"{_f(c['null_no_library'])} on {c['n_null_no_library']} logs ({split('null_no_library')})"),
-        Claim("gap-contact-named", "gap", f"In-library effects of at least {c['min_size_sd']:g}x the noise on another "
-              f"contact model: among the explanations the verdict names in >= {t['among_named']:.0%}",
-              _holds(c["among_named"], lambda x: x >= t["among_named"]), f"{_f(c['among_named'])} on "
-              f"{c['n_among_named']} logs ({split('among_named')}); stated as the one cause in "
-              f"{_f(c['one_cause'], '.2f')}, of which the true effect within {t['magnitude_within']:.0%} in "
-              f"{_f(c['one_cause_right'], '.2f')} ({c['n_one_cause_right']} logs); told the cause, its own "
-              f"hypothesis within {t['magnitude_within']:.0%} in {_f(c.get('told_right'), '.2f')}"),
-        Claim("gap-contact-contenders", "gap", f"... with at most {t['contenders_mean']:g} explanations in contention on "
-              "average", _holds(c["contenders_mean"], lambda x: x <= t["contenders_mean"]),
-              f"mean {_f(c['contenders_mean'], '.2f')}, largest {c['contenders_max']}"),
-        Claim("gap-contact-wrong", "gap", f"Effects outside the library on another contact model: a library mechanism "
-              f"stated as the one cause in <= {t['wrong_single']:.0%}", _meets(c, t, CONTACT_TARGETS["contact-wrong"]), f"{_f(c['wrong_single'])} on {c['n_wrong_single']} logs "
-              f"({split('wrong_single')}); stated as a cause at all {_f(c['wrong_mechanism'], '.2f')}"),
-        Claim("gap-contact-loop", "gap", f"One-effect logs with several contenders, once the recommended next pushes are run and "
-              f"appended: the true effect the one cause within {t['magnitude_within']:.0%} in >= {t['closed_loop']:.0%}",
-              _holds(nxt.get("one_cause_right"), lambda x: x >= t["closed_loop"]),
-              f"{_f(nxt.get('one_cause_right'))} on {nxt.get('n_single', 0)} logs; as many pushes drawn from the log's "
-              f"own design: {_f(rnd.get('one_cause_right'))}; told the cause, its own hypothesis within "
-              f"{t['magnitude_within']:.0%} in {_f(nxt.get('told_right'), '.2f')} (random pushes "
-              f"{_f(rnd.get('told_right'), '.2f')})"),
-    ]  # fmt: skip
+        Claim(
+            "gap-contact-null",
+            "gap",
+            f"Null logs of another contact model: no library effect stated as a cause in >= {t['null_no_library']:.0%}",
+            _meets(c, t, CONTACT_TARGETS["contact-null"]),
+            f"{_f(c['null_no_library'])} on {c['n_null_no_library']} logs ({split('null_no_library')})",
+        ),
+        Claim(
+            "gap-contact-named",
+            "gap",
+            f"In-library effects of at least {c['min_size_sd']:g}x the noise on another "
+            f"contact model: among the explanations the verdict names in >= {t['among_named']:.0%}",
+            _holds(c["among_named"], lambda x: x >= t["among_named"]),
+            f"{_f(c['among_named'])} on "
+            f"{c['n_among_named']} logs ({split('among_named')}); stated as the one cause in "
+            f"{_f(c['one_cause'], '.2f')}, of which the true effect within {t['magnitude_within']:.0%} in "
+            f"{_f(c['one_cause_right'], '.2f')} ({c['n_one_cause_right']} logs); told the cause, its own "
+            f"hypothesis within {t['magnitude_within']:.0%} in {_f(c.get('told_right'), '.2f')}",
+        ),
+        Claim(
+            "gap-contact-contenders",
+            "gap",
+            f"... with at most {t['contenders_mean']:g} explanations in contention on average",
+            _holds(c["contenders_mean"], lambda x: x <= t["contenders_mean"]),
+            f"mean {_f(c['contenders_mean'], '.2f')}, largest {c['contenders_max']}",
+        ),
+        Claim(
+            "gap-contact-wrong",
+            "gap",
+            f"Effects outside the library on another contact model: a library mechanism "
+            f"stated as the one cause in <= {t['wrong_single']:.0%}",
+            _meets(c, t, CONTACT_TARGETS["contact-wrong"]),
+            f"{_f(c['wrong_single'])} on {c['n_wrong_single']} logs "
+            f"({split('wrong_single')}); stated as a cause at all {_f(c['wrong_mechanism'], '.2f')}",
+        ),
+        Claim(
+            "gap-contact-loop",
+            "gap",
+            f"One-effect logs with several contenders, once the recommended next pushes are run and "
+            f"appended: the true effect the one cause within {t['magnitude_within']:.0%} in >= {t['closed_loop']:.0%}",
+            _holds(nxt.get("one_cause_right"), lambda x: x >= t["closed_loop"]),
+            f"{_f(nxt.get('one_cause_right'))} on {nxt.get('n_single', 0)} logs; as many pushes drawn from the log's "
+            f"own design: {_f(rnd.get('one_cause_right'))}; told the cause, its own hypothesis within "
+            f"{t['magnitude_within']:.0%} in {_f(nxt.get('told_right'), '.2f')} (random pushes "
+            f"{_f(rnd.get('told_right'), '.2f')})",
+        ),
+    ]
 
 
 def write_benchmark_markdown(result: dict, path: str | os.PathLike) -> None:
@@ -229,42 +307,57 @@ def write_benchmark_markdown(result: dict, path: str | os.PathLike) -> None:
         "",
         "## Claims",
         "",
-    ]  # fmt: skip
+    ]
     for c in claims:
         lines.append(f"- {'HOLDS' if c.holds else 'FAILS'}: {c.statement} ({c.detail})")
     cols = sorted({c for row in r["confusion"].values() for c in row}, key=lambda c: (c == "none", c))
-    lines += ["", "## Confusion matrix (rows: what the log carries; columns: the first cause stated, or none)", "",
-              "| true \\ predicted | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]  # fmt: skip
+    lines += [
+        "",
+        "## Confusion matrix (rows: what the log carries; columns: the first cause stated, or none)",
+        "",
+        "| true \\ predicted | " + " | ".join(cols) + " |",
+        "|---|" + "---|" * len(cols),
+    ]
     for t, row in r["confusion"].items():
         lines.append(f"| {t} | " + " | ".join(str(row.get(c, 0)) for c in cols) + " |")
-    lines += ["", "## Logs", "",
-              "| log | carries | noise | T | mass | visible RMS (x noise) | accepted | correct | share closed |",
-              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines += [
+        "",
+        "## Logs",
+        "",
+        "| log | carries | noise | T | mass | visible RMS (x noise) | accepted | correct | share closed |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for c in r["cases"]:
-        lines.append(f"| {c['case']} | {c['effects']} ({c['group']}) | {c['noise']} | {'y' if c['stop_time'] else ''} | "
-                     f"{'y' if c['measured_mass'] else ''} | {c['visible_rms']:.4f} ({c['size_sd']:.1f}) | "
-                     f"{c['accepted']} | {'yes' if c['correct'] else 'no'} | {_f(c['gap_share_closed'], '.2f')} |")  # fmt: skip
+        lines.append(
+            f"| {c['case']} | {c['effects']} ({c['group']}) | {c['noise']} | {'y' if c['stop_time'] else ''} | "
+            f"{'y' if c['measured_mass'] else ''} | {c['visible_rms']:.4f} ({c['size_sd']:.1f}) | "
+            f"{c['accepted']} | {'yes' if c['correct'] else 'no'} | {_f(c['gap_share_closed'], '.2f')} |"
+        )
     lines += contact_markdown(r.get("contact"))
     lines += observed_markdown(r)
     write_text(path, "\n".join(lines) + "\n")
 
 
 # (label, key, format, target key or None, direction) of the side-by-side table
-MAIN_ROWS = (("false alarms, null logs", "false_alarm", ".3f", "false_alarm", "<="),
-             ("top-1, one big library effect", "top1_big", ".3f", "top1", ">="),
-             ("both named, two big effects", "both_named_big", ".3f", "both_named", ">="),
-             ("'none', effects outside the library", "none_recall_outside", ".3f", "none_outside", ">="),
-             ("median relative magnitude error", "magnitude_rel_error_median", ".3f", "magnitude_error", "<="),
-             ("median held-out shrinkage", "shrinkage_median", ".3f", "shrinkage", ">="),
-             ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""))  # fmt: skip
-CONTACT_ROWS = (("null logs: no library effect stated", "null_no_library", ".3f", "null_no_library", ">="),
-                ("one big effect: among the named", "among_named", ".3f", "among_named", ">="),
-                ("... explanations in contention, mean", "contenders_mean", ".2f", "contenders_mean", "<="),
-                ("... stated as the one cause", "one_cause", ".3f", None, ""),
-                ("... the true effect the one cause, within tolerance", "single_right", ".3f", None, ""),
-                ("... told the cause: its own hypothesis within tolerance", "told_right", ".3f", None, ""),
-                ("outside effects: a library mechanism the one cause", "wrong_single", ".3f", "wrong_single", "<="),
-                ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""))  # fmt: skip
+MAIN_ROWS = (
+    ("false alarms, null logs", "false_alarm", ".3f", "false_alarm", "<="),
+    ("top-1, one big library effect", "top1_big", ".3f", "top1", ">="),
+    ("both named, two big effects", "both_named_big", ".3f", "both_named", ">="),
+    ("'none', effects outside the library", "none_recall_outside", ".3f", "none_outside", ">="),
+    ("median relative magnitude error", "magnitude_rel_error_median", ".3f", "magnitude_error", "<="),
+    ("median held-out shrinkage", "shrinkage_median", ".3f", "shrinkage", ">="),
+    ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""),
+)
+CONTACT_ROWS = (
+    ("null logs: no library effect stated", "null_no_library", ".3f", "null_no_library", ">="),
+    ("one big effect: among the named", "among_named", ".3f", "among_named", ">="),
+    ("... explanations in contention, mean", "contenders_mean", ".2f", "contenders_mean", "<="),
+    ("... stated as the one cause", "one_cause", ".3f", None, ""),
+    ("... the true effect the one cause, within tolerance", "single_right", ".3f", None, ""),
+    ("... told the cause: its own hypothesis within tolerance", "told_right", ".3f", None, ""),
+    ("outside effects: a library mechanism the one cause", "wrong_single", ".3f", "wrong_single", "<="),
+    ("median diagnosis time per log, s", "seconds_per_log_median", ".2f", None, ""),
+)
 
 
 def observed_markdown(r: dict) -> list[str]:
@@ -273,10 +366,15 @@ def observed_markdown(r: dict) -> list[str]:
     o = r.get("observed")
     if not o:
         return []
-    lines = ["", "# With what a robot records", "",
-             "The same logs, diagnosed again with the pusher's measured speed and the box's track in every "
-             "hypothesis's fit (options `use_pusher_speed` and `use_track`), beside the default diagnosis "
-             "(displacement, and stop time where the log has it).", ""]  # fmt: skip
+    lines = [
+        "",
+        "# With what a robot records",
+        "",
+        "The same logs, diagnosed again with the pusher's measured speed and the box's track in every "
+        "hypothesis's fit (options `use_pusher_speed` and `use_track`), beside the default diagnosis "
+        "(displacement, and stop time where the log has it).",
+        "",
+    ]
 
     def table(title: str, rows, without: dict, with_: dict, targets: dict) -> list[str]:
         out = [f"## {title}", "", "| | default | with pusher speed and track | target |", "|---|---|---|---|"]
@@ -296,19 +394,31 @@ def contact_markdown(c: dict | None) -> list[str]:
     every log's verdict."""
     if not c:
         return []
-    lines = ["", "# Other contact models", "",
-             f"{c['n_logs']} push logs from worlds whose contact is not the table's (MuJoCo with a contact model of its "
-             "own, and the Bullet engine), with and without effects; labels sealed apart. An effect counts when the "
-             f"RMS log d it adds on top of its log's contact model (each object's mean change removed) is at least "
-             f"{c['min_size_sd']:g}x the noise sd. Median diagnosis time per log "
-             f"{_f(c['seconds_per_log_median'], '.2f')} s.", "", "## Claims", ""]  # fmt: skip
+    lines = [
+        "",
+        "# Other contact models",
+        "",
+        f"{c['n_logs']} push logs from worlds whose contact is not the table's (MuJoCo with a contact model of its "
+        "own, and the Bullet engine), with and without effects; labels sealed apart. An effect counts when the "
+        f"RMS log d it adds on top of its log's contact model (each object's mean change removed) is at least "
+        f"{c['min_size_sd']:g}x the noise sd. Median diagnosis time per log "
+        f"{_f(c['seconds_per_log_median'], '.2f')} s.",
+        "",
+        "## Claims",
+        "",
+    ]
     for cl in contact_claims(c):
         lines.append(f"- {'HOLDS' if cl.holds else 'FAILS'}: {cl.statement} ({cl.detail})")
     loop = c.get("closed_loop")
     if loop:
-        lines += ["", "## Closed loop (logs with several explanations in contention: the recommended next pushes against as many random pushes of "
-                  "the log's own design, each run in the same world and appended, then diagnosed again)", "",
-                  "| | next pushes | random pushes of the log's design |", "|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            "## Closed loop (logs with several explanations in contention: the recommended next pushes against as many random pushes of "
+            "the log's own design, each run in the same world and appended, then diagnosed again)",
+            "",
+            "| | next pushes | random pushes of the log's design |",
+            "|---|---|---|",
+        ]
         n, r = loop["next"], loop["random"]
         lines += [
             f"| one-effect logs: the true effect the one cause, within tolerance | {_f(n['one_cause_right'])} | "
@@ -321,15 +431,28 @@ def contact_markdown(c: dict | None) -> list[str]:
             f"({n['n_outside']} logs) |",
             f"| explanations in contention, mean | {_f(n['contenders_mean'], '.2f')} | {_f(r['contenders_mean'], '.2f')} |",
             f"| pushes appended per log, mean | {_f(n['pushes_added_mean'], '.1f')} | {_f(r['pushes_added_mean'], '.1f')} |",
-        ]  # fmt: skip
+        ]
     cols = sorted({k for row in c["confusion"].values() for k in row})
-    lines += ["", "## Confusion matrix (rows: what the log carries, and its engine; columns: the causes stated, or the "
-              "identification)", "", "| true \\ verdict | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]  # fmt: skip
+    lines += [
+        "",
+        "## Confusion matrix (rows: what the log carries, and its engine; columns: the causes stated, or the "
+        "identification)",
+        "",
+        "| true \\ verdict | " + " | ".join(cols) + " |",
+        "|---|" + "---|" * len(cols),
+    ]
     for t, row in c["confusion"].items():
         lines.append(f"| {t} | " + " | ".join(str(row.get(k, 0)) for k in cols) + " |")
-    lines += ["", "## Logs", "", "| log | carries | engine | design | adequacy | identification | causes | contenders |",
-              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines += [
+        "",
+        "## Logs",
+        "",
+        "| log | carries | engine | design | adequacy | identification | causes | contenders |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for row in c["cases"]:
-        lines.append(f"| {row['case']} | {row['effects']} ({row['group']}) | {row['engine']} | {row['design']} | "
-                     f"{row['adequacy']} | {row['identification']} | {row['causes']} | {row['contenders']} |")  # fmt: skip
+        lines.append(
+            f"| {row['case']} | {row['effects']} ({row['group']}) | {row['engine']} | {row['design']} | "
+            f"{row['adequacy']} | {row['identification']} | {row['causes']} | {row['contenders']} |"
+        )
     return lines

@@ -63,11 +63,26 @@ from imply.sim.scene import SceneConfig
 # the parameters this engine implements (any value); every other one must be nominal
 SUPPORTED = frozenset(
     {
-        "tilt", "tilt_azimuth", "viscous", "air_density", "carriage_mass", "servo_kv", "force_limit",
-        "aniso", "aniso_axis", "stribeck", "stribeck_speed", "gradient", "gradient_azimuth",
-        "torsional", "rolling", "height", "stroke", "free",
+        "tilt",
+        "tilt_azimuth",
+        "viscous",
+        "air_density",
+        "carriage_mass",
+        "servo_kv",
+        "force_limit",
+        "aniso",
+        "aniso_axis",
+        "stribeck",
+        "stribeck_speed",
+        "gradient",
+        "gradient_azimuth",
+        "torsional",
+        "rolling",
+        "height",
+        "stroke",
+        "free",
     }
-)  # fmt: skip
+)
 GRAVITY = 9.81  # m/s^2, MuJoCo's default, unless the scene's extra options name a gravity
 
 
@@ -102,8 +117,11 @@ class BulletStepping(Config):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"bullet stepping: {name} must be a positive number, not {value!r}")
-        if not (isinstance(self.release_window, int | float) and math.isfinite(self.release_window)
-                and self.release_window >= 0):  # fmt: skip
+        if not (
+            isinstance(self.release_window, int | float)
+            and math.isfinite(self.release_window)
+            and self.release_window >= 0
+        ):
             raise ValueError(f"bullet stepping: release_window must be a number >= 0, not {self.release_window!r}")
         if not (isinstance(self.solver_iterations, int) and self.solver_iterations >= 1):
             raise ValueError(
@@ -197,9 +215,14 @@ def simulate_bullet(
     client = pybullet.connect(pybullet.DIRECT)
     try:
         return collect_pushes(
-            pushes, scene, lambda **kw: _push(client, scene, stepping, **kw), supported=SUPPORTED,
-            desc="bullet pushes", progress=progress, track_times=track_times,
-        )  # fmt: skip
+            pushes,
+            scene,
+            lambda **kw: _push(client, scene, stepping, **kw),
+            supported=SUPPORTED,
+            desc="bullet pushes",
+            progress=progress,
+            track_times=track_times,
+        )
     finally:
         pybullet.disconnect(client)
 
@@ -218,8 +241,11 @@ def collect_pushes(
     push of ``pushes`` in turn (``prm``: the parameters in ``supported``), gathered into a :class:`WorldResult`."""
     nominal = nominal_parameters(scene)
     n = pushes.n
-    params = {k: np.broadcast_to(np.asarray(pushes.params.get(k, v), float), (n,)) for k, v in nominal.items()
-              if k in supported}  # fmt: skip
+    params = {
+        k: np.broadcast_to(np.asarray(pushes.params.get(k, v), float), (n,))
+        for k, v in nominal.items()
+        if k in supported
+    }
     fields = ("displacement", "lateral", "stop_time", "stroke_time", "drive_force")
     out = {f: np.zeros(n) for f in fields}
     ok = np.zeros(n, bool)
@@ -239,8 +265,9 @@ def collect_pushes(
         ok[i], steps[i] = one.ok, one.steps
         if track is not None:
             track[i] = one.track
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track,
-                       out["drive_force"])  # fmt: skip
+    return WorldResult(
+        out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track, out["drive_force"]
+    )
 
 
 def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float]) -> tuple[int, int]:
@@ -279,13 +306,24 @@ def _build(client: int, scene: SceneConfig, *, mass: float, prm: dict[str, float
     pybullet.setCollisionFilterPair(pusher, table, 0, -1, 0, physicsClientId=client)
     pybullet.changeDynamics(table, -1, lateralFriction=1.0, physicsClientId=client)
     pybullet.changeDynamics(
-        box, -1, lateralFriction=1.0, spinningFriction=prm["torsional"], rollingFriction=prm["rolling"],
-        linearDamping=0.0, angularDamping=0.0, physicsClientId=client,
-    )  # fmt: skip
-    pybullet.changeDynamics(
-        pusher, 0, lateralFriction=0.0, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+        box,
+        -1,
+        lateralFriction=1.0,
+        spinningFriction=prm["torsional"],
+        rollingFriction=prm["rolling"],
+        linearDamping=0.0,
+        angularDamping=0.0,
         physicsClientId=client,
-    )  # fmt: skip
+    )
+    pybullet.changeDynamics(
+        pusher,
+        0,
+        lateralFriction=0.0,
+        linearDamping=0.0,
+        angularDamping=0.0,
+        jointDamping=0.0,
+        physicsClientId=client,
+    )
     pybullet.changeDynamics(pusher, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)
     # the joint's built-in velocity motor off: the servo law is applied as a joint force
     pybullet.setJointMotorControl2(pusher, 0, pybullet.VELOCITY_CONTROL, force=0.0, physicsClientId=client)
@@ -313,15 +351,17 @@ class _BulletRig:
         return np.array(self.pybullet.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
     def push_box(self, force, position) -> None:
-        self.pybullet.applyExternalForce(self.box, -1, force.tolist(), position, self.pybullet.WORLD_FRAME,
-                                         physicsClientId=self.client)  # fmt: skip
+        self.pybullet.applyExternalForce(
+            self.box, -1, force.tolist(), position, self.pybullet.WORLD_FRAME, physicsClientId=self.client
+        )
 
     def set_box_friction(self, friction: float) -> None:
         self.pybullet.changeDynamics(self.box, -1, lateralFriction=friction, physicsClientId=self.client)
 
     def drive(self, force: float) -> None:
-        self.pybullet.setJointMotorControl2(self.pusher, 0, self.pybullet.TORQUE_CONTROL, force=force,
-                                            physicsClientId=self.client)  # fmt: skip
+        self.pybullet.setJointMotorControl2(
+            self.pusher, 0, self.pybullet.TORQUE_CONTROL, force=force, physicsClientId=self.client
+        )
 
     def set_step(self, step: float) -> None:
         self.pybullet.setPhysicsEngineParameter(fixedTimeStep=step, physicsClientId=self.client)
@@ -360,5 +400,14 @@ def _push(
     bz = hz * (1.0 + prm["height"])
     area = (4.0 * hy * bz, 4.0 * hx * bz, 4.0 * hx * hy)  # cross-sections per box axis, for air drag
     rig = _BulletRig(client, box, pusher, st.push_step)
-    return run_push(rig, st, speed=speed, friction=friction, direction=direction, prm=prm, stroke=prm["stroke"],
-                    area=area, track_times=track_times)  # fmt: skip
+    return run_push(
+        rig,
+        st,
+        speed=speed,
+        friction=friction,
+        direction=direction,
+        prm=prm,
+        stroke=prm["stroke"],
+        area=area,
+        track_times=track_times,
+    )

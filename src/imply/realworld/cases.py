@@ -64,10 +64,16 @@ GROUPS = ("null_gaussian", "null_heavy", "single", "single_unidentifiable", "dou
 TARGETS = ("false_alarm", "top1", "both_named", "none_outside", "magnitude_error", "shrinkage")
 # the contact benchmark (config gap.contact_benchmark): a contact model of the world's own
 # (MuJoCo), or another engine's world, with no effect, one library effect or one outside it
-CONTACT_GROUPS = ("null_contact", "single_contact", "outside_contact", "null_engine", "single_engine",
-                  "outside_engine")  # fmt: skip
-CONTACT_TARGETS = ("null_no_library", "among_named", "contenders_mean", "magnitude_within", "wrong_single",
-                   "closed_loop", "observed_single_right")  # fmt: skip
+CONTACT_GROUPS = ("null_contact", "single_contact", "outside_contact", "null_engine", "single_engine", "outside_engine")
+CONTACT_TARGETS = (
+    "null_no_library",
+    "among_named",
+    "contenders_mean",
+    "magnitude_within",
+    "wrong_single",
+    "closed_loop",
+    "observed_single_right",
+)
 DIRECTIONS = 4  # pushes per object and speed in the four-direction design, 90 degrees apart
 
 
@@ -85,9 +91,10 @@ class NoiseModel(Config):
         exclusive_minimum=0,
     )
     track_sd: float = option(
-        0.001, doc="Gaussian noise of each position of the box's track (m; a camera's, in x and y alike)",
+        0.001,
+        doc="Gaussian noise of each position of the box's track (m; a camera's, in x and y alike)",
         exclusive_minimum=0,
-    )  # fmt: skip
+    )
     track_rate: float = option(60.0, doc="frames per second of the box's track (a camera's)", exclusive_minimum=0)
     heavy_sd: float = option(0.03, doc="scale of the heavy-tailed noise", exclusive_minimum=0)
     heavy_df: float = option(3.0, doc="degrees of freedom of the heavy-tailed (Student t) noise", exclusive_minimum=2)
@@ -125,36 +132,44 @@ class BenchmarkConfig(Config):
 
     seed: int = option(6363, doc="seed of the logs' draws (the development set: 1001)", required=True)
     logs: dict[str, int] = option(
-        {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12, "double": 40,
-         "outside": 48},
-        doc="logs per group (a group left out has none)", required=True, keys=GROUPS, items={"minimum": 0},
-    )  # fmt: skip
+        {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12, "double": 40, "outside": 48},
+        doc="logs per group (a group left out has none)",
+        required=True,
+        keys=GROUPS,
+        items={"minimum": 0},
+    )
     n_objects: int = option(8, doc="objects per log", minimum=2, required=True)
     speeds: tuple[float, ...] = option(
-        (0.2, 0.34, 0.48, 0.62, 0.76, 0.9), doc="push speeds (m/s), with room for speed errors inside the table",
-        required=True, min_items=2, items={"exclusive_minimum": 0},
-    )  # fmt: skip
+        (0.2, 0.34, 0.48, 0.62, 0.76, 0.9),
+        doc="push speeds (m/s), with room for speed errors inside the table",
+        required=True,
+        min_items=2,
+        items={"exclusive_minimum": 0},
+    )
     masses: tuple[float, float] = option(
         (0.2, 2.0), doc="the objects' mass range (kg, log-uniform)", required=True, items={"exclusive_minimum": 0}
     )
     frictions: tuple[float, float] = option(
         (0.1, 0.6), doc="the objects' friction range (log-uniform)", required=True, items={"exclusive_minimum": 0}
     )
-    replicates: int = option(2, doc="noise draws per simulated push (pure error for the noise)", minimum=1,
-                             required=True)  # fmt: skip
+    replicates: int = option(
+        2, doc="noise draws per simulated push (pure error for the noise)", minimum=1, required=True
+    )
     measured_mass_share: float = option(0.7, doc="share of logs with weighed masses", minimum=0, maximum=1)
     stop_time_share: float = option(0.6, doc="share of logs with stop times", minimum=0, maximum=1)
     heavy_share: float = option(
         0.2, doc="share of effect logs with heavy-tailed noise and gross outliers", minimum=0, maximum=1
     )
     double_range: tuple[float, float] = option(
-        (0.3, 1.0), doc="two-effect logs: share of each effect's largest magnitude",
+        (0.3, 1.0),
+        doc="two-effect logs: share of each effect's largest magnitude",
         items={"exclusive_minimum": 0, "maximum": 1},
-    )  # fmt: skip
+    )
     ranges: dict[str, tuple[float, float]] = option(
-        {}, doc="|magnitude| ranges by effect of imply.realworld.effects (default: each effect's own)",
+        {},
+        doc="|magnitude| ranges by effect of imply.realworld.effects (default: each effect's own)",
         items={"exclusive_minimum": 0},
-    )  # fmt: skip
+    )
     stribeck_speed: tuple[float, float] = option(
         (0.05, 0.2), doc="range of the Stribeck speed (m/s, log-uniform)", items={"exclusive_minimum": 0}
     )
@@ -166,17 +181,29 @@ class BenchmarkConfig(Config):
         2.0, doc="effects at least this many noise sd (visible RMS) count for the targets", exclusive_minimum=0
     )
     targets: dict[str, float] = option(
-        {"false_alarm": 0.05, "top1": 0.9, "both_named": 0.8, "none_outside": 0.8, "magnitude_error": 0.10,
-         "shrinkage": 0.8},
-        doc="what the diagnostic must reach (imply.realworld.benchmark.score_cases)", keys=TARGETS,
-    )  # fmt: skip
+        {
+            "false_alarm": 0.05,
+            "top1": 0.9,
+            "both_named": 0.8,
+            "none_outside": 0.8,
+            "magnitude_error": 0.10,
+            "shrinkage": 0.8,
+        },
+        doc="what the diagnostic must reach (imply.realworld.benchmark.score_cases)",
+        keys=TARGETS,
+    )
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.ranges) - set(EFFECTS))
         if unknown:
             raise ValueError(f"ranges: unknown effect(s) {', '.join(unknown)}")
-        pairs = {"masses": self.masses, "frictions": self.frictions, "double_range": self.double_range,
-                 "stribeck_speed": self.stribeck_speed, **{f"ranges.{k}": v for k, v in self.ranges.items()}}  # fmt: skip
+        pairs = {
+            "masses": self.masses,
+            "frictions": self.frictions,
+            "double_range": self.double_range,
+            "stribeck_speed": self.stribeck_speed,
+            **{f"ranges.{k}": v for k, v in self.ranges.items()},
+        }
         for name, (lo, hi) in pairs.items():
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
                 raise ValueError(f"{name} must be [low, high] with low <= high, not {[lo, hi]}")
@@ -204,23 +231,39 @@ class ContactBenchmarkConfig(BenchmarkConfig):
 
     seed: int = option(9393, doc="seed of the logs' draws (the development set: 7117)", required=True)
     logs: dict[str, int] = option(
-        {"null_contact": 16, "single_contact": 20, "outside_contact": 10, "null_engine": 8, "single_engine": 12,
-         "outside_engine": 6},
-        doc="logs per group (*_engine: the bullet world; a group left out has none)", required=True,
-        keys=CONTACT_GROUPS, items={"minimum": 0},
-    )  # fmt: skip
+        {
+            "null_contact": 16,
+            "single_contact": 20,
+            "outside_contact": 10,
+            "null_engine": 8,
+            "single_engine": 12,
+            "outside_engine": 6,
+        },
+        doc="logs per group (*_engine: the bullet world; a group left out has none)",
+        required=True,
+        keys=CONTACT_GROUPS,
+        items={"minimum": 0},
+    )
     heavy_share: float = option(
         0.0, doc="share of effect logs with heavy-tailed noise and gross outliers", minimum=0, maximum=1
     )
     four_share: float = option(0.2, doc="share of logs with the four-direction design", minimum=0, maximum=1)
     effect_range: tuple[float, float] = option(
-        (0.3, 1.0), doc="one-effect logs: share of the effect's largest magnitude",
+        (0.3, 1.0),
+        doc="one-effect logs: share of the effect's largest magnitude",
         items={"exclusive_minimum": 0, "maximum": 1},
-    )  # fmt: skip
+    )
     contact: ContactDraw = option(ContactDraw(), doc="how each MuJoCo log's contact model is drawn", required=True)
     targets: dict[str, float] = option(
-        {"null_no_library": 0.9, "among_named": 0.9, "contenders_mean": 3.0, "magnitude_within": 0.3,
-         "wrong_single": 0.1, "closed_loop": 0.6, "observed_single_right": 0.8},
+        {
+            "null_no_library": 0.9,
+            "among_named": 0.9,
+            "contenders_mean": 3.0,
+            "magnitude_within": 0.3,
+            "wrong_single": 0.1,
+            "closed_loop": 0.6,
+            "observed_single_right": 0.8,
+        },
         doc="null logs stating no library effect as a cause (share, at least); one-effect logs naming theirs among "
         "the causes or contenders (share, at least), with contenders_mean contenders on average (at most); outside "
         "logs stating a library mechanism as the one cause (share, at most); after the next pushes, "
@@ -228,7 +271,7 @@ class ContactBenchmarkConfig(BenchmarkConfig):
         "least); with the pusher's measured speed and the box's track, one-effect logs stating theirs as the one cause "
         "within magnitude_within (share, at least)",
         keys=CONTACT_TARGETS,
-    )  # fmt: skip
+    )
 
     groups: ClassVar[tuple[str, ...]] = CONTACT_GROUPS
 
@@ -258,8 +301,11 @@ def _plans(design: BenchmarkConfig, rng: np.random.Generator) -> list[tuple[str,
         for group in design.groups:
             kind, world = group.split("_", 1)
             carried = set(engine_effects(world_engine(world)))
-            pool = {"null": (), "single": tuple(n for n in IDENTIFIABLE if n in carried),
-                    "outside": tuple(n for n in OUTSIDE if n in carried)}[kind]  # fmt: skip
+            pool = {
+                "null": (),
+                "single": tuple(n for n in IDENTIFIABLE if n in carried),
+                "outside": tuple(n for n in OUTSIDE if n in carried),
+            }[kind]
             count = design.logs.get(group, 0)
             if pool:
                 out += [(group, [e]) for e in _round_robin(pool, count, rng)]
@@ -304,23 +350,30 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
         effects = []
         for name in names:
             lo, hi = _magnitude_range(design, group, name)
-            e = {"name": name, "magnitude": draw_magnitude(crng, name, lo, hi),
-                 "azimuth": float(crng.uniform(0, 2 * np.pi)) if EFFECTS[name].directional else None,
-                 "in_library": EFFECTS[name].in_library}  # fmt: skip
+            e = {
+                "name": name,
+                "magnitude": draw_magnitude(crng, name, lo, hi),
+                "azimuth": float(crng.uniform(0, 2 * np.pi)) if EFFECTS[name].directional else None,
+                "in_library": EFFECTS[name].in_library,
+            }
             if name == "stribeck":
                 e["stribeck_speed"] = float(np.exp(crng.uniform(*np.log(design.stribeck_speed))))
             effects.append(e)
         heavy = group == "null_heavy" or (group != "null_gaussian" and crng.random() < design.heavy_share)
-        cases.append({
-            "id": cid, "group": group, "effects": effects,
-            "mass": np.exp(crng.uniform(*np.log(design.masses), n_obj)).tolist(),
-            "friction": np.exp(crng.uniform(*np.log(design.frictions), n_obj)).tolist(),
-            "direction": crng.uniform(0, 2 * np.pi, n_obj * n_sp).tolist(),
-            "measured_mass": bool(crng.random() < design.measured_mass_share),
-            "stop_time": bool(crng.random() < design.stop_time_share),
-            "noise": "heavy" if heavy else "gaussian",
-            "noise_seed": int(crng.integers(2**31)),
-        })  # fmt: skip
+        cases.append(
+            {
+                "id": cid,
+                "group": group,
+                "effects": effects,
+                "mass": np.exp(crng.uniform(*np.log(design.masses), n_obj)).tolist(),
+                "friction": np.exp(crng.uniform(*np.log(design.frictions), n_obj)).tolist(),
+                "direction": crng.uniform(0, 2 * np.pi, n_obj * n_sp).tolist(),
+                "measured_mass": bool(crng.random() < design.measured_mass_share),
+                "stop_time": bool(crng.random() < design.stop_time_share),
+                "noise": "heavy" if heavy else "gaussian",
+                "noise_seed": int(crng.integers(2**31)),
+            }
+        )
         if isinstance(design, ContactBenchmarkConfig):
             cases[-1].update(_contact_draw(design, group, crng))
     return cases
@@ -329,8 +382,11 @@ def draw_cases(design: BenchmarkConfig) -> list[dict]:
 def _contact_draw(design: ContactBenchmarkConfig, group: str, rng: np.random.Generator) -> dict:
     """A contact-benchmark log's engine, contact model and push design (four directions: the log's directions)."""
     engine = world_engine(group.split("_", 1)[1])
-    out = {"engine": engine, "contact": draw_contact(rng, design.contact) if engine == "mujoco" else no_contact_model(),
-           "design": "four" if rng.random() < design.four_share else "random"}  # fmt: skip
+    out = {
+        "engine": engine,
+        "contact": draw_contact(rng, design.contact) if engine == "mujoco" else no_contact_model(),
+        "design": "four" if rng.random() < design.four_share else "random",
+    }
     if out["design"] == "four":
         rotation = float(rng.uniform(0.0, np.pi / 2))
         quarter = np.tile(np.arange(DIRECTIONS), design.n_objects * len(design.speeds))
@@ -351,8 +407,9 @@ def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effec
     return _pushes_in_world(case, obj, v, np.asarray(case["direction"]), scene, effects)
 
 
-def _pushes_in_world(case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray, scene: SceneConfig,
-                     effects: list[dict]) -> WorldPushes:  # fmt: skip
+def _pushes_in_world(
+    case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray, scene: SceneConfig, effects: list[dict]
+) -> WorldPushes:
     """Pushes of ``case``'s objects ``obj`` at speeds ``v`` and directions ``phi``, in its world: its contact model
     and the ``effects`` given."""
     p = WorldPushes.nominal(v, np.asarray(case["mass"])[obj], np.asarray(case["friction"])[obj], phi, scene)
@@ -363,14 +420,26 @@ def _pushes_in_world(case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray
     return p
 
 
-def _log_columns(case: dict, scene: SceneConfig, obj: np.ndarray, v: np.ndarray, phi: np.ndarray,
-                 displacement: np.ndarray, stop_time: np.ndarray | None, pusher_speed: np.ndarray) -> dict:  # fmt: skip
+def _log_columns(
+    case: dict,
+    scene: SceneConfig,
+    obj: np.ndarray,
+    v: np.ndarray,
+    phi: np.ndarray,
+    displacement: np.ndarray,
+    stop_time: np.ndarray | None,
+    pusher_speed: np.ndarray,
+) -> dict:
     """One noise draw of pushes as the columns a lab's push log holds (stop times and weighed masses where the
     case records them; the pusher's measured mean speed always: a robot's encoders give it)."""
     names = object_names(len(case["mass"]))
     he = scene.box_half_extents
-    cols = {"object_id": [names[i] for i in obj], "speed": v, "direction": np.round(phi, 9),
-            "displacement": displacement}  # fmt: skip
+    cols = {
+        "object_id": [names[i] for i in obj],
+        "speed": v,
+        "direction": np.round(phi, 9),
+        "displacement": displacement,
+    }
     if case["stop_time"]:
         cols["stop_time"] = stop_time
     cols["pusher_speed"] = pusher_speed
@@ -423,15 +492,20 @@ def simulate_cases(
         starts = range(0, allp.n, chunk)
         for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
             idx = np.arange(a, min(a + chunk, allp.n))
-            res = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread,
-                                  track_times=times)  # fmt: skip
+            res = simulate_engine(
+                allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread, track_times=times
+            )
             disp[idx], stop[idx], stroke[idx], ok[idx] = res.displacement, res.stop_time, res.stroke_time, res.ok
             track[idx] = res.track
         ok &= np.isfinite(stroke) & (stroke > 0)
         for k, (cid, what, _, _) in enumerate(mine):
             sl = slice(bounds[k], bounds[k + 1])
-            out.setdefault(cid, {})[what] = {"displacement": disp[sl], "stop_time": stop[sl], "ok": ok[sl],
-                                             "pusher_speed": pusher_speed(scene.stroke, stroke[sl])}  # fmt: skip
+            out.setdefault(cid, {})[what] = {
+                "displacement": disp[sl],
+                "stop_time": stop[sl],
+                "ok": ok[sl],
+                "pusher_speed": pusher_speed(scene.stroke, stroke[sl]),
+            }
             if what == "all":  # the camera films the log's own pushes
                 out[cid][what]["track"] = track[sl]
     return {case["id"]: out[case["id"]] for case in cases}
@@ -456,9 +530,18 @@ def log_track(case: dict, sim: dict, label: dict, design: BenchmarkConfig) -> pd
         c, s = np.cos(phi[j]), np.sin(phi[j])
         x = along * c - across * s + rng.normal(0.0, nm.track_sd, times.size)
         y = along * s + across * c + rng.normal(0.0, nm.track_sd, times.size)
-        parts.append(pd.DataFrame({"object_id": names[obj[j]], "push": row + 1, "t": np.round(times[keep], 6),
-                                   "x": np.round(x[keep], 6), "y": np.round(y[keep], 6),
-                                   "yaw": np.round(yaw[keep], 5)}))  # fmt: skip
+        parts.append(
+            pd.DataFrame(
+                {
+                    "object_id": names[obj[j]],
+                    "push": row + 1,
+                    "t": np.round(times[keep], 6),
+                    "x": np.round(x[keep], 6),
+                    "y": np.round(y[keep], 6),
+                    "yaw": np.round(yaw[keep], 5),
+                }
+            )
+        )
     columns = ["object_id", "push", "t", "x", "y", "yaw"]
     return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
 
@@ -498,9 +581,18 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
     names = object_names(n_obj)
     rows = []
     for r in range(reps):
-        frame = pd.DataFrame(_log_columns(case, scene, obj, v, phi, res["displacement"] * np.exp(e_d[r]),
-                                          res["stop_time"] * np.exp(e_t[r]),
-                                          res["pusher_speed"] * np.exp(e_p[r])))  # fmt: skip
+        frame = pd.DataFrame(
+            _log_columns(
+                case,
+                scene,
+                obj,
+                v,
+                phi,
+                res["displacement"] * np.exp(e_d[r]),
+                res["stop_time"] * np.exp(e_t[r]),
+                res["pusher_speed"] * np.exp(e_p[r]),
+            )
+        )
         frame["_push"] = np.arange(v.size)
         frame["_rep"] = r
         rows.append(frame[ok])
@@ -509,25 +601,38 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
     frame = frame.drop(columns=["_push", "_rep"]).reset_index(drop=True)
 
     def observables(r: dict) -> dict:
-        return {"log_d": np.log(np.maximum(r["displacement"], 1e-9)).tolist(),
-                "log_t": np.log(np.maximum(r["stop_time"], 1e-9)).tolist(),
-                "log_p": np.log(np.where(r["ok"], r["pusher_speed"], 1.0)).tolist(), "ok": r["ok"].tolist()}  # fmt: skip
+        return {
+            "log_d": np.log(np.maximum(r["displacement"], 1e-9)).tolist(),
+            "log_t": np.log(np.maximum(r["stop_time"], 1e-9)).tolist(),
+            "log_p": np.log(np.where(r["ok"], r["pusher_speed"], 1.0)).tolist(),
+            "ok": r["ok"].tolist(),
+        }
 
     label = {
-        "id": case["id"], "group": case["group"], "effects": case["effects"],
-        "noise": {"kind": case["noise"], "sd": nm.heavy_sd if case["noise"] == "heavy" else nm.sd,
-                  "stop_time_sd": nm.heavy_sd if case["noise"] == "heavy" else nm.stop_time_sd,
-                  "pusher_speed_sd": nm.pusher_speed_sd,
-                  "df": nm.heavy_df if case["noise"] == "heavy" else None},
-        "measured_mass": case["measured_mass"], "stop_time": case["stop_time"],
+        "id": case["id"],
+        "group": case["group"],
+        "effects": case["effects"],
+        "noise": {
+            "kind": case["noise"],
+            "sd": nm.heavy_sd if case["noise"] == "heavy" else nm.sd,
+            "stop_time_sd": nm.heavy_sd if case["noise"] == "heavy" else nm.stop_time_sd,
+            "pusher_speed_sd": nm.pusher_speed_sd,
+            "df": nm.heavy_df if case["noise"] == "heavy" else None,
+        },
+        "measured_mass": case["measured_mass"],
+        "stop_time": case["stop_time"],
         "objects": {names[i]: {"mass": case["mass"][i], "friction": case["friction"][i]} for i in range(n_obj)},
-        "pushes": {"object": [names[i] for i in obj], "speed": v.tolist(), "direction": phi.tolist(),
-                   "kept": ok.tolist()},
+        "pushes": {
+            "object": [names[i] for i in obj],
+            "speed": v.tolist(),
+            "direction": phi.tolist(),
+            "kept": ok.tolist(),
+        },
         "noise_free": {what: observables(r) for what, r in sim.items()},
         "outliers": outliers,  # [replicate, push] of every gross outlier
         "rows_kept": kept.tolist(),  # [push, replicate] of every row of the log, in its order
         "dropped_pushes": int((~ok).sum()),
-    }  # fmt: skip
+    }
     for key in ("engine", "contact", "design"):  # the contact benchmark's
         if key in case:
             label[key] = case[key]
@@ -535,9 +640,16 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
 
 
 def extra_pushes(
-    case: dict, design: BenchmarkConfig, scene: SceneConfig, obj: np.ndarray, speed: np.ndarray, direction: np.ndarray,
-    *, seed: int, nthread: int = 0,
-) -> pd.DataFrame:  # fmt: skip
+    case: dict,
+    design: BenchmarkConfig,
+    scene: SceneConfig,
+    obj: np.ndarray,
+    speed: np.ndarray,
+    direction: np.ndarray,
+    *,
+    seed: int,
+    nthread: int = 0,
+) -> pd.DataFrame:
     """New pushes of ``case``'s objects (indices ``obj``) at ``speed`` and ``direction``, run in the same world (its
     contact model, engine and effects) with the same protocol and noise as its log: ``design.replicates`` noise
     draws per push (fresh ones, from ``seed``), the log's columns, pushes whose box failed the world's checks left
@@ -552,8 +664,11 @@ def extra_pushes(
     ok = np.asarray(res.ok, bool) & np.isfinite(res.stroke_time)
     for _ in range(design.replicates):
         d = res.displacement * np.exp(_noise(rng, case["noise"], nm.sd, nm.heavy_sd, nm.heavy_df, v.shape))
-        t = (res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd, nm.heavy_df, v.shape))
-             if case["stop_time"] else None)  # fmt: skip
+        t = (
+            res.stop_time * np.exp(_noise(rng, case["noise"], nm.stop_time_sd, nm.heavy_sd, nm.heavy_df, v.shape))
+            if case["stop_time"]
+            else None
+        )
         p = pusher_speed(scene.stroke, res.stroke_time) * np.exp(rng_p.normal(0.0, nm.pusher_speed_sd, v.shape))
         frames.append(pd.DataFrame(_log_columns(case, scene, obj, v, phi, d, t, p))[ok])
     return pd.concat(frames, ignore_index=True)
@@ -573,8 +688,12 @@ def write_benchmark_logs(
     """Simulate every log into ``logs/<id>.csv``, seal the labels in ``sealed``, and measure the world's
     own numerical error into ``accuracy`` (beside the table's, ``table_error``). Returns that error."""
     cases = draw_cases(design)
-    log.info("simulating %d logs (%d objects x %d speeds each) in the world", len(cases), design.n_objects,
-             len(design.speeds))  # fmt: skip
+    log.info(
+        "simulating %d logs (%d objects x %d speeds each) in the world",
+        len(cases),
+        design.n_objects,
+        len(design.speeds),
+    )
     sims = simulate_cases(cases, design, scene, nthread=nthread, progress=progress)
     labels = {}
     for case in cases:
@@ -587,8 +706,9 @@ def write_benchmark_logs(
     # the MuJoCo world's error (another engine's logs are that engine's; its convergence is its module's)
     world_cases = [c for c in cases if c.get("engine", "mujoco") == "mujoco"] or cases
     sample, nominal = accuracy_sample(world_cases, design, scene, check.pushes, check.nominal)
-    error = measure_error(sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread,
-                          progress=progress)  # fmt: skip
+    error = measure_error(
+        sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread, progress=progress
+    )
     error["table_numerical_error"] = table_error
     error["stepping"] = design.stepping.to_dict()
     write_json(accuracy, error)
@@ -609,7 +729,10 @@ def accuracy_sample(
     n_obj = n_nominal
     sp = np.asarray(design.speeds, float)
     nominal = WorldPushes.nominal(
-        rng.choice(sp, n_obj), np.exp(rng.uniform(*np.log(design.masses), n_obj)),
-        np.exp(rng.uniform(*np.log(design.frictions), n_obj)), rng.uniform(0, 2 * np.pi, n_obj), scene,
-    )  # fmt: skip
+        rng.choice(sp, n_obj),
+        np.exp(rng.uniform(*np.log(design.masses), n_obj)),
+        np.exp(rng.uniform(*np.log(design.frictions), n_obj)),
+        rng.uniform(0, 2 * np.pi, n_obj),
+        scene,
+    )
     return WorldPushes.concat(picks), nominal

@@ -57,9 +57,16 @@ def _log_design(frame: pd.DataFrame, n: int, rng: np.random.Generator) -> pd.Dat
 
 
 def run_closed_loop(
-    *, design: ContactBenchmarkConfig, scene: SceneConfig, logs: Path, reports: Path, session: Session, out: Path,
-    nthread: int = 0, progress: bool = True,
-) -> list[dict]:  # fmt: skip
+    *,
+    design: ContactBenchmarkConfig,
+    scene: SceneConfig,
+    logs: Path,
+    reports: Path,
+    session: Session,
+    out: Path,
+    nthread: int = 0,
+    progress: bool = True,
+) -> list[dict]:
     """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the
     appended logs in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
     drawn = draw_cases(design)
@@ -69,8 +76,11 @@ def run_closed_loop(
     index = {name: i for i, name in enumerate(object_names(design.n_objects))}
     folders = sorted(p for p in reports.iterdir() if (p / "summary.json").is_file())
     chosen = [f for f in folders if len(_summary(f).verdict.contenders) > 1]
-    log.info("%d of %d logs with several explanations in contention: running their next pushes and as many random "
-             "ones", len(chosen), len(folders))  # fmt: skip
+    log.info(
+        "%d of %d logs with several explanations in contention: running their next pushes and as many random ones",
+        len(chosen),
+        len(folders),
+    )
     rows = []
     for folder in tqdm(chosen, desc="closed loop", unit="log", disable=not progress):
         cid = folder.name
@@ -79,9 +89,16 @@ def run_closed_loop(
         nxt = pd.read_csv(folder / "next_pushes.csv")
         picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, number[cid]]))}
         for arm, pushes in picks.items():
-            new = extra_pushes(case, design, scene, pushes["object_id"].map(index).to_numpy(),
-                               pushes["speed"].to_numpy(float), pushes["direction"].to_numpy(float),
-                               seed=ARMS[arm], nthread=nthread)  # fmt: skip
+            new = extra_pushes(
+                case,
+                design,
+                scene,
+                pushes["object_id"].map(index).to_numpy(),
+                pushes["speed"].to_numpy(float),
+                pushes["direction"].to_numpy(float),
+                seed=ARMS[arm],
+                nthread=nthread,
+            )
             appended = pd.concat([frame, new[frame.columns]], ignore_index=True)
             path = out / "logs" / f"{cid}-{arm}.csv"
             write_csv(path, appended)
@@ -111,10 +128,15 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                 lab = labels[r["case"]]
                 s = _summary(folder / "reports" / r["report"])
                 group = lab["group"]
-                row = {**r, "group": group, "engine": lab.get("engine", "mujoco"),
-                       "effects": "+".join(e["name"] for e in lab["effects"]) or "null",
-                       "identification": str(s.verdict.identification), "causes": "+".join(s.verdict.effects) or "none",
-                       "n_contenders": len(s.verdict.contenders)}  # fmt: skip
+                row = {
+                    **r,
+                    "group": group,
+                    "engine": lab.get("engine", "mujoco"),
+                    "effects": "+".join(e["name"] for e in lab["effects"]) or "null",
+                    "identification": str(s.verdict.identification),
+                    "causes": "+".join(s.verdict.effects) or "none",
+                    "n_contenders": len(s.verdict.contenders),
+                }
                 if group in CONTACT_SINGLE:
                     size = effect_size_on_contact(lab, lab["effects"][0]["name"])
                     row["big"] = bool(size >= min_size_sd * lab["noise"]["sd"])
@@ -127,8 +149,17 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
                         bool(s.verdict.effects) and s.verdict.identification == Identification.ONE_CAUSE
                     )
                 rows.append(row)
-    columns = ["arm", "group", "big", "one_cause_right", "told_right", "no_library", "wrong_single", "n_contenders",
-               "pushes_added"]  # fmt: skip
+    columns = [
+        "arm",
+        "group",
+        "big",
+        "one_cause_right",
+        "told_right",
+        "no_library",
+        "wrong_single",
+        "n_contenders",
+        "pushes_added",
+    ]
     frame = pd.DataFrame(rows).reindex(columns=columns)  # every column, so that an empty loop scores as nan
 
     def mean(values: pd.Series) -> float:
@@ -141,10 +172,14 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
         null = sub[sub["group"].isin(CONTACT_NULL)]
         outside = sub[sub["group"].isin(CONTACT_OUTSIDE)]
         out[arm] = {
-            "one_cause_right": mean(single["one_cause_right"]), "n_single": int(len(single)),
+            "one_cause_right": mean(single["one_cause_right"]),
+            "n_single": int(len(single)),
             "told_right": mean(single["told_right"]),
-            "null_no_library": mean(null["no_library"]), "n_null": int(len(null)),
-            "wrong_single": mean(outside["wrong_single"]), "n_outside": int(len(outside)),
-            "contenders_mean": mean(sub["n_contenders"]), "pushes_added_mean": mean(sub["pushes_added"]),
-        }  # fmt: skip
+            "null_no_library": mean(null["no_library"]),
+            "n_null": int(len(null)),
+            "wrong_single": mean(outside["wrong_single"]),
+            "n_outside": int(len(outside)),
+            "contenders_mean": mean(sub["n_contenders"]),
+            "pushes_added_mean": mean(sub["pushes_added"]),
+        }
     return out

@@ -45,15 +45,32 @@ CONTACT_PARAMETERS = tuple(p for kind in CONTACT_KINDS.values() for p in kind)
 # how a parameter is drawn in its range [lo, hi]: log-uniform; log-uniform of random sign;
 # uniform (a range that may start at zero); a factor log-uniform in [lo, hi] or its
 # reciprocal (lo >= 1: stiffer or softer, never close to MuJoCo's own)
-_LAW = {"table_timeconst": "factor", "table_dampratio": "log", "friction_slope": "signed",
-        "friction_slope_speed": "uniform", "friction_regularisation": "log", "friction_rest_share": "uniform",
-        "pusher_impedance": "log", "pusher_friction": "log"}  # fmt: skip
+_LAW = {
+    "table_timeconst": "factor",
+    "table_dampratio": "log",
+    "friction_slope": "signed",
+    "friction_slope_speed": "uniform",
+    "friction_regularisation": "log",
+    "friction_rest_share": "uniform",
+    "pusher_impedance": "log",
+    "pusher_friction": "log",
+}
 
 # the physics engines a benchmark world may run on
 ENGINES = ("mujoco", "bullet", "sapien")
 # the effects the bullet world (imply.realworld.bullet) can carry; change it with that world
-BULLET_EFFECTS = ("tilt", "viscous", "air_drag", "speed_gain", "speed_offset", "anisotropic", "stribeck",
-                  "carriage_mass", "force_limit", "friction_gradient")  # fmt: skip
+BULLET_EFFECTS = (
+    "tilt",
+    "viscous",
+    "air_drag",
+    "speed_gain",
+    "speed_offset",
+    "anisotropic",
+    "stribeck",
+    "carriage_mass",
+    "force_limit",
+    "friction_gradient",
+)
 # the effects the SAPIEN (PhysX) world (imply.realworld.sapien_world) can carry: Bullet's, on the same rig protocol
 SAPIEN_EFFECTS = BULLET_EFFECTS
 # a benchmark group's world (its name's second part): a MuJoCo contact variant, or an engine's own contact
@@ -81,19 +98,30 @@ class ContactDraw(Config):
     config_key: ClassVar[str] = "gap.contact_benchmark.contact"
 
     kinds: tuple[str, ...] = option(
-        tuple(CONTACT_KINDS), doc="kinds of contact model a log may have", min_items=1, unique=True,
+        tuple(CONTACT_KINDS),
+        doc="kinds of contact model a log may have",
+        min_items=1,
+        unique=True,
         items={"choices": tuple(CONTACT_KINDS)},
-    )  # fmt: skip
+    )
     per_log: tuple[int, int] = option((1, 3), doc="kinds combined in one log, fewest and most", items={"minimum": 1})
     ranges: dict[str, tuple[float, float]] = option(
-        {"table_timeconst": (2.5, 4.5), "table_dampratio": (0.35, 0.7), "friction_slope": (0.5, 1.0),
-         "friction_slope_speed": (0.0, 0.3), "friction_regularisation": (0.1, 0.3), "friction_rest_share": (0.35, 0.6),
-         "pusher_impedance": (0.2, 0.45), "pusher_friction": (0.1, 1.0)},
+        {
+            "table_timeconst": (2.5, 4.5),
+            "table_dampratio": (0.35, 0.7),
+            "friction_slope": (0.5, 1.0),
+            "friction_slope_speed": (0.0, 0.3),
+            "friction_regularisation": (0.1, 0.3),
+            "friction_rest_share": (0.35, 0.6),
+            "pusher_impedance": (0.2, 0.45),
+            "pusher_friction": (0.1, 1.0),
+        },
         doc="range of each contact parameter: table_timeconst a factor in the range or its reciprocal, "
         "table_dampratio a factor, friction_slope |k| (s/m, either sign), friction_slope_speed and "
         "friction_regularisation in m/s, friction_rest_share a share",
-        keys=CONTACT_PARAMETERS, items={"minimum": 0},
-    )  # fmt: skip
+        keys=CONTACT_PARAMETERS,
+        items={"minimum": 0},
+    )
 
     def __post_init__(self) -> None:
         lo, hi = self.per_log

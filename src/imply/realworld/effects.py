@@ -101,11 +101,12 @@ EFFECTS: dict[str, WorldEffect] = {
         WorldEffect("servo_gain", False, "1", True, False, (0.2, 0.5), _servo_gain),
         WorldEffect("pusher_restitution", False, "1", False, False, (0.3, 0.7), _set("pusher_dampratio", -1.0, 1.0)),
         WorldEffect("stribeck", False, "1", False, False, (0.3, 1.0), _stribeck),
-        WorldEffect("friction_gradient", False, "1/m", False, True, (0.5, 3.0),
-                    _directional("gradient", "gradient_azimuth")),
+        WorldEffect(
+            "friction_gradient", False, "1/m", False, True, (0.5, 3.0), _directional("gradient", "gradient_azimuth")
+        ),
         WorldEffect("force_limit", False, "N", False, False, (20.0, 50.0), _set("force_limit")),
     ]
-}  # fmt: skip
+}
 
 LIBRARY = tuple(n for n, e in EFFECTS.items() if e.in_library)
 OUTSIDE = tuple(n for n, e in EFFECTS.items() if not e.in_library)

@@ -53,8 +53,9 @@ from imply.sim.track import crossing_times, pusher_speed, track_frame_times
 
 log = logging.getLogger("imply.realworld")
 
-LAB_GROUPS = tuple(f"{kind}_{world}" for world in ("contact", "bullet", "sapien")
-                   for kind in ("null", "single", "outside"))  # fmt: skip
+LAB_GROUPS = tuple(
+    f"{kind}_{world}" for world in ("contact", "bullet", "sapien") for kind in ("null", "single", "outside")
+)
 SETS = ("development", "sealed")
 JACOBIAN_STEP = 0.05  # log units: the per-object fit's directions, by finite differences in the nominal world
 # the runs of every log: its world, its world without the effect, the nominal world and its two derivatives
@@ -71,34 +72,60 @@ class LabBenchmarkConfig(ContactBenchmarkConfig):
 
     seed: int = option(8181, doc="seed of the sealed set's draws", required=True)
     logs: dict[str, int] = option(
-        {"null_contact": 6, "single_contact": 8, "outside_contact": 4, "null_bullet": 4, "single_bullet": 6,
-         "outside_bullet": 2, "null_sapien": 8, "single_sapien": 12, "outside_sapien": 6},
+        {
+            "null_contact": 6,
+            "single_contact": 8,
+            "outside_contact": 4,
+            "null_bullet": 4,
+            "single_bullet": 6,
+            "outside_bullet": 2,
+            "null_sapien": 8,
+            "single_sapien": 12,
+            "outside_sapien": 6,
+        },
         doc="the sealed set's logs per group (*_contact: MuJoCo contact variants; *_bullet, *_sapien: those engines)",
-        required=True, keys=LAB_GROUPS, items={"minimum": 0},
-    )  # fmt: skip
+        required=True,
+        keys=LAB_GROUPS,
+        items={"minimum": 0},
+    )
     development_seed: int = option(2727, doc="seed of the development set's draws", required=True)
     development_logs: dict[str, int] = option(
-        {"null_contact": 8, "single_contact": 12, "outside_contact": 4, "null_bullet": 6, "single_bullet": 10,
-         "outside_bullet": 4},
+        {
+            "null_contact": 8,
+            "single_contact": 12,
+            "outside_contact": 4,
+            "null_bullet": 6,
+            "single_bullet": 10,
+            "outside_bullet": 4,
+        },
         doc="the development set's logs per group (no sapien: no choice is made on that engine)",
-        required=True, keys=LAB_GROUPS, items={"minimum": 0},
-    )  # fmt: skip
+        required=True,
+        keys=LAB_GROUPS,
+        items={"minimum": 0},
+    )
     probe_share: float = option(0.5, doc="share of logs written with calibration probes", minimum=0, maximum=1)
     probes: ProbeDesign = option(ProbeDesign(), doc="the calibration probes", required=True)
     sapien: SapienStepping = option(SapienStepping(), doc="how the SAPIEN world steps a push")
     alias_cos: float = option(
-        0.95, doc="|cos| of an effect's and its contact's signatures (after the per-object fit) at or above which "
-        "the effect is not separable from the contact", exclusive_minimum=0, maximum=1,
-    )  # fmt: skip
-    crossing_sd: float = option(
-        0.02, doc="sd of the log of a track's crossing times (the separability's weight of the track)",
+        0.95,
+        doc="|cos| of an effect's and its contact's signatures (after the per-object fit) at or above which "
+        "the effect is not separable from the contact",
         exclusive_minimum=0,
-    )  # fmt: skip
+        maximum=1,
+    )
+    crossing_sd: float = option(
+        0.02,
+        doc="sd of the log of a track's crossing times (the separability's weight of the track)",
+        exclusive_minimum=0,
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.development_logs.get("null_sapien", 0) + self.development_logs.get("single_sapien", 0) + \
-                self.development_logs.get("outside_sapien", 0):  # fmt: skip
+        if (
+            self.development_logs.get("null_sapien", 0)
+            + self.development_logs.get("single_sapien", 0)
+            + self.development_logs.get("outside_sapien", 0)
+        ):
             raise ValueError("development_logs: the sapien world is never used to choose; give it no logs here")
 
     @staticmethod
@@ -140,12 +167,14 @@ def lab_probe_layout(case: dict, design: LabBenchmarkConfig) -> ProbeLayout:
     direction."""
     obj, _ = push_layout(case, design)
     first = np.searchsorted(obj, np.arange(design.n_objects))
-    return probe_layout(np.asarray(case["mass"], float), np.asarray(design.speeds),
-                        np.asarray(case["direction"])[first], design.probes)  # fmt: skip
+    return probe_layout(
+        np.asarray(case["mass"], float), np.asarray(design.speeds), np.asarray(case["direction"])[first], design.probes
+    )
 
 
-def _probe_pushes(case: dict, design: LabBenchmarkConfig, scene: SceneConfig, world: dict,
-                  effects: list[dict]) -> WorldPushes:  # fmt: skip
+def _probe_pushes(
+    case: dict, design: LabBenchmarkConfig, scene: SceneConfig, world: dict, effects: list[dict]
+) -> WorldPushes:
     """The probes of ``case`` as pushes of ``world`` (the case, or a nominal world of other masses and frictions)."""
     layout = lab_probe_layout(case, design)
     p = _pushes_in_world(world, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, effects)
@@ -163,8 +192,11 @@ def _runs(case: dict, design: LabBenchmarkConfig, scene: SceneConfig) -> list[tu
     worlds = [("all", engine, case["effects"], False, m0, mu0)]
     if case["effects"]:
         worlds.append(("contact", engine, [], False, m0, mu0))
-    worlds += [("table", "mujoco", [], True, m0, mu0), ("log_mass", "mujoco", [], True, m0 * step, mu0),
-               ("log_friction", "mujoco", [], True, m0, mu0 * step)]  # fmt: skip
+    worlds += [
+        ("table", "mujoco", [], True, m0, mu0),
+        ("log_mass", "mujoco", [], True, m0 * step, mu0),
+        ("log_friction", "mujoco", [], True, m0, mu0 * step),
+    ]
     for what, eng, effects, nominal, m, mu in worlds:
         world = {**case, "mass": list(m), "friction": list(mu)}
         if nominal:
@@ -176,9 +208,14 @@ def _runs(case: dict, design: LabBenchmarkConfig, scene: SceneConfig) -> list[tu
 
 
 def simulate_lab_cases(
-    cases: list[dict], design: LabBenchmarkConfig, scene: SceneConfig, *, nthread: int = 0, chunk: int = 2400,
+    cases: list[dict],
+    design: LabBenchmarkConfig,
+    scene: SceneConfig,
+    *,
+    nthread: int = 0,
+    chunk: int = 2400,
     progress: bool = False,
-) -> tuple[dict[str, dict], dict[str, dict]]:  # fmt: skip
+) -> tuple[dict[str, dict], dict[str, dict]]:
     """Noise-free observables of every run (:data:`RUNS`) of every case, and each engine's time per push.
 
     Returns ``{case id: {run: {displacement, stop_time, ok, pusher_speed, track (the log's world only),
@@ -201,8 +238,9 @@ def simulate_lab_cases(
         t0 = time.perf_counter()
         for a in tqdm(range(0, allp.n, chunk), desc=f"{engine} world pushes", unit="batch", disable=not progress):
             idx = np.arange(a, min(a + chunk, allp.n))
-            r = simulate_engine(allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread,
-                                track_times=times)  # fmt: skip
+            r = simulate_engine(
+                allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread, track_times=times
+            )
             for f in fields:
                 res[f][idx] = getattr(r, f)
             ok[idx] = r.ok
@@ -214,14 +252,24 @@ def simulate_lab_cases(
             psl = slice(bounds[k] + n_push, bounds[k + 1])
             okp = ok[sl] & np.isfinite(res["stroke_time"][sl]) & (res["stroke_time"][sl] > 0)
             cross = crossing_times(times, track[sl, :, 0], res["displacement"][sl])
-            entry = {"displacement": res["displacement"][sl], "stop_time": res["stop_time"][sl], "ok": okp,
-                     "pusher_speed": pusher_speed(scene.stroke, res["stroke_time"][sl]),
-                     "log_c": np.log(np.where(cross > 0, cross, np.nan))}  # fmt: skip
+            entry = {
+                "displacement": res["displacement"][sl],
+                "stop_time": res["stop_time"][sl],
+                "ok": okp,
+                "pusher_speed": pusher_speed(scene.stroke, res["stroke_time"][sl]),
+                "log_c": np.log(np.where(cross > 0, cross, np.nan)),
+            }
             if what == "all":
                 entry["track"] = track[sl]
-            probe_res = WorldResult(res["displacement"][psl], np.zeros(psl.stop - psl.start), res["stop_time"][psl],
-                                    ok[psl], np.zeros(psl.stop - psl.start, np.int64), res["stroke_time"][psl],
-                                    drive_force=res["drive_force"][psl])  # fmt: skip
+            probe_res = WorldResult(
+                res["displacement"][psl],
+                np.zeros(psl.stop - psl.start),
+                res["stop_time"][psl],
+                ok[psl],
+                np.zeros(psl.stop - psl.start, np.int64),
+                res["stroke_time"][psl],
+                drive_force=res["drive_force"][psl],
+            )
             probes = batch.subset(np.arange(n_push, batch.n))
             entry["probes"] = probe_observables(layouts[cid], probe_res, probes, scene.stroke)
             out.setdefault(cid, {})[what] = entry
@@ -246,8 +294,13 @@ def write_lab_set(
     logs with probes), its labels into ``labels`` and each engine's time per push into ``timing``. Returns the
     timing."""
     cases = draw_lab_cases(design)
-    log.info("simulating %d logs (%d objects x %d speeds each, with probes) on %s", len(cases), design.n_objects,
-             len(design.speeds), ", ".join(dict.fromkeys(c.get("engine", "mujoco") for c in cases)))  # fmt: skip
+    log.info(
+        "simulating %d logs (%d objects x %d speeds each, with probes) on %s",
+        len(cases),
+        design.n_objects,
+        len(design.speeds),
+        ", ".join(dict.fromkeys(c.get("engine", "mujoco") for c in cases)),
+    )
     sims, times = simulate_lab_cases(cases, design, scene, nthread=nthread, progress=progress)
     out = {}
     logs.mkdir(parents=True, exist_ok=True)
@@ -260,11 +313,17 @@ def write_lab_set(
         layout = lab_probe_layout(case, design)
         if case["probes"]:
             rows = probe_rows(
-                sim["all"]["probes"], layout, object_names(design.n_objects), design=design.probes,
-                replicates=design.replicates, sd=nm.sd, stop_time_sd=nm.stop_time_sd,
-                pusher_speed_sd=nm.pusher_speed_sd, with_stop_time=case["stop_time"],
+                sim["all"]["probes"],
+                layout,
+                object_names(design.n_objects),
+                design=design.probes,
+                replicates=design.replicates,
+                sd=nm.sd,
+                stop_time_sd=nm.stop_time_sd,
+                pusher_speed_sd=nm.pusher_speed_sd,
+                with_stop_time=case["stop_time"],
                 rng=np.random.default_rng([case["noise_seed"], 3]),
-            )  # fmt: skip
+            )
             write_csv(logs / f"{case['id']}.probes.csv", rows)
         label["probes"] = case["probes"]
         label["noise"]["track_sd"] = nm.track_sd

@@ -44,8 +44,18 @@ from imply.sim.track import pusher_speed
 
 GRAVITY = 9.81  # m/s^2: the pull test's reading is its force over m g, as a lab computes it
 PROBE_KINDS = ("free_stroke", "friction", "added_mass")
-PROBE_COLUMNS = ["probe", "object_id", "speed", "direction", "pusher_speed", "displacement", "stop_time",
-                 "added_mass", "friction", "friction_sd"]  # fmt: skip
+PROBE_COLUMNS = [
+    "probe",
+    "object_id",
+    "speed",
+    "direction",
+    "pusher_speed",
+    "displacement",
+    "stop_time",
+    "added_mass",
+    "friction",
+    "friction_sd",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,9 +66,10 @@ class ProbeDesign(Config):
 
     free_strokes: int = option(2, doc="free strokes per speed of the log (each read with its own noise)", minimum=1)
     friction_sd: float = option(
-        0.06, doc="stated uncertainty (one sd, absolute) of a friction measurement; also its error's sd",
+        0.06,
+        doc="stated uncertainty (one sd, absolute) of a friction measurement; also its error's sd",
         exclusive_minimum=0,
-    )  # fmt: skip
+    )
     pull_speed: float = option(0.1, doc="m/s, the pull test's drag speed", exclusive_minimum=0)
     pull_stroke: float = option(0.02, doc="m the pull test drags the box", exclusive_minimum=0, maximum=0.04)
     pull_kv: float = option(2000.0, doc="N s/m, the pull test drive's velocity gain", exclusive_minimum=0)
@@ -104,8 +115,9 @@ def probe_layout(mass: np.ndarray, speeds: np.ndarray, directions: np.ndarray, d
             continue
         for v in (speeds[0], speeds[-1]):
             kinds.append("added_mass"), objs.append(i), vs.append(v), phis.append(directions[i]), loads.append(load)
-    return ProbeLayout(np.array(kinds), np.array(objs, int), np.array(vs, float), np.array(phis, float),
-                       np.array(loads, float))  # fmt: skip
+    return ProbeLayout(
+        np.array(kinds), np.array(objs, int), np.array(vs, float), np.array(phis, float), np.array(loads, float)
+    )
 
 
 def probe_pushes(layout: ProbeLayout, pushes: WorldPushes, design: ProbeDesign) -> WorldPushes:
@@ -150,9 +162,17 @@ def probe_observables(layout: ProbeLayout, res: WorldResult, pushes: WorldPushes
     ok[free] = np.isfinite(log_p[free])
     ok[pull] = np.isfinite(reading[pull]) & (reading[pull] > 0)
     ok[added] = np.asarray(res.ok, bool)[added] & np.isfinite(log_p[added])
-    return {"kind": layout.kind.tolist(), "object": layout.obj.tolist(), "speed": layout.speed.tolist(),
-            "added_mass": layout.added_mass.tolist(), "log_p": log_p.tolist(), "reading": reading.tolist(),
-            "log_d": log_d.tolist(), "log_t": log_t.tolist(), "ok": ok.tolist()}  # fmt: skip
+    return {
+        "kind": layout.kind.tolist(),
+        "object": layout.obj.tolist(),
+        "speed": layout.speed.tolist(),
+        "added_mass": layout.added_mass.tolist(),
+        "log_p": log_p.tolist(),
+        "reading": reading.tolist(),
+        "log_d": log_d.tolist(),
+        "log_t": log_t.tolist(),
+        "ok": ok.tolist(),
+    }
 
 
 def probe_rows(
@@ -189,8 +209,12 @@ def probe_rows(
                 row["friction"] = max(observed["reading"][j] + rng.normal(0.0, design.friction_sd), 0.01)
                 row["friction_sd"] = design.friction_sd
             else:
-                row.update(object_id=names[layout.obj[j]], speed=layout.speed[j],
-                           direction=round(float(layout.direction[j]), 9), added_mass=layout.added_mass[j])  # fmt: skip
+                row.update(
+                    object_id=names[layout.obj[j]],
+                    speed=layout.speed[j],
+                    direction=round(float(layout.direction[j]), 9),
+                    added_mass=layout.added_mass[j],
+                )
                 row["displacement"] = np.exp(observed["log_d"][j] + rng.normal(0.0, sd))
                 t = np.exp(observed["log_t"][j] + rng.normal(0.0, stop_time_sd))
                 row["pusher_speed"] = np.exp(observed["log_p"][j] + rng.normal(0.0, pusher_speed_sd))
@@ -204,12 +228,16 @@ def probe_rows(
 def model_pushes(model: mujoco.MjModel, speed, mass, friction, direction) -> WorldPushes:
     """Pushes of a push model (a user's MJCF, with the names :mod:`imply.sim.scene` requires) at its own carriage,
     servo and stroke."""
-    speed, mass, friction, direction = (np.asarray(x, float).ravel().copy()
-                                        for x in np.broadcast_arrays(speed, mass, friction, direction))  # fmt: skip
+    speed, mass, friction, direction = (
+        np.asarray(x, float).ravel().copy() for x in np.broadcast_arrays(speed, mass, friction, direction)
+    )
     servo = model.actuator("servo").id
-    own = {"carriage_mass": float(model.body("pusher").mass[0]), "servo_kv": float(model.actuator_gainprm[servo, 0]),
-           "force_limit": float(model.actuator_forcerange[servo, 1]),
-           "stroke": float(np.asarray(model.numeric("stroke").data)[0])}  # fmt: skip
+    own = {
+        "carriage_mass": float(model.body("pusher").mass[0]),
+        "servo_kv": float(model.actuator_gainprm[servo, 0]),
+        "force_limit": float(model.actuator_forcerange[servo, 1]),
+        "stroke": float(np.asarray(model.numeric("stroke").data)[0]),
+    }
     params = {k: np.full(speed.size, own[k] if v is None else float(v)) for k, v in PARAMETERS.items()}
     return WorldPushes(speed, mass, friction, direction, params)
 
@@ -242,8 +270,15 @@ def simulate_model_probes(
         full[f][tool] = getattr(res, f)
     ok[tool] = res.ok
     stroke = float(np.asarray(model.numeric("stroke").data)[0])
-    result = WorldResult(full["displacement"], np.zeros(layout.n), full["stop_time"], ok, np.zeros(layout.n, np.int64),
-                         full["stroke_time"], drive_force=full["drive_force"])  # fmt: skip
+    result = WorldResult(
+        full["displacement"],
+        np.zeros(layout.n),
+        full["stop_time"],
+        ok,
+        np.zeros(layout.n, np.int64),
+        full["stroke_time"],
+        drive_force=full["drive_force"],
+    )
     observed = probe_observables(layout, result, world, stroke)
     added = np.flatnonzero(layout.kind == "added_mass")
     rows = []
@@ -255,14 +290,25 @@ def simulate_model_probes(
             row.update(object_id=names[layout.obj[j]], friction=observed["reading"][j], friction_sd=design.friction_sd)
         rows.append(row)
     if added.size:
-        d, t, p, good = simulate_added([names[k] for k in layout.obj[added]], layout.speed[added],
-                                       mass[layout.obj[added]] + layout.added_mass[added])  # fmt: skip
+        d, t, p, good = simulate_added(
+            [names[k] for k in layout.obj[added]],
+            layout.speed[added],
+            mass[layout.obj[added]] + layout.added_mass[added],
+        )
         for k, j in enumerate(added):
             if good[k]:
-                rows.append({**dict.fromkeys(PROBE_COLUMNS, ""), "probe": "added_mass",
-                             "object_id": names[layout.obj[j]], "speed": layout.speed[j],
-                             "added_mass": layout.added_mass[j], "displacement": d[k], "stop_time": t[k],
-                             "pusher_speed": p[k]})  # fmt: skip
+                rows.append(
+                    {
+                        **dict.fromkeys(PROBE_COLUMNS, ""),
+                        "probe": "added_mass",
+                        "object_id": names[layout.obj[j]],
+                        "speed": layout.speed[j],
+                        "added_mass": layout.added_mass[j],
+                        "displacement": d[k],
+                        "stop_time": t[k],
+                        "pusher_speed": p[k],
+                    }
+                )
     return pd.DataFrame(rows, columns=PROBE_COLUMNS)
 
 
@@ -282,22 +328,39 @@ def simulate_probe_table(
     compiled = model if model is not None else mujoco.MjModel.from_xml_string(build_xml(scene))
     box = compiled.geom("box").id
     first = pushes.drop_duplicates("object_id")
-    objects = pd.DataFrame({
-        "object_id": first["object_id"].to_numpy(),
-        "mass": first["mass"].to_numpy(float) if "mass" in first else np.full(len(first), compiled.body("box").mass[0]),
-        "friction": (first["friction"].to_numpy(float) if "friction" in first
-                     else np.full(len(first), compiled.geom_friction[box, 0])),
-    })  # fmt: skip
+    objects = pd.DataFrame(
+        {
+            "object_id": first["object_id"].to_numpy(),
+            "mass": first["mass"].to_numpy(float)
+            if "mass" in first
+            else np.full(len(first), compiled.body("box").mass[0]),
+            "friction": (
+                first["friction"].to_numpy(float)
+                if "friction" in first
+                else np.full(len(first), compiled.geom_friction[box, 0])
+            ),
+        }
+    )
     if "size_x" in pushes:
         raise ValueError("probes need the model's own box; a pushes file with size columns varies it")
 
     def simulate_added(ids: list[str], speeds: np.ndarray, masses: np.ndarray):
         row = {o: i for i, o in enumerate(objects["object_id"])}
-        frame = pd.DataFrame({"object_id": ids, "speed": speeds, "mass": masses,
-                              "friction": objects["friction"].to_numpy()[[row[o] for o in ids]]})  # fmt: skip
+        frame = pd.DataFrame(
+            {
+                "object_id": ids,
+                "speed": speeds,
+                "mass": masses,
+                "friction": objects["friction"].to_numpy()[[row[o] for o in ids]],
+            }
+        )
         out, _ = simulate_push_table(frame, model=model, scene=None if model is not None else scene, nthread=nthread)
-        return (out["displacement"].to_numpy(), out["stop_time"].to_numpy(), out["pusher_speed"].to_numpy(),
-                out["ok"].to_numpy(bool))  # fmt: skip
+        return (
+            out["displacement"].to_numpy(),
+            out["stop_time"].to_numpy(),
+            out["pusher_speed"].to_numpy(),
+            out["ok"].to_numpy(bool),
+        )
 
     speeds = np.unique(log_frame["speed"].to_numpy(float))
     return simulate_model_probes(compiled, objects, speeds, design, simulate_added=simulate_added, nthread=nthread)

@@ -55,11 +55,24 @@ from imply.sim.scene import SceneConfig
 # the parameters this engine implements (any value); every other one must be nominal
 SUPPORTED = frozenset(
     {
-        "tilt", "tilt_azimuth", "viscous", "air_density", "carriage_mass", "servo_kv", "force_limit",
-        "aniso", "aniso_axis", "stribeck", "stribeck_speed", "gradient", "gradient_azimuth", "height",
-        "stroke", "free",
+        "tilt",
+        "tilt_azimuth",
+        "viscous",
+        "air_density",
+        "carriage_mass",
+        "servo_kv",
+        "force_limit",
+        "aniso",
+        "aniso_axis",
+        "stribeck",
+        "stribeck_speed",
+        "gradient",
+        "gradient_azimuth",
+        "height",
+        "stroke",
+        "free",
     }
-)  # fmt: skip
+)
 # collision groups: the table meets the box, the pusher meets the box, the carriage runs above the table
 _TABLE, _BOX, _PUSHER = [1, 1, 0, 0], [3, 3, 0, 0], [2, 2, 0, 0]
 
@@ -95,10 +108,14 @@ class SapienStepping(Config):
     def finer(self, factor: int) -> SapienStepping:
         """The same stepping with every step divided by ``factor`` (for measuring its error)."""
         return SapienStepping(
-            push_step=self.push_step / factor, release_window=self.release_window,
-            slide_step=self.slide_step / factor, position_iterations=self.position_iterations,
-            stop_speed=self.stop_speed, rest_speed=self.rest_speed, max_time=self.max_time,
-        )  # fmt: skip
+            push_step=self.push_step / factor,
+            release_window=self.release_window,
+            slide_step=self.slide_step / factor,
+            position_iterations=self.position_iterations,
+            stop_speed=self.stop_speed,
+            rest_speed=self.rest_speed,
+            max_time=self.max_time,
+        )
 
 
 def _sapien():
@@ -125,9 +142,14 @@ def simulate_sapien(
     stepping = stepping or SapienStepping()
     check_supported(pushes, scene, supported=SUPPORTED, engine="SAPIEN")
     return collect_pushes(
-        pushes, scene, lambda **kw: _push(scene, stepping, **kw), supported=SUPPORTED, desc="sapien pushes",
-        progress=progress, track_times=track_times,
-    )  # fmt: skip
+        pushes,
+        scene,
+        lambda **kw: _push(scene, stepping, **kw),
+        supported=SUPPORTED,
+        desc="sapien pushes",
+        progress=progress,
+        track_times=track_times,
+    )
 
 
 class _SapienRig:
@@ -150,11 +172,13 @@ class _SapienRig:
 
     def rotation(self, quat: np.ndarray) -> np.ndarray:
         x, y, z, w = quat
-        return np.array([
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ])  # fmt: skip
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
 
     def push_box(self, force: np.ndarray, position: np.ndarray) -> None:
         self.box.add_force_at_point(np.asarray(force, np.float32), np.asarray(position, np.float32))
@@ -189,11 +213,15 @@ def _push(
     px = sapien.physx
     rel = prm["tilt_azimuth"] - direction
     tilt = prm["tilt"]
-    g = (float(np.linalg.norm([float(x) for x in scene.option["gravity"].split()]))
-         if "gravity" in scene.option else GRAVITY)  # fmt: skip
+    g = (
+        float(np.linalg.norm([float(x) for x in scene.option["gravity"].split()]))
+        if "gravity" in scene.option
+        else GRAVITY
+    )
     config = px.PhysxSceneConfig()
-    config.gravity = np.array([g * math.sin(tilt) * math.cos(rel), g * math.sin(tilt) * math.sin(rel),
-                               -g * math.cos(tilt)], np.float32)  # fmt: skip
+    config.gravity = np.array(
+        [g * math.sin(tilt) * math.cos(rel), g * math.sin(tilt) * math.sin(rel), -g * math.cos(tilt)], np.float32
+    )
     px.set_scene_config(config)  # read when the system is made: a tilted table's gravity
     world = sapien.Scene([px.PhysxCpuSystem()])
     world.set_timestep(st.push_step)
@@ -210,8 +238,11 @@ def _push(
     box_entity.set_pose(sapien.Pose([away, 0.0, bz]))
     pusher_half = 0.01
     builder = world.create_actor_builder()
-    builder.add_box_collision(half_size=[pusher_half, 0.8 * hy, 0.01], material=px.PhysxMaterial(0.0, 0.0, 0.0),
-                              density=prm["carriage_mass"] / (8.0 * pusher_half * 0.8 * hy * 0.01))  # fmt: skip
+    builder.add_box_collision(
+        half_size=[pusher_half, 0.8 * hy, 0.01],
+        material=px.PhysxMaterial(0.0, 0.0, 0.0),
+        density=prm["carriage_mass"] / (8.0 * pusher_half * 0.8 * hy * 0.01),
+    )
     pusher_entity = builder.build(name="pusher")
     pusher_entity.set_pose(sapien.Pose([-hx - pusher_half - 1e-4, 0.0, hz]))
     for entity, groups in ((table, _TABLE), (box_entity, _BOX), (pusher_entity, _PUSHER)):
@@ -229,5 +260,14 @@ def _push(
     pusher.set_linear_damping(0.0)
     area = (4.0 * hy * bz, 4.0 * hx * bz, 4.0 * hx * hy)  # cross-sections per box axis, for air drag
     rig = _SapienRig(world, contact, box, pusher)
-    return run_push(rig, st, speed=speed, friction=friction, direction=direction, prm=prm, stroke=prm["stroke"],
-                    area=area, track_times=track_times)  # fmt: skip
+    return run_push(
+        rig,
+        st,
+        speed=speed,
+        friction=friction,
+        direction=direction,
+        prm=prm,
+        stroke=prm["stroke"],
+        area=area,
+        track_times=track_times,
+    )

@@ -44,12 +44,17 @@ OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
     "pusher_track": ("d", "t", "p", "c"),
     "probes": ("d", "t", "p", "c", "probes"),
 }
-SET_WORDS = {"displacement": "displacement only", "stop_time": "+ stop time",
-             "pusher_track": "+ pusher speed and track", "probes": "+ probes"}  # fmt: skip
+SET_WORDS = {
+    "displacement": "displacement only",
+    "stop_time": "+ stop time",
+    "pusher_track": "+ pusher speed and track",
+    "probes": "+ probes",
+}
 
 
-def _pieces(nf: Mapping, label: Mapping, keep: np.ndarray, keep_probe: np.ndarray, parts: tuple[str, ...],
-            crossing_sd: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def _pieces(
+    nf: Mapping, label: Mapping, keep: np.ndarray, keep_probe: np.ndarray, parts: tuple[str, ...], crossing_sd: float
+) -> tuple[np.ndarray, np.ndarray]:
     """One run's observables of ``parts`` in noise sds, (k,), and the object each belongs to, (k,) (-1: none)."""
     noise = label["noise"]
     reps = math.sqrt(label.get("replicates", 1))
@@ -74,11 +79,13 @@ def _pieces(nf: Mapping, label: Mapping, keep: np.ndarray, keep_probe: np.ndarra
         kind = np.asarray(pr["kind"])[keep_probe]
         pobj = np.asarray(pr["object"], int)[keep_probe]
         strokes = math.sqrt(label.get("free_strokes", 1))
-        for key, sd, kinds in (("log_p", noise["pusher_speed_sd"] / strokes, ("free_stroke",)),
-                               ("log_p", noise["pusher_speed_sd"] / reps, ("added_mass",)),
-                               ("reading", noise["friction_sd"], ("friction",)),
-                               ("log_d", noise["sd"] / reps, ("added_mass",)),
-                               ("log_t", noise["stop_time_sd"] / reps, ("added_mass",))):  # fmt: skip
+        for key, sd, kinds in (
+            ("log_p", noise["pusher_speed_sd"] / strokes, ("free_stroke",)),
+            ("log_p", noise["pusher_speed_sd"] / reps, ("added_mass",)),
+            ("reading", noise["friction_sd"], ("friction",)),
+            ("log_d", noise["sd"] / reps, ("added_mass",)),
+            ("log_t", noise["stop_time_sd"] / reps, ("added_mass",)),
+        ):
             sel = np.isin(kind, kinds)
             values.append(np.asarray(pr[key], float)[keep_probe][sel] / sd)
             owners.append(pobj[sel])
@@ -117,15 +124,23 @@ def mark_log(label: Mapping, *, alias_cos: float, min_size_sd: float, crossing_s
     """One log's marking: for an effect log, per observable set, the cosine, whether separable, the effect's and
     the contact's projected sizes (noise sds, norm); for a null log, its contact's null gap."""
     effects = label["effects"]
-    runs = ("all", "contact", "table", "log_mass", "log_friction") if effects else ("all", "table", "log_mass",
-                                                                                    "log_friction")  # fmt: skip
+    runs = (
+        ("all", "contact", "table", "log_mass", "log_friction")
+        if effects
+        else ("all", "table", "log_mass", "log_friction")
+    )
     keep, keep_probe = _kept(label, runs)
     reps = math.sqrt(label.get("replicates", 1))
-    out = {"id": label["id"], "group": label["group"], "engine": label.get("engine", "mujoco"),
-           "contact": label.get("contact", {}).get("kinds", []), "probes": bool(label.get("probes")),
-           "effect": effects[0]["name"] if effects else None,
-           "in_library": bool(effects[0]["in_library"]) if effects else None,
-           "magnitude": effects[0]["magnitude"] if effects else None}  # fmt: skip
+    out = {
+        "id": label["id"],
+        "group": label["group"],
+        "engine": label.get("engine", "mujoco"),
+        "contact": label.get("contact", {}).get("kinds", []),
+        "probes": bool(label.get("probes")),
+        "effect": effects[0]["name"] if effects else None,
+        "in_library": bool(effects[0]["in_library"]) if effects else None,
+        "magnitude": effects[0]["magnitude"] if effects else None,
+    }
     nf = label["noise_free"]
     if not effects:
         parts = OBSERVABLE_SETS["displacement"]
@@ -145,8 +160,13 @@ def mark_log(label: Mapping, *, alias_cos: float, min_size_sd: float, crossing_s
         rc = _residual(J, v["contact"] - v["table"])
         ne, nc = float(np.linalg.norm(re)), float(np.linalg.norm(rc))
         cos = float(re @ rc / (ne * nc)) if ne > 0 and nc > 0 else 0.0
-        sets[name] = {"cos": cos, "separable": bool(abs(cos) < alias_cos), "effect_sd": ne, "contact_sd": nc,
-                      "apart_sd": ne * math.sqrt(max(0.0, 1.0 - cos * cos))}  # fmt: skip
+        sets[name] = {
+            "cos": cos,
+            "separable": bool(abs(cos) < alias_cos),
+            "effect_sd": ne,
+            "contact_sd": nc,
+            "apart_sd": ne * math.sqrt(max(0.0, 1.0 - cos * cos)),
+        }
     # big: the effect's displacement signature after the fit, RMS per push in one push's noise sds
     J = _fit_directions(label, keep, keep_probe, ("d",), crossing_sd)
     d = {r: _pieces(nf[r], label, keep, keep_probe, ("d",), crossing_sd)[0] for r in ("all", "contact")}
@@ -157,8 +177,9 @@ def mark_log(label: Mapping, *, alias_cos: float, min_size_sd: float, crossing_s
 
 def mark_logs(labels: Mapping[str, Mapping], *, alias_cos: float, min_size_sd: float, crossing_sd: float) -> list:
     """:func:`mark_log` for every log, in the labels' order."""
-    return [mark_log(lab, alias_cos=alias_cos, min_size_sd=min_size_sd, crossing_sd=crossing_sd)
-            for lab in labels.values()]  # fmt: skip
+    return [
+        mark_log(lab, alias_cos=alias_cos, min_size_sd=min_size_sd, crossing_sd=crossing_sd) for lab in labels.values()
+    ]
 
 
 def summarise(marks: list[dict]) -> dict:
@@ -172,9 +193,12 @@ def summarise(marks: list[dict]) -> dict:
         row = {"effect_logs": len(eff), "big": sum(m["big"] for m in eff), "sets": {}}
         for name in OBSERVABLE_SETS:
             sep = [m for m in eff if m["sets"][name]["separable"]]
-            row["sets"][name] = {"separable": len(sep), "big_separable": sum(m["big"] for m in sep),
-                                 "share": len(sep) / len(eff) if eff else math.nan,
-                                 "big_share": (sum(m["big"] for m in sep) / row["big"]) if row["big"] else math.nan}  # fmt: skip
+            row["sets"][name] = {
+                "separable": len(sep),
+                "big_separable": sum(m["big"] for m in sep),
+                "share": len(sep) / len(eff) if eff else math.nan,
+                "big_share": (sum(m["big"] for m in sep) / row["big"]) if row["big"] else math.nan,
+            }
         nulls = [m["null_gap_sd"] for m in mine if m["effect"] is None]
         row["null_logs"] = len(nulls)
         row["null_gap_sd_median"] = float(np.median(nulls)) if nulls else math.nan
@@ -190,43 +214,66 @@ def _cell(value: float, digits: int = 2) -> str:
 def separability_markdown(result: Mapping) -> str:
     """The separability report: per set, a table by engine and observable set, the null gaps, each world's time
     per push, and every log's marking."""
-    lines = ["# Lab benchmark: is each effect separable from its contact?", "",
-             "Each effect log's effect signature against its contact's, both after the per-object fit of mass and "
-             "friction, in noise sds: separable when |cos| < "
-             f"{result['alias_cos']:g}; big when its displacement signature is at least {result['min_size_sd']:g} "
-             "noise sds RMS. The development set is the one choices may be made on; the sealed set adds the SAPIEN "
-             "world, on which none was made.", ""]  # fmt: skip
+    lines = [
+        "# Lab benchmark: is each effect separable from its contact?",
+        "",
+        "Each effect log's effect signature against its contact's, both after the per-object fit of mass and "
+        "friction, in noise sds: separable when |cos| < "
+        f"{result['alias_cos']:g}; big when its displacement signature is at least {result['min_size_sd']:g} "
+        "noise sds RMS. The development set is the one choices may be made on; the sealed set adds the SAPIEN "
+        "world, on which none was made.",
+        "",
+    ]
     for set_name, data in result["sets"].items():
-        lines += [f"## The {set_name} set ({len(data['logs'])} logs)", "",
-                  "Separable effect logs (big and separable in brackets), by world and observable set:", "",
-                  "| world | effect logs (big) | " + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
-                  "|---|---|" + "---|" * len(OBSERVABLE_SETS)]  # fmt: skip
+        lines += [
+            f"## The {set_name} set ({len(data['logs'])} logs)",
+            "",
+            "Separable effect logs (big and separable in brackets), by world and observable set:",
+            "",
+            "| world | effect logs (big) | " + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
+            "|---|---|" + "---|" * len(OBSERVABLE_SETS),
+        ]
         for engine, row in data["summary"].items():
             cells = [f"{row['sets'][s]['separable']} ({row['sets'][s]['big_separable']})" for s in OBSERVABLE_SETS]
             lines.append(f"| {engine} | {row['effect_logs']} ({row['big']}) | " + " | ".join(cells) + " |")
-        lines += ["", "Null gap against the table's physics (RMS over pushes after the per-object fit):", "",
-                  "| world | null logs | median (noise sds) | largest (noise sds) |", "|---|---|---|---|"]  # fmt: skip
+        lines += [
+            "",
+            "Null gap against the table's physics (RMS over pushes after the per-object fit):",
+            "",
+            "| world | null logs | median (noise sds) | largest (noise sds) |",
+            "|---|---|---|---|",
+        ]
         for engine, row in data["summary"].items():
-            lines.append(f"| {engine} | {row['null_logs']} | {_cell(row['null_gap_sd_median'], 1)} | "
-                         f"{_cell(row['null_gap_sd_max'], 1)} |")  # fmt: skip
+            lines.append(
+                f"| {engine} | {row['null_logs']} | {_cell(row['null_gap_sd_median'], 1)} | "
+                f"{_cell(row['null_gap_sd_max'], 1)} |"
+            )
         lines += ["", "Time per push, per world (s):", "", "| world | pushes | s per push |", "|---|---|---|"]
         for engine, t in data["timing"].items():
             lines.append(f"| {engine} | {t['pushes']} | {t['seconds_per_push']:.4f} |")
-        lines += ["", "Every log (cos per observable set; * separable):", "",
-                  "| log | world | contact | probes | effect | visible (sd) | "
-                  + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
-                  "|---|---|---|---|---|---|" + "---|" * len(OBSERVABLE_SETS)]  # fmt: skip
+        lines += [
+            "",
+            "Every log (cos per observable set; * separable):",
+            "",
+            "| log | world | contact | probes | effect | visible (sd) | "
+            + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS)
+            + " |",
+            "|---|---|---|---|---|---|" + "---|" * len(OBSERVABLE_SETS),
+        ]
         for m in data["logs"]:
             if m["effect"] is None:
                 cells = ["null gap " + _cell(m["null_gap_sd"], 1) + " sd"] + [""] * (len(OBSERVABLE_SETS) - 1)
                 effect, visible = "none", "–"
             else:
-                cells = [f"{m['sets'][s]['cos']:+.2f}{'*' if m['sets'][s]['separable'] else ''}"
-                         for s in OBSERVABLE_SETS]  # fmt: skip
+                cells = [
+                    f"{m['sets'][s]['cos']:+.2f}{'*' if m['sets'][s]['separable'] else ''}" for s in OBSERVABLE_SETS
+                ]
                 effect, visible = f"{m['effect']} {m['magnitude']:.3g}", _cell(m["visible_sd"], 1)
             contact = ", ".join(m["contact"]) or "its engine's"
-            lines.append(f"| {m['id']} | {m['engine']} | {contact} | {'yes' if m['probes'] else 'no'} | {effect} | "
-                         f"{visible} | " + " | ".join(cells) + " |")  # fmt: skip
+            lines.append(
+                f"| {m['id']} | {m['engine']} | {contact} | {'yes' if m['probes'] else 'no'} | {effect} | "
+                f"{visible} | " + " | ".join(cells) + " |"
+            )
         lines.append("")
     return "\n".join(lines)
 

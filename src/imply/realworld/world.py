@@ -159,10 +159,15 @@ class WorldPushes:
 
     @classmethod
     def nominal(cls, speed, mass, friction, direction, scene: SceneConfig) -> WorldPushes:
-        speed, mass, friction, direction = (np.asarray(x, float).ravel().copy()
-                                            for x in np.broadcast_arrays(speed, mass, friction, direction))  # fmt: skip
-        defaults = {"carriage_mass": scene.pusher_mass, "servo_kv": scene.pusher_kv,
-                    "force_limit": scene.pusher_force_limit, "stroke": scene.stroke}  # fmt: skip
+        speed, mass, friction, direction = (
+            np.asarray(x, float).ravel().copy() for x in np.broadcast_arrays(speed, mass, friction, direction)
+        )
+        defaults = {
+            "carriage_mass": scene.pusher_mass,
+            "servo_kv": scene.pusher_kv,
+            "force_limit": scene.pusher_force_limit,
+            "stroke": scene.stroke,
+        }
         params = {k: np.full(speed.size, float(defaults.get(k, v) if v is None else v)) for k, v in PARAMETERS.items()}
         return cls(speed, mass, friction, direction, params)
 
@@ -171,8 +176,13 @@ class WorldPushes:
         return int(self.speed.size)
 
     def subset(self, idx: np.ndarray) -> WorldPushes:
-        return WorldPushes(self.speed[idx], self.mass[idx], self.friction[idx], self.direction[idx],
-                           {k: v[idx] for k, v in self.params.items()})  # fmt: skip
+        return WorldPushes(
+            self.speed[idx],
+            self.mass[idx],
+            self.friction[idx],
+            self.direction[idx],
+            {k: v[idx] for k, v in self.params.items()},
+        )
 
     @staticmethod
     def concat(parts: list[WorldPushes]) -> WorldPushes:
@@ -264,12 +274,14 @@ def simulate_world(
         steps[idx] = res.steps
         if track is not None:
             track[idx] = res.track
-    return WorldResult(out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track,
-                       out["drive_force"])  # fmt: skip
+    return WorldResult(
+        out["displacement"], out["lateral"], out["stop_time"], ok, steps, out["stroke_time"], track, out["drive_force"]
+    )
 
 
-def run_model(model: mujoco.MjModel, pushes: WorldPushes, stepping: WorldStepping | None = None, *,
-              nthread: int = 0) -> WorldResult:  # fmt: skip
+def run_model(
+    model: mujoco.MjModel, pushes: WorldPushes, stepping: WorldStepping | None = None, *, nthread: int = 0
+) -> WorldResult:
     """Pushes on a compiled push model (a user's MJCF, with the names :mod:`imply.sim.scene` requires) stepped by the
     world's code path at the model's own integrator; the structural parameters (torsional, rolling, height) must be
     nominal."""
@@ -313,8 +325,7 @@ def _run(
     b.body("box").inertia = model.body_inertia[box_body][None, :] * (p.mass / model.body_mass[box_body])[:, None]
     cm = prm["carriage_mass"]
     b.body("pusher").mass = cm[:, None]
-    b.body("pusher").inertia = (model.body_inertia[pusher_body][None, :]
-                                * (cm / model.body_mass[pusher_body])[:, None])  # fmt: skip
+    b.body("pusher").inertia = model.body_inertia[pusher_body][None, :] * (cm / model.body_mass[pusher_body])[:, None]
     friction = b.expand("geom_friction")
     friction[:, box_geom, 0] = p.friction
     solref = b.expand("geom_solref")

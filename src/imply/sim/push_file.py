@@ -81,9 +81,12 @@ def simulate_push_table(
         pushes["mass"].to_numpy() if "mass" in pushes else None,
         pushes["friction"].to_numpy() if "friction" in pushes else None,
         pushes[SIZE_COLUMNS].to_numpy() if has_size else None,
-        scene=None if model is not None else scene, model=model, nthread=nthread, progress=progress,
+        scene=None if model is not None else scene,
+        model=model,
+        nthread=nthread,
+        progress=progress,
         frame_times=frame_times,
-    )  # fmt: skip
+    )
     result = run.result
     at_stop = np.isin(frame_times, stop_frames)
     out = pushes.copy()
@@ -103,7 +106,16 @@ def _track_rows(log_frame: pd.DataFrame, run, frames: np.ndarray) -> pd.DataFram
     for i in range(q.shape[0]):
         t = run.frames_time[i, frames]
         keep = filmed(t, log_frame["stop_time"].iloc[i])
-        parts.append(pd.DataFrame({"object_id": log_frame["object_id"].iloc[i], "push": i + 1,
-                                   "t": np.round(t[keep], 6), "x": q[i, keep, 0], "y": q[i, keep, 1],
-                                   "yaw": yaw[i, keep]}))  # fmt: skip
+        parts.append(
+            pd.DataFrame(
+                {
+                    "object_id": log_frame["object_id"].iloc[i],
+                    "push": i + 1,
+                    "t": np.round(t[keep], 6),
+                    "x": q[i, keep, 0],
+                    "y": q[i, keep, 1],
+                    "yaw": yaw[i, keep],
+                }
+            )
+        )
     return pd.concat(parts, ignore_index=True)

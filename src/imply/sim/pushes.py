@@ -192,8 +192,17 @@ def simulate_pushes(
     progress: bool = False,
 ) -> PushResult:
     """Simulate one push per entry of ``speeds`` (m/s), all in one batch (:func:`simulate_pushes_run`'s result)."""
-    return simulate_pushes_run(speeds, masses, frictions, half_extents, scene=scene, model=model, nthread=nthread,
-                               chunk=chunk, progress=progress).result  # fmt: skip
+    return simulate_pushes_run(
+        speeds,
+        masses,
+        frictions,
+        half_extents,
+        scene=scene,
+        model=model,
+        nthread=nthread,
+        chunk=chunk,
+        progress=progress,
+    ).result
 
 
 def simulate_pushes_run(

@@ -79,8 +79,9 @@ class CameraConfig(Config):
     height: int = option(32, doc="image height (px)", minimum=8)
     width: int = option(128, doc="image width (px)", minimum=8)
     multisample: int = option(4, doc="OpenGL multisample anti-aliasing samples (0: off)", minimum=0, maximum=16)
-    supersample: int = option(1, doc="render this many times larger per side and average (1: off)", minimum=1,
-                              maximum=8)  # fmt: skip
+    supersample: int = option(
+        1, doc="render this many times larger per side and average (1: off)", minimum=1, maximum=8
+    )
 
     def __post_init__(self) -> None:
         if (

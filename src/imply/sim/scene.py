@@ -41,9 +41,11 @@ class SceneConfig(Config):
     config_key: ClassVar[str] = "scene"
 
     timestep: float = option(
-        0.001, doc="s, while the box slides; pushing uses timestep / push_substeps", exclusive_minimum=0,
+        0.001,
+        doc="s, while the box slides; pushing uses timestep / push_substeps",
+        exclusive_minimum=0,
         maximum=0.01,
-    )  # fmt: skip
+    )
     push_substeps: int = option(8, doc="substeps per timestep while pushing", minimum=1)
     release_window: float = option(0.005, doc="s after the stroke still at the fine step", minimum=0)
     slide_steps: int = option(
@@ -68,18 +70,27 @@ class SceneConfig(Config):
 
     def __post_init__(self) -> None:
         positive = (
-            "timestep", "mass", "friction", "pusher_mass", "pusher_kv", "pusher_force_limit", "stroke",
-            "settle_speed", "max_time",
-        )  # fmt: skip
+            "timestep",
+            "mass",
+            "friction",
+            "pusher_mass",
+            "pusher_kv",
+            "pusher_force_limit",
+            "stroke",
+            "settle_speed",
+            "max_time",
+        )
         for name in positive:
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-                    and value > 0):  # fmt: skip
+            if not (
+                isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+            ):
                 raise ValueError(f"scene option {name} must be a positive number, not {value!r}")
         for name in ("contact_margin", "release_window", "slow_push_speed"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-                    and value >= 0):  # fmt: skip
+            if not (
+                isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
+            ):
                 raise ValueError(f"scene option {name} must be a number >= 0, not {value!r}")
         for name, least in (("push_substeps", 1), ("slide_steps", 0)):
             value = getattr(self, name)

@@ -56,8 +56,7 @@ def yaw_of(quat: np.ndarray) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def crossing_times(times: np.ndarray, travel: np.ndarray, displacement: np.ndarray,
-                   fractions=FRACTIONS) -> np.ndarray:  # fmt: skip
+def crossing_times(times: np.ndarray, travel: np.ndarray, displacement: np.ndarray, fractions=FRACTIONS) -> np.ndarray:
     """When each track first covers each fraction of its displacement.
 
     Args:

@@ -84,8 +84,12 @@ def _condition(model: Mapping[str, Any], name: str) -> Mapping[str, Any]:
 def _selection(model: Mapping[str, Any], condition: str) -> dict[str, dict[str, float]]:
     for sel in model["selection_samples"]:
         if sel["among"].endswith(f"condition {condition}"):
-            keys = {"lowest anchored": "anchored", "lowest self": "self", "random": "random",
-                    "oracle (true error)": "oracle"}  # fmt: skip
+            keys = {
+                "lowest anchored": "anchored",
+                "lowest self": "self",
+                "random": "random",
+                "oracle (true error)": "oracle",
+            }
             return {keys[r["rule"]]: {"track": _value(r["track"]), "error": _value(r["error"])} for r in sel["rows"]}
     raise ValueError(f"the report of {model['model']} has no selection among sample sets of condition {condition!r}")
 

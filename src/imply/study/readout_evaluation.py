@@ -114,21 +114,31 @@ def evaluate_readouts(
     result = {
         "target": "natural log of displacement (metres); R^2 over every clip of the held-out objects",
         "features": Path(train.features).name,
-        "ridge": {"alpha": ridge.alpha, "r2_log": r2_log(true_all, rp_all), "r2_linear": r2_linear(true_all, rp_all),
-                  "median_abs_error_mm": float(np.median(np.abs(rp_all - true_all)) * 1000)},
-        "framediff": {"slope_m_per_px": pix.slope, "intercept_m": pix.intercept, "r2_log": r2_log(true_all, pp_all),
-                      "r2_linear": r2_linear(true_all, pp_all),
-                      "median_abs_error_mm": float(np.median(np.abs(pp_all - true_all)) * 1000)},
+        "ridge": {
+            "alpha": ridge.alpha,
+            "r2_log": r2_log(true_all, rp_all),
+            "r2_linear": r2_linear(true_all, rp_all),
+            "median_abs_error_mm": float(np.median(np.abs(rp_all - true_all)) * 1000),
+        },
+        "framediff": {
+            "slope_m_per_px": pix.slope,
+            "intercept_m": pix.intercept,
+            "r2_log": r2_log(true_all, pp_all),
+            "r2_linear": r2_linear(true_all, pp_all),
+            "median_abs_error_mm": float(np.median(np.abs(pp_all - true_all)) * 1000),
+        },
         "train": train_n,
         "heldout": per_split,
         "heldout_clips": int(true_all.size),
         "pretrain": {"episodes": int(pretrain_episodes)},
         "r2_threshold": settings.r2_threshold,
-    }  # fmt: skip
+    }
     log.info(
         "held-out R^2 (log displacement): ridge %.4f (alpha %.3g), frame difference %.4f",
-        result["ridge"]["r2_log"], ridge.alpha, result["framediff"]["r2_log"],
-    )  # fmt: skip
+        result["ridge"]["r2_log"],
+        ridge.alpha,
+        result["framediff"]["r2_log"],
+    )
     return ridge, result
 
 

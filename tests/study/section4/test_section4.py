@@ -38,9 +38,15 @@ def test_standins_without_simulation():
     assert np.all(col == 1e-4)
     np.testing.assert_allclose(standins.add_readout_noise([1.0, 2.0], 0.1, [0.0, 1.0]), [1.0, 2 * np.exp(0.1)])
     m, mu = standins.jitter_physics(
-        [1.0, 0.21], [0.3, 0.59], k=5, draws=3, sd=0.25, rng=np.random.default_rng(0), mass_range=(0.2, 2.0),
+        [1.0, 0.21],
+        [0.3, 0.59],
+        k=5,
+        draws=3,
+        sd=0.25,
+        rng=np.random.default_rng(0),
+        mass_range=(0.2, 2.0),
         friction_range=(0.1, 0.6),
-    )  # fmt: skip
+    )
     assert m.shape == mu.shape == (2, 3, 5)
     assert m.min() >= 0.2 and mu.max() <= 0.6  # clipped to the table's range
     assert np.std(np.log(m[0])) == pytest.approx(0.25, rel=0.5)  # log-normal spread around the truth
@@ -59,9 +65,18 @@ def test_jitter_simulates_in_one_batch(scene, monkeypatch):
     monkeypatch.setattr(objects_step, "simulate_pushes", spy)
     he = np.array([[0.05, 0.05, 0.03], [0.052, 0.049, 0.031]])
     disp, ok, m, mu = standins.jitter(
-        [0.3, 0.8], [0.5, 1.0], [0.3, 0.2], he, sd=0.25, draws=2, rng=np.random.default_rng(1),
-        mass_range=(0.2, 2.0), friction_range=(0.1, 0.6), scene=scene, nthread=2,
-    )  # fmt: skip
+        [0.3, 0.8],
+        [0.5, 1.0],
+        [0.3, 0.2],
+        he,
+        sd=0.25,
+        draws=2,
+        rng=np.random.default_rng(1),
+        mass_range=(0.2, 2.0),
+        friction_range=(0.1, 0.6),
+        scene=scene,
+        nthread=2,
+    )
     assert calls == [8]  # 2 objects x 2 draws x 2 speeds, one call
     assert disp.shape == (2, 2, 2) and ok.all()
     assert np.all(disp[..., 1] > disp[..., 0])  # faster pushes slide further
@@ -75,9 +90,17 @@ def study(tiny_table, scene):
         objects, query_speeds=SCORE.query_speeds, calibration_speeds=SCORE.calibration_speeds, scene=scene, nthread=2
     )
     rollouts = standins.standin_rollouts(
-        objects, truth, settings=STANDINS, seed=SEED, table=tiny_table, query_speeds=SCORE.query_speeds,
-        calibration_speeds=SCORE.calibration_speeds, floor=1e-4, scene=scene, nthread=2,
-    )  # fmt: skip
+        objects,
+        truth,
+        settings=STANDINS,
+        seed=SEED,
+        table=tiny_table,
+        query_speeds=SCORE.query_speeds,
+        calibration_speeds=SCORE.calibration_speeds,
+        floor=1e-4,
+        scene=scene,
+        nthread=2,
+    )
     return objects, truth, rollouts
 
 
@@ -86,8 +109,11 @@ def run_study(tiny_table, objects, truth, rollouts):
     metrics = standin_metrics(scores, tiny_table, jitter_sd=0.25, k_speeds=5)
     noise = noise_sweep(tiny_table, truth, rollouts, settings=NOISE, seed=SEED, score=SCORE)
     sel, choices = selection_study(tiny_table, truth, rollouts, settings=SELECTION, seed=SEED, score=SCORE)
-    results = {producer_name(standin_metrics): metrics, producer_name(noise_sweep): noise,
-               producer_name(selection_study): sel}  # fmt: skip
+    results = {
+        producer_name(standin_metrics): metrics,
+        producer_name(noise_sweep): noise,
+        producer_name(selection_study): sel,
+    }
     return scores, results, choices
 
 
@@ -129,9 +155,11 @@ def test_study_results_by_construction(study, tiny_table):
     for lv in levels[1:]:
         assert lv["standins"]["blind"]["auroc_self"] < lv["standins"]["blind"]["auroc_anchored"]
     assert results[producer_name(noise_sweep)]["smallest_nonzero"] == {
-        "level": 1, "sd": 0.1, "blind_auroc_self": levels[1]["standins"]["blind"]["auroc_self"],
+        "level": 1,
+        "sd": 0.1,
+        "blind_auroc_self": levels[1]["standins"]["blind"]["auroc_self"],
         "blind_auroc_anchored": levels[1]["standins"]["blind"]["auroc_anchored"],
-    }  # fmt: skip
+    }
     sel = results[producer_name(selection_study)]
     assert set(sel["rules"]) == {"first", "consensus", "anchored", "oracle", "self", "medoid"}
     assert sel["rules"]["oracle"]["picked_oracle"] == 1.0 and sel["rules"]["consensus"]["picked_oracle"] is None
@@ -140,8 +168,11 @@ def test_study_results_by_construction(study, tiny_table):
     # every registered section4 number is read from these results, except the noise
     # levels this config does not have (three of five)
     registered = {e.name for e in load_registry().of_stage("section4")}
-    assert registered - set(numbers) == {f"noise{L}{k}" for L in "DE" for k in (
-        "Sd", "Oracle", "Jitter", "Blind", "Collapse", "JitterSelf", "BlindSelf", "CollapseSelf")}  # fmt: skip
+    assert registered - set(numbers) == {
+        f"noise{L}{k}"
+        for L in "DE"
+        for k in ("Sd", "Oracle", "Jitter", "Blind", "Collapse", "JitterSelf", "BlindSelf", "CollapseSelf")
+    }
     assert numbers["noiseCSd"] == 0.2 and numbers["noiseMax"] == 0.2 and numbers["noiseMinSd"] == 0.1
     assert numbers["noiseBBlindSelf"] == levels[1]["standins"]["blind"]["auroc_self"] == numbers["noiseMinBlindSelf"]
     assert numbers["selPickedOracle"] == 100.0 * sel["rules"]["anchored"]["picked_oracle"]
@@ -156,9 +187,17 @@ def test_study_is_deterministic(study, tiny_table, scene, tmp_path):
         objects, query_speeds=SCORE.query_speeds, calibration_speeds=SCORE.calibration_speeds, scene=scene, nthread=2
     )
     rollouts2 = standins.standin_rollouts(
-        objects, truth2, settings=STANDINS, seed=SEED, table=tiny_table, query_speeds=SCORE.query_speeds,
-        calibration_speeds=SCORE.calibration_speeds, floor=1e-4, scene=scene, nthread=2,
-    )  # fmt: skip
+        objects,
+        truth2,
+        settings=STANDINS,
+        seed=SEED,
+        table=tiny_table,
+        query_speeds=SCORE.query_speeds,
+        calibration_speeds=SCORE.calibration_speeds,
+        floor=1e-4,
+        scene=scene,
+        nthread=2,
+    )
     paths = []
     for i, (t, r) in enumerate(((truth, rollouts), (truth2, rollouts2))):
         _, results, _ = run_study(tiny_table, objects, t, r)
@@ -180,14 +219,40 @@ def test_selection_config_errors(study, tiny_table):
 
 def _values(**over):
     v = {
-        "OrSelf": 0.005, "orMassR": 0.98, "orFricR": 0.97, "JitAurocSelf": 1.0, "ColAurocSelf": 1.0, "BlSelf": 0.006,
-        "BlAurocSelf": 0.7, "BlAurocAnch": 1.0, "BlErr": 0.37, "JitErr": 0.37, "BlAnch": 0.165, "JitCorr": 0.96,
-        "BlCorr": 1.0, "ColSelf": 4.7, "ColAnch": 4.1, "noiseASd": 0.0, "noiseAOracle": 0.006, "noiseAJitter": 1.0,
-        "noiseACollapse": 1.0, "noiseBSd": 0.2, "noiseBOracle": 0.147, "noiseBJitter": 0.91, "noiseBCollapse": 1.0,
-        "noiseMax": 0.2, "noiseMaxAurocBlind": 0.78, "selPickedOracle": 98, "selAnchMiss": 1.5, "selFirstMiss": 7.1,
-        "selConsMiss": 8.6, "selOracMiss": 1.6, "noiseMinSd": 0.03, "noiseMinBlindSelf": 0.54,
+        "OrSelf": 0.005,
+        "orMassR": 0.98,
+        "orFricR": 0.97,
+        "JitAurocSelf": 1.0,
+        "ColAurocSelf": 1.0,
+        "BlSelf": 0.006,
+        "BlAurocSelf": 0.7,
+        "BlAurocAnch": 1.0,
+        "BlErr": 0.37,
+        "JitErr": 0.37,
+        "BlAnch": 0.165,
+        "JitCorr": 0.96,
+        "BlCorr": 1.0,
+        "ColSelf": 4.7,
+        "ColAnch": 4.1,
+        "noiseASd": 0.0,
+        "noiseAOracle": 0.006,
+        "noiseAJitter": 1.0,
+        "noiseACollapse": 1.0,
+        "noiseBSd": 0.2,
+        "noiseBOracle": 0.147,
+        "noiseBJitter": 0.91,
+        "noiseBCollapse": 1.0,
+        "noiseMax": 0.2,
+        "noiseMaxAurocBlind": 0.78,
+        "selPickedOracle": 98,
+        "selAnchMiss": 1.5,
+        "selFirstMiss": 7.1,
+        "selConsMiss": 8.6,
+        "selOracMiss": 1.6,
+        "noiseMinSd": 0.03,
+        "noiseMinBlindSelf": 0.54,
         "noiseMinBlindAnch": 0.99,
-    }  # fmt: skip
+    }
     v.update(over)
     return v
 
@@ -210,8 +275,9 @@ def test_smallest_nonzero_level_is_found_not_assumed():
         return {"sd": sd, "standins": {"blind": {"auroc_self": auroc_self, "auroc_anchored": auroc_anchored}}}
 
     # two zero levels first, and out of order: the lowest sd above zero is picked, wherever it sits
-    found = smallest_nonzero_level([level(0.0, 0.99, 1.0), level(0.0, 0.98, 1.0), level(0.2, 0.5, 0.8),
-                                    level(0.05, 0.6, 0.95)])  # fmt: skip
+    found = smallest_nonzero_level(
+        [level(0.0, 0.99, 1.0), level(0.0, 0.98, 1.0), level(0.2, 0.5, 0.8), level(0.05, 0.6, 0.95)]
+    )
     assert found == {"level": 3, "sd": 0.05, "blind_auroc_self": 0.6, "blind_auroc_anchored": 0.95}
     assert smallest_nonzero_level([level(0.0, 0.99, 1.0)])["sd"] is None
 

@@ -31,11 +31,29 @@ def _rollout_table(true_mu: np.ndarray, contexts: dict[str, np.ndarray]) -> pd.D
         for i, (mu, pmu) in enumerate(zip(true_mu, pred_mu, strict=True)):
             oid = f"o{i:03d}"
             for k, v in enumerate(QUERY):
-                rows.append(dict(object_id=oid, context=ctx, role="rollout", speed_index=k, speed=v,
-                                 displacement=slide(v, pmu), true_displacement=slide(v, mu)))  # fmt: skip
+                rows.append(
+                    dict(
+                        object_id=oid,
+                        context=ctx,
+                        role="rollout",
+                        speed_index=k,
+                        speed=v,
+                        displacement=slide(v, pmu),
+                        true_displacement=slide(v, mu),
+                    )
+                )
             for k, v in enumerate(CALIB):
-                rows.append(dict(object_id=oid, context=ctx, role="calibration", speed_index=k, speed=v,
-                                 displacement=slide(v, mu), true_displacement=slide(v, mu)))  # fmt: skip
+                rows.append(
+                    dict(
+                        object_id=oid,
+                        context=ctx,
+                        role="calibration",
+                        speed_index=k,
+                        speed=v,
+                        displacement=slide(v, mu),
+                        true_displacement=slide(v, mu),
+                    )
+                )
     return pd.DataFrame(rows)
 
 
@@ -156,16 +174,45 @@ def test_section5_results_report_the_tests_and_the_bootstrap_deterministically(a
 # hand-made Section 5 numbers for which every claim below holds (roughly the seed-0 figures,
 # self-disagreement made uncorrelated with error); each test moves one number
 GOOD = dict(
-    vjQTrack=-0.02, vjQErr=0.484, vjBQErr=0.380, vjQBlindDiff=0.104, vjQBlindDiffLow=0.08, vjQBlindDiffHigh=0.13,
-    vjCTrack=0.955, vjSTrack=-0.02, vjCErr=0.177, vjSErr=0.543,
-    vjOwnLtSwapN=300, vjSelfOwnLtSwap=52.0, vjSelfOwnLtSwapCount=156, vjSelfOwnLtSwapP=0.53,
-    vjSelfOwnLtSwapLow=46.2, vjSelfOwnLtSwapHigh=57.8, vjAnchOwnLtSwap=88.7, vjAnchOwnLtSwapCount=266,
-    vjAnchOwnLtSwapP=1e-43, vjAnchOwnLtSwapLow=84.5, vjAnchOwnLtSwapHigh=92.1,
-    vjCCorrSelf=0.2, vjSCorrSelf=-0.1, vjCCorrAnch=0.9, vjSCorrAnch=0.95,
-    vjSOneCTrack=0.966, vjSOneSTrack=0.05, vjSOneCErr=0.18, vjSOneQErr=0.49, vjSOneAnchOwnLtSwap=88.0,
-    vjSOneOwnLtSwapN=300, vjSOneSelfOwnLtSwap=49.0, vjSOneSelfOwnLtSwapCount=147, vjSOneSelfOwnLtSwapP=0.77,
-    vjSOneSelfOwnLtSwapLow=43.2, vjSOneSelfOwnLtSwapHigh=54.8, vjSOneCCorrAnch=0.9, vjSOneSCorrAnch=0.9,
-)  # fmt: skip
+    vjQTrack=-0.02,
+    vjQErr=0.484,
+    vjBQErr=0.380,
+    vjQBlindDiff=0.104,
+    vjQBlindDiffLow=0.08,
+    vjQBlindDiffHigh=0.13,
+    vjCTrack=0.955,
+    vjSTrack=-0.02,
+    vjCErr=0.177,
+    vjSErr=0.543,
+    vjOwnLtSwapN=300,
+    vjSelfOwnLtSwap=52.0,
+    vjSelfOwnLtSwapCount=156,
+    vjSelfOwnLtSwapP=0.53,
+    vjSelfOwnLtSwapLow=46.2,
+    vjSelfOwnLtSwapHigh=57.8,
+    vjAnchOwnLtSwap=88.7,
+    vjAnchOwnLtSwapCount=266,
+    vjAnchOwnLtSwapP=1e-43,
+    vjAnchOwnLtSwapLow=84.5,
+    vjAnchOwnLtSwapHigh=92.1,
+    vjCCorrSelf=0.2,
+    vjSCorrSelf=-0.1,
+    vjCCorrAnch=0.9,
+    vjSCorrAnch=0.95,
+    vjSOneCTrack=0.966,
+    vjSOneSTrack=0.05,
+    vjSOneCErr=0.18,
+    vjSOneQErr=0.49,
+    vjSOneAnchOwnLtSwap=88.0,
+    vjSOneOwnLtSwapN=300,
+    vjSOneSelfOwnLtSwap=49.0,
+    vjSOneSelfOwnLtSwapCount=147,
+    vjSOneSelfOwnLtSwapP=0.77,
+    vjSOneSelfOwnLtSwapLow=43.2,
+    vjSOneSelfOwnLtSwapHigh=54.8,
+    vjSOneCCorrAnch=0.9,
+    vjSOneSCorrAnch=0.9,
+)
 
 
 def _claims(**changes) -> dict:
@@ -179,8 +226,16 @@ def _claims(**changes) -> dict:
 
 def test_claims_hold_on_good_numbers_and_name_the_seeds_present():
     claims = _claims()
-    for cid in ("s5-self-chance", "s5-self-no-error-track", "s5-anchored-prefers-own", "s5-nocalib-blind",
-                "s5-anchored-tracks-error", "s5-targets-seed0", "s5-targets-seed1", "s5-second-seed"):  # fmt: skip
+    for cid in (
+        "s5-self-chance",
+        "s5-self-no-error-track",
+        "s5-anchored-prefers-own",
+        "s5-nocalib-blind",
+        "s5-anchored-tracks-error",
+        "s5-targets-seed0",
+        "s5-targets-seed1",
+        "s5-second-seed",
+    ):
         assert claims[cid].holds is True, (cid, claims[cid].detail)
     assert "156 of 300" in claims["s5-self-chance"].detail and "46.2-57.8%" in claims["s5-self-chance"].detail
     assert "All reached" in claims["s5-targets-seed0"].detail

@@ -24,8 +24,7 @@ class ObjectsConfig(Config):
     config_key: ClassVar[str] = "section4.objects"
 
     n: int = option(200, doc="evaluation objects (paper: 200)", minimum=2, required=True)
-    n_train: int = option(200, doc="training objects that define the typical displacement", minimum=2,
-                          required=True)  # fmt: skip
+    n_train: int = option(200, doc="training objects that define the typical displacement", minimum=2, required=True)
     mass: Range = option(Range(min=0.2, max=2.0), doc="kg, log-uniform, inside the table's range", required=True)
     friction: Range = option(Range(min=0.1, max=0.6), doc="log-uniform, inside the table's range", required=True)
     size_log_sd: float = option(
@@ -62,9 +61,13 @@ class NoiseConfig(Config):
     config_key: ClassVar[str] = "section4.noise"
 
     sds: tuple[float, ...] = option(
-        (0.0, 0.03, 0.06, 0.1, 0.2), doc="multiplicative log-normal readout noise (log sd)", min_items=1,
-        max_items=26, items={"minimum": 0}, required=True,
-    )  # fmt: skip
+        (0.0, 0.03, 0.06, 0.1, 0.2),
+        doc="multiplicative log-normal readout noise (log sd)",
+        min_items=1,
+        max_items=26,
+        items={"minimum": 0},
+        required=True,
+    )
 
     def __post_init__(self) -> None:
         if not self.sds or any(s < 0 for s in self.sds):
@@ -77,13 +80,16 @@ class SelectionConfig(Config):
 
     config_key: ClassVar[str] = "section4.selection"
 
-    k: int = option(4, doc="candidates per object: the oracle's and k-1 from the other stand-ins", minimum=2,
-                    required=True)  # fmt: skip
+    k: int = option(
+        4, doc="candidates per object: the oracle's and k-1 from the other stand-ins", minimum=2, required=True
+    )
     noise_sd: float = option(0.03, doc="readout noise on every candidate (log sd)", minimum=0, required=True)
     query_speed: float = option(
-        0.55, doc="the miss is measured at this query speed (one of score.query_speeds)", exclusive_minimum=0,
+        0.55,
+        doc="the miss is measured at this query speed (one of score.query_speeds)",
+        exclusive_minimum=0,
         required=True,
-    )  # fmt: skip
+    )
     within_mm: float = option(10.0, doc='the "within N mm" share', exclusive_minimum=0, required=True)
 
     def __post_init__(self) -> None:

@@ -127,9 +127,14 @@ def simulate_truth(
     # training objects only need the query speeds; simulating them at the same list and
     # dropping their calibration pushes buys a single batched call for a few hundred pushes
     disp, ok = simulate_grid(
-        speeds, both["mass"].to_numpy(float), both["friction"].to_numpy(float), sizes(both),
-        scene=scene, nthread=nthread, progress=progress,
-    )  # fmt: skip
+        speeds,
+        both["mass"].to_numpy(float),
+        both["friction"].to_numpy(float),
+        sizes(both),
+        scene=scene,
+        nthread=nthread,
+        progress=progress,
+    )
     n = len(both)
     frame = pd.DataFrame(
         {

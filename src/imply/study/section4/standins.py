@@ -142,10 +142,17 @@ def standin_rollouts(
     n, k = t["query"].shape
     q = t["query_speeds"]
     jit, jok, _, _ = jitter(
-        q, ev["mass"].to_numpy(float), ev["friction"].to_numpy(float), sizes(ev),
-        sd=settings.jitter_sd, draws=settings.jitter_draws, rng=rng_for(seed, STREAM_JITTER),
-        mass_range=table.mass_range, friction_range=table.friction_range, **sim_kwargs,
-    )  # fmt: skip
+        q,
+        ev["mass"].to_numpy(float),
+        ev["friction"].to_numpy(float),
+        sizes(ev),
+        sd=settings.jitter_sd,
+        draws=settings.jitter_draws,
+        rng=rng_for(seed, STREAM_JITTER),
+        mass_range=table.mass_range,
+        friction_range=table.friction_range,
+        **sim_kwargs,
+    )
     if not jok.all():
         log.warning("%d jitter pushes failed the simulator's checks; kept as simulated", int((~jok).sum()))
     sets = {

@@ -32,11 +32,25 @@ TARGET_OWN_TRACK, TARGET_SWAP_TRACK, TARGET_ANCHORED_SHARE = 0.9, 0.2, 80.0
 
 # The names of one data-order seed's numbers that the targets read.
 _TARGET_NUMBERS = {
-    0: dict(own="vjCTrack", swap="vjSTrack", anch="vjAnchOwnLtSwap", own_err="vjCErr", none_err="vjQErr",
-            self_p="vjSelfOwnLtSwapP", self_share="vjSelfOwnLtSwap"),
-    1: dict(own="vjSOneCTrack", swap="vjSOneSTrack", anch="vjSOneAnchOwnLtSwap", own_err="vjSOneCErr",
-            none_err="vjSOneQErr", self_p="vjSOneSelfOwnLtSwapP", self_share="vjSOneSelfOwnLtSwap"),
-}  # fmt: skip
+    0: dict(
+        own="vjCTrack",
+        swap="vjSTrack",
+        anch="vjAnchOwnLtSwap",
+        own_err="vjCErr",
+        none_err="vjQErr",
+        self_p="vjSelfOwnLtSwapP",
+        self_share="vjSelfOwnLtSwap",
+    ),
+    1: dict(
+        own="vjSOneCTrack",
+        swap="vjSOneSTrack",
+        anch="vjSOneAnchOwnLtSwap",
+        own_err="vjSOneCErr",
+        none_err="vjSOneQErr",
+        self_p="vjSOneSelfOwnLtSwapP",
+        self_share="vjSOneSelfOwnLtSwap",
+    ),
+}
 
 
 def _f(x: float, spec: str = ".2f") -> str:

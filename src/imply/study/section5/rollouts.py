@@ -72,9 +72,13 @@ def object_blind_rollouts(rollouts: ContextRollouts, typical: TypicalSlide) -> C
 
 
 def rollout_table_of_evaluation(
-    per_object: pd.DataFrame, *, object_ids: np.ndarray, calibration_speeds: np.ndarray,
-    calibration_displacement: np.ndarray, partner: np.ndarray,
-) -> pd.DataFrame:  # fmt: skip
+    per_object: pd.DataFrame,
+    *,
+    object_ids: np.ndarray,
+    calibration_speeds: np.ndarray,
+    calibration_displacement: np.ndarray,
+    partner: np.ndarray,
+) -> pd.DataFrame:
     """One model's rollout table from its ``imply evaluate`` readings (``per_object.csv``, sample 0).
 
     ``object_ids`` (N,), ``calibration_speeds`` (2,), ``calibration_displacement`` (N, 2) and
@@ -175,9 +179,12 @@ def read_evaluations(
         if doc.get("suite") != suite.checksum or len(doc["models"]) != 1:
             raise ValueError(f"{folder}: not one model scored on the suite {suites[model]}")
         tables[(model, seed)] = rollout_table_of_evaluation(
-            per_object, object_ids=suite.object_ids, calibration_speeds=suite.calibration_speeds,
-            calibration_displacement=suite.calibration_displacement, partner=suite.partner,
-        )  # fmt: skip
+            per_object,
+            object_ids=suite.object_ids,
+            calibration_speeds=suite.calibration_speeds,
+            calibration_displacement=suite.calibration_displacement,
+            partner=suite.partner,
+        )
         readouts[(model, seed)] = doc["models"][0]["readout"]
     for s in sorted({s for _, s in tables}):
         for m in MODELS:

@@ -48,9 +48,14 @@ def validation_scores(
     """
     contexts = ("own", "swap", "none") if layout.calib else ("none",)
     table = rollout_split(
-        model, layout, split, readout=readout, contexts=contexts, derangement_seed=derangement_seed,
+        model,
+        layout,
+        split,
+        readout=readout,
+        contexts=contexts,
+        derangement_seed=derangement_seed,
         batch_size=batch_size,
-    )  # fmt: skip
+    )
     rollouts = rollouts_by_context(table)
     scored = {ctx: score_context(r, scorer) for ctx, r in rollouts.items()}
     out: dict[str, float] = {}
