@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import re
 from typing import ClassVar
@@ -100,7 +101,7 @@ def test_cli_flags_default_to_the_study_values():
     def defaults(*command: str) -> dict:
         sub = parser
         for name in command:
-            sub = next(a for a in sub._actions if a.dest.endswith("command"))._name_parser_map[name]
+            sub = next(a for a in sub._actions if isinstance(a, argparse._SubParsersAction))._name_parser_map[name]
         return {a.dest: a.default for a in sub._actions}
 
     model = ModelConfig()
