@@ -507,10 +507,12 @@ def cli_reference() -> str:
         level = "#" * min(2 + max(len(node.words) - 1, 0), 4)
         out += [f"{level} `{node.name}`", ""]
         text = node.parser.description if node.words else node.help
+        sentence = ""
         if node.help and node.words:
             sentence = node.help[:1].upper() + node.help[1:] + ("" if node.help.endswith(".") else ".")
             out += [escape_html(sentence), ""]
-        if text and text != node.help:
+        # a command without a description of its own shows its help as one (imply.cli): said once here
+        if text and text != node.help and text != sentence:
             out += [rst_to_markdown(text, escape=True).strip(), ""]
         out += ["```text", _usage(node.parser), "```", ""]
         actions = options_of(node.parser)
