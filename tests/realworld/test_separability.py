@@ -64,8 +64,11 @@ def test_an_effect_shaped_like_its_contact_is_not_separable_and_another_is():
     other = np.array([0.1, -0.1, 0.1, -0.1, 0.1, -0.1])
     same = mark_log(_label(0.5 * curve, 3.0 * curve), alias_cos=0.95, min_size_sd=2.0, crossing_sd=0.02)
     assert all(not s["separable"] and s["cos"] > 0.95 for s in same["sets"].values())
+    # a contact six times the effect, along it: left unmodelled it moves the effect's amplitude about sixfold
+    assert all(not s["readable"] and 5.0 < s["leak"] < 7.0 for s in same["sets"].values())
     apart = mark_log(_label(0.5 * other, 3.0 * curve), alias_cos=0.95, min_size_sd=2.0, crossing_sd=0.02)
     assert all(s["separable"] for s in apart["sets"].values()) and set(apart["sets"]) == set(OBSERVABLE_SETS)
+    assert all(s["readable"] for s in apart["sets"].values())
     assert apart["big"]  # 0.05 in log d on every push, after the fit: far above 2 noise sds
 
 

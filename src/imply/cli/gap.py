@@ -320,7 +320,12 @@ def cmd_separability(args: argparse.Namespace) -> int:
     labels, timing = _set_paths(args.labels, "--labels"), _set_paths(args.timing, "--timing")
     if set(labels) != set(timing):
         raise UserError("--labels and --timing must name the same sets")
-    result = {"alias_cos": design.alias_cos, "min_size_sd": design.min_size_sd, "sets": {}}
+    result = {
+        "alias_cos": design.alias_cos,
+        "min_size_sd": design.min_size_sd,
+        "within": design.targets["magnitude_within"],
+        "sets": {},
+    }
     for name, path in labels.items():
         with user_errors(FileNotFoundError, message="--labels: {error}"):
             with open(path) as fh:
@@ -329,6 +334,7 @@ def cmd_separability(args: argparse.Namespace) -> int:
                     alias_cos=design.alias_cos,
                     min_size_sd=design.min_size_sd,
                     crossing_sd=design.crossing_sd,
+                    within=design.targets["magnitude_within"],
                 )
         with user_errors(FileNotFoundError, message="--timing: {error}"):
             with open(timing[name]) as fh:
