@@ -18,7 +18,9 @@ REFRESH = "refresh it: run the study, then `snakemake --cores 2 snapshot`, and c
 @pytest.fixture(scope="module")
 def stamp():
     found = read_stamp(SNAPSHOT)
-    assert found is not None, f"docs/snapshot/snapshot.json is missing; {REFRESH}"
+    if found is None:
+        # the docs then say that no snapshot is committed (imply.docs_pages.ph_snapshot); nothing can be stale
+        pytest.skip(f"no snapshot is committed in docs/snapshot; to make one: {REFRESH}")
     return found
 
 
