@@ -11,10 +11,8 @@ import pytest
 from workflow_helpers import copy_workflow
 
 
-@pytest.mark.slow
-def test_gap_workflow_tiny(tmp_path, repo_root):
-    copy_workflow(tmp_path)
-    target = "results/paper/parts/gap.json"
+def _snakemake_tiny(tmp_path, repo_root, target: str) -> subprocess.CompletedProcess:
+    """``snakemake TARGET --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""
     cmd = [
         sys.executable,
         "-m",
@@ -27,7 +25,14 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
         "--configfile",
         str(repo_root / "tests/config/gap_tiny.yaml"),
     ]
-    run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+
+
+@pytest.mark.slow
+def test_gap_workflow_tiny(tmp_path, repo_root):
+    copy_workflow(tmp_path)
+    target = "results/paper/parts/gap.json"
+    run = _snakemake_tiny(tmp_path, repo_root, target)
     assert run.returncode == 0, run.stderr[-3000:]
     part = json.loads((tmp_path / target).read_text())
     assert part["stage"] == "gap"
@@ -135,19 +140,7 @@ def test_gap_lab_workflow_tiny(tmp_path, repo_root):
     """The lab benchmark's two sets on every engine, with probes, and each effect log marked."""
     copy_workflow(tmp_path)
     target = "results/gap/lab/separability.json"
-    cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
-        target,
-        "--cores",
-        "2",
-        "--directory",
-        str(tmp_path),
-        "--configfile",
-        str(repo_root / "tests/config/gap_tiny.yaml"),
-    ]
-    run = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    run = _snakemake_tiny(tmp_path, repo_root, target)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / target).read_text())["result"]
     assert set(result["sets"]) == {"development", "sealed"}
