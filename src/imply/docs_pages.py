@@ -795,13 +795,6 @@ def ph_figure(ctx: Context, page: str, arg: str) -> str:
     )
 
 
-def rule_stages(root: Path = ROOT) -> dict[str, str]:
-    """Rule name -> its stage (:func:`imply.paper.timings.rule_stages`)."""
-    from imply.paper.timings import rule_stages as stages_of
-
-    return stages_of(root)
-
-
 def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
     """``{{ stage_times }}``: each stage's jobs and time in the last run, from the rules' benchmark files."""
     from imply.paper.timings import by_rule, read_benchmarks
@@ -817,6 +810,8 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
             "site reads them when it is built. Until then, the [record of earlier runs](../notes/study-runs.md) "
             "gives the whole study's times on 2 cores."
         )
+    from imply.paper.timings import rule_stages
+
     stages = rule_stages(ctx.root)
     rows: dict[str, list] = {}
     for r in by_rule(jobs):

@@ -46,6 +46,7 @@ reach). Any other parameter at a value other than its nominal one
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import os
 import sys
@@ -56,7 +57,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from imply.options import Config, option
-from imply.realworld.stepped import SteppedPush, run_push
+from imply.realworld.stepped import SteppedPush, check_steps, run_push
 from imply.realworld.world import WorldPushes, WorldResult, check_track_times
 from imply.sim.scene import SceneConfig
 
@@ -113,10 +114,7 @@ class BulletStepping(Config):
     max_time: float = option(4.0, doc="s a push may take at most", exclusive_minimum=0)
 
     def __post_init__(self) -> None:
-        for name in ("push_step", "slide_step", "stop_speed", "rest_speed", "max_time"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"bullet stepping: {name} must be a positive number, not {value!r}")
+        check_steps(self, "bullet")
         if not (
             isinstance(self.release_window, int | float)
             and math.isfinite(self.release_window)
@@ -127,20 +125,10 @@ class BulletStepping(Config):
             raise ValueError(
                 f"bullet stepping: solver_iterations must be an integer >= 1, not {self.solver_iterations!r}"
             )
-        if self.max_time / min(self.push_step, self.slide_step) > 1e7:
-            raise ValueError("bullet stepping: a push could take more than 1e7 steps; raise the steps")
 
     def finer(self, factor: int) -> BulletStepping:
         """The same stepping with every step divided by ``factor`` (for measuring its error)."""
-        return BulletStepping(
-            push_step=self.push_step / factor,
-            release_window=self.release_window,
-            slide_step=self.slide_step / factor,
-            solver_iterations=self.solver_iterations,
-            stop_speed=self.stop_speed,
-            rest_speed=self.rest_speed,
-            max_time=self.max_time,
-        )
+        return dataclasses.replace(self, push_step=self.push_step / factor, slide_step=self.slide_step / factor)
 
 
 def _pybullet():

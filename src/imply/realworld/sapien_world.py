@@ -39,6 +39,7 @@ The library effects this world carries are :data:`imply.realworld.contact.SAPIEN
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -48,31 +49,14 @@ import numpy as np
 
 from imply.options import Config, option
 from imply.realworld.bullet import GRAVITY, check_supported, collect_pushes
-from imply.realworld.stepped import SteppedPush, run_push
+from imply.realworld.bullet import SUPPORTED as BULLET_SUPPORTED
+from imply.realworld.stepped import SteppedPush, check_steps, run_push
 from imply.realworld.world import WorldPushes, WorldResult, check_track_times
 from imply.sim.scene import SceneConfig
 
 # the parameters this engine implements (any value); every other one must be nominal
-SUPPORTED = frozenset(
-    {
-        "tilt",
-        "tilt_azimuth",
-        "viscous",
-        "air_density",
-        "carriage_mass",
-        "servo_kv",
-        "force_limit",
-        "aniso",
-        "aniso_axis",
-        "stribeck",
-        "stribeck_speed",
-        "gradient",
-        "gradient_azimuth",
-        "height",
-        "stroke",
-        "free",
-    }
-)
+# (Bullet's, less the torsional and rolling friction PhysX has no coefficients for)
+SUPPORTED = BULLET_SUPPORTED - {"torsional", "rolling"}
 # collision groups: the table meets the box, the pusher meets the box, the carriage runs above the table
 _TABLE, _BOX, _PUSHER = [1, 1, 0, 0], [3, 3, 0, 0], [2, 2, 0, 0]
 
@@ -98,24 +82,11 @@ class SapienStepping(Config):
     max_time: float = option(4.0, doc="s a push may take at most", exclusive_minimum=0)
 
     def __post_init__(self) -> None:
-        for name in ("push_step", "slide_step", "stop_speed", "rest_speed", "max_time"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"sapien stepping: {name} must be a positive number, not {value!r}")
-        if self.max_time / min(self.push_step, self.slide_step) > 1e7:
-            raise ValueError("sapien stepping: a push could take more than 1e7 steps; raise the steps")
+        check_steps(self, "sapien")
 
     def finer(self, factor: int) -> SapienStepping:
         """The same stepping with every step divided by ``factor`` (for measuring its error)."""
-        return SapienStepping(
-            push_step=self.push_step / factor,
-            release_window=self.release_window,
-            slide_step=self.slide_step / factor,
-            position_iterations=self.position_iterations,
-            stop_speed=self.stop_speed,
-            rest_speed=self.rest_speed,
-            max_time=self.max_time,
-        )
+        return dataclasses.replace(self, push_step=self.push_step / factor, slide_step=self.slide_step / factor)
 
 
 def _sapien():

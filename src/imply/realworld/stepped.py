@@ -77,6 +77,17 @@ class SteppedPush:
     track: np.ndarray | None
 
 
+def check_steps(stepping: StepPlan, engine: str) -> None:
+    """Refuse (ValueError naming the field) steps and thresholds that are not positive numbers, or a push that could
+    take more than 1e7 steps."""
+    for name in ("push_step", "slide_step", "stop_speed", "rest_speed", "max_time"):
+        value = getattr(stepping, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{engine} stepping: {name} must be a positive number, not {value!r}")
+    if stepping.max_time / min(stepping.push_step, stepping.slide_step) > 1e7:
+        raise ValueError(f"{engine} stepping: a push could take more than 1e7 steps; raise the steps")
+
+
 class StepPlan(Protocol):
     """The steps (s) and thresholds (m/s) of a push: an engine's stepping config (``BulletStepping``, ...)."""
 
