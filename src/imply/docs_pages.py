@@ -797,7 +797,7 @@ def ph_figure(ctx: Context, page: str, arg: str) -> str:
 
 def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
     """``{{ stage_times }}``: each stage's jobs and time in the last run, from the rules' benchmark files."""
-    from imply.paper.timings import by_rule, read_benchmarks
+    from imply.paper.timings import by_stage, read_benchmarks, rule_stages
 
     jobs = read_benchmarks(ctx.root / "results" / "benchmarks")
     snap = _snapshot(ctx.root)
@@ -810,19 +810,7 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
             "site reads them when it is built. Until then, the [record of earlier runs](../notes/study-runs.md) "
             "gives the whole study's times on 2 cores."
         )
-    from imply.paper.timings import rule_stages
-
-    stages = rule_stages(ctx.root)
-    rows: dict[str, list] = {}
-    for r in by_rule(jobs):
-        rows.setdefault(stages.get(r.rule, "other"), []).append(r)
-    out = ["| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]
-    for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1])):
-        out.append(
-            f"| {stage} | {', '.join(r.rule for r in rs)} | {sum(r.jobs for r in rs)} | "
-            f"{sum(r.seconds for r in rs):.0f} | {max(r.longest for r in rs):.0f} | "
-            f"{sum(r.cpu_seconds for r in rs):.0f} |"
-        )
+    out = _stage_table(by_stage(jobs, rule_stages(ctx.root)))
     newest = max(j.end for j in jobs)
     when = datetime.fromtimestamp(newest, UTC).strftime("%Y-%m-%d")
     return "\n".join(
@@ -836,20 +824,21 @@ def ph_stage_times(ctx: Context, page: str, arg: str) -> str:
     )
 
 
-def _snapshot_stage_times(stamp: dict, page: str) -> str:
-    """The stage-times table of the snapshot's run."""
-    times = stamp["stage_times"]
-    out = [
-        snapshot_note(stamp, page),
-        "",
-        "| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |",
-        "|---|---|---|---|---|---|",
-    ]
-    for row in times["stages"]:
+def _stage_table(rows: list[dict]) -> list[str]:
+    """The stage-times table's lines, from :func:`imply.paper.timings.by_stage`'s rows."""
+    out = ["| stage | rules run | jobs | wall s (jobs summed) | longest job s | CPU s |", "|---|---|---|---|---|---|"]
+    for row in rows:
         out.append(
             f"| {row['stage']} | {', '.join(row['rules'])} | {row['jobs']} | {row['seconds']:.0f} | "
             f"{row['longest']:.0f} | {row['cpu_seconds']:.0f} |"
         )
+    return out
+
+
+def _snapshot_stage_times(stamp: dict, page: str) -> str:
+    """The stage-times table of the snapshot's run."""
+    times = stamp["stage_times"]
+    out = [snapshot_note(stamp, page), "", *_stage_table(times["stages"])]
     return "\n".join(
         [
             *out,

@@ -78,26 +78,12 @@ def _claims(parts: Path) -> dict[str, int]:
 
 def stage_times(root: Path) -> dict[str, Any]:
     """Each stage's rules, jobs, wall seconds (jobs summed), longest job and CPU seconds, and the run's span."""
-    from imply.paper.timings import by_rule, read_benchmarks, rule_stages
+    from imply.paper.timings import by_stage, read_benchmarks, rule_stages
 
     jobs = read_benchmarks(root / "results" / "benchmarks")
     if not jobs:
         return {"jobs": 0, "stages": [], "wall_seconds": None}
-    stages = rule_stages(root)
-    rows: dict[str, list] = {}
-    for r in by_rule(jobs):
-        rows.setdefault(stages.get(r.rule, "other"), []).append(r)
-    table = [
-        {
-            "stage": stage,
-            "rules": [r.rule for r in rs],
-            "jobs": sum(r.jobs for r in rs),
-            "seconds": sum(r.seconds for r in rs),
-            "longest": max(r.longest for r in rs),
-            "cpu_seconds": sum(r.cpu_seconds for r in rs),
-        }
-        for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1]))
-    ]
+    table = by_stage(jobs, rule_stages(root))
     span = max(j.end for j in jobs) - min(j.start for j in jobs)
     return {
         "jobs": len(jobs),

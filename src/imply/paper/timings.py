@@ -156,3 +156,22 @@ def rule_stages(root: str | Path) -> dict[str, str]:
         for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), re.M):
             out[name] = smk.stem
     return out
+
+
+def by_stage(jobs: list[Job], stages: dict[str, str]) -> list[dict]:
+    """Per stage (``stages``: rule -> stage, :func:`rule_stages`; others ``other``), longest total wall time first:
+    its rules, jobs, wall seconds (jobs summed), longest job and CPU seconds."""
+    rows: dict[str, list[RuleTime]] = {}
+    for r in by_rule(jobs):
+        rows.setdefault(stages.get(r.rule, "other"), []).append(r)
+    return [
+        {
+            "stage": stage,
+            "rules": [r.rule for r in rs],
+            "jobs": sum(r.jobs for r in rs),
+            "seconds": sum(r.seconds for r in rs),
+            "longest": max(r.longest for r in rs),
+            "cpu_seconds": sum(r.cpu_seconds for r in rs),
+        }
+        for stage, rs in sorted(rows.items(), key=lambda kv: -sum(r.seconds for r in kv[1]))
+    ]
