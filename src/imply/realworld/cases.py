@@ -404,10 +404,10 @@ def push_layout(case: dict, design: BenchmarkConfig) -> tuple[np.ndarray, np.nda
 
 def _world_pushes(case: dict, design: BenchmarkConfig, scene: SceneConfig, effects: list[dict]) -> WorldPushes:
     obj, v = push_layout(case, design)
-    return _pushes_in_world(case, obj, v, np.asarray(case["direction"]), scene, effects)
+    return pushes_in_world(case, obj, v, np.asarray(case["direction"]), scene, effects)
 
 
-def _pushes_in_world(
+def pushes_in_world(
     case: dict, obj: np.ndarray, v: np.ndarray, phi: np.ndarray, scene: SceneConfig, effects: list[dict]
 ) -> WorldPushes:
     """Pushes of ``case``'s objects ``obj`` at speeds ``v`` and directions ``phi``, in its world: its contact model
@@ -655,7 +655,7 @@ def extra_pushes(
     draws per push (fresh ones, from ``seed``), the log's columns, pushes whose box failed the world's checks left
     out."""
     obj, v, phi = np.asarray(obj, int), np.asarray(speed, float), np.asarray(direction, float)
-    p = _pushes_in_world(case, obj, v, phi, scene, case["effects"])
+    p = pushes_in_world(case, obj, v, phi, scene, case["effects"])
     res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
     rng = np.random.default_rng([case["noise_seed"], seed])
     rng_p = np.random.default_rng([case["noise_seed"], seed, 1])

@@ -37,12 +37,12 @@ from imply.io import write_csv, write_json
 from imply.options import option
 from imply.realworld.cases import (
     ContactBenchmarkConfig,
-    _pushes_in_world,
     draw_cases,
     log_track,
     make_log,
     object_names,
     push_layout,
+    pushes_in_world,
 )
 from imply.realworld.contact import simulate_engine
 from imply.realworld.probes import ProbeDesign, ProbeLayout, probe_layout, probe_observables, probe_pushes, probe_rows
@@ -177,7 +177,7 @@ def _probe_pushes(
 ) -> WorldPushes:
     """The probes of ``case`` as pushes of ``world`` (the case, or a nominal world of other masses and frictions)."""
     layout = lab_probe_layout(case, design)
-    p = _pushes_in_world(world, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, effects)
+    p = pushes_in_world(world, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, effects)
     return probe_pushes(layout, p, design.probes)
 
 
@@ -201,7 +201,7 @@ def _runs(case: dict, design: LabBenchmarkConfig, scene: SceneConfig) -> list[tu
         world = {**case, "mass": list(m), "friction": list(mu)}
         if nominal:
             world.pop("contact", None)
-        pushes = _pushes_in_world(world, obj, v, phi, scene, effects)
+        pushes = pushes_in_world(world, obj, v, phi, scene, effects)
         probes = _probe_pushes(case, design, scene, world, effects)
         out.append((what, eng, WorldPushes.concat([pushes, probes]), pushes.n))
     return out
