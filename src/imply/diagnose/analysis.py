@@ -44,6 +44,7 @@ from imply.diagnose.localisation import Localisation, localise
 from imply.diagnose.model_error import model_error
 from imply.diagnose.next_pushes import PushDesign, design_pushes
 from imply.diagnose.noise import Noise, ObservableNoise, estimate_noise
+from imply.diagnose.observables import Observables
 from imply.diagnose.pushlog import PushLog
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.render import OBSERVABLE_WORDS, verdict_text
@@ -118,6 +119,11 @@ class DiagnosisConfig(Config):
         False,
         doc="use the box's track (the times it covers fractions of its travel) where the log has one",
     )
+    use_probes: bool = option(
+        True,
+        doc="fit the calibration probes beside the log (<stem>.probes.csv) where it has them: free strokes, "
+        "friction measurements (as priors with their stated uncertainty) and added-mass pushes",
+    )
     max_effects: int = option(3, doc="library effects in one hypothesis at most", minimum=0, maximum=3)
     screen: int = option(4, doc="alias classes, best alone first, whose combinations are fitted", minimum=0)
     outlier_sd: float = option(
@@ -147,6 +153,16 @@ class DiagnosisConfig(Config):
     next_pushes: int = option(12, doc="pushes recommended to separate the contenders", minimum=0)
     next_speeds: int = option(9, doc="candidate speeds of the next pushes, across the table's range", minimum=2)
     next_directions: int = option(12, doc="candidate directions of the next pushes (logs with directions)", minimum=1)
+
+    def observables(self) -> Observables:
+        """What every hypothesis's fit reads from a log, as these settings ask."""
+        return Observables(
+            measured=self.use_measured,
+            stop_time=self.use_stop_time,
+            pusher_speed=self.use_pusher_speed,
+            track=self.use_track,
+            probes=self.use_probes,
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -259,7 +275,8 @@ def _observables(problem: Problem) -> tuple[list[str], str]:
         c = probes.counts()
         note += (
             f"; the log's calibration probes ({c['free_stroke']} free strokes, {c['friction']} friction "
-            f"measurements, {c['added_mass']} added-mass pushes) were read and checked, and no fit uses them"
+            f"measurements, {c['added_mass']} added-mass pushes) "
+            + ("entered every fit" if problem.probes is not None else "were read and checked; no fit used them")
         )
     return used, note
 

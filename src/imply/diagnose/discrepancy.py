@@ -51,7 +51,7 @@ def describe(problem: Problem, fit: JointFit, *, mimics: list[str]) -> Discrepan
     c, sl = found
     beta = fit.theta[sl]
     lm_c, lu_c = fit.objects.lm[problem.c_obj], fit.objects.lu[problem.c_obj]
-    dd, dt = problem.discrepancy_terms(c, beta, np.arange(problem.n_cond), lm_c, lu_c)
+    dd, dt = problem.discrepancy_terms(c, beta, problem.c_v, lm_c, lu_c)
     keep = problem.w_d > 0
     rows = dd[problem.cond][keep]
     sm = scaled(fit.objects.lm, *problem.lm_range)

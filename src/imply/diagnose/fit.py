@@ -34,7 +34,9 @@ from scipy import stats
 
 from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
 from imply.diagnose.effect_tables import EffectTables
-from imply.diagnose.pushlog import TRACK_OBSERVABLES, PushLog
+from imply.diagnose.observables import Observables
+from imply.diagnose.probe_fit import ProbeRows
+from imply.diagnose.pushlog import PushLog
 from imply.table import PushTable
 
 _H = 1e-4  # finite-difference step in log m and log mu
@@ -199,6 +201,8 @@ class Problem:
     model_err_t: np.ndarray | None = None  # per aux row
     w_d: np.ndarray | None = None  # per row, 0 for a flagged outlier (None: ones)
     w_t: np.ndarray | None = None  # per aux row (None: ones where aux observables are used)
+    observables: Observables = Observables()  # what the fit was asked to read
+    probes: ProbeRows | None = None  # the log's calibration probes as fit rows, where it has them and they are used
 
     def __post_init__(self) -> None:
         # defaults that depend on the log's length
@@ -244,13 +248,12 @@ class Problem:
         etables: EffectTables | None,
         *,
         grid: int = 101,
-        use_measured: bool = True,
-        use_stop_time: bool = True,
-        use_pusher_speed: bool = True,
-        use_track: bool = True,
+        observables: Observables | None = None,
     ) -> Problem:
         """The problem of a push log at unit noise, no model error and every push weighted 1; the observables
-        beside the displacement are those the log has, the tables hold and the flags allow."""
+        beside the displacement are those the log has, the tables hold and ``observables`` asks for (None: the
+        defaults, the diagnosis options' own), and the log's probes enter where it has them and it asks for them."""
+        observables = observables or Observables()
         obj = pushlog.obj
         v = pushlog.speed
         phi = pushlog.direction
@@ -258,14 +261,13 @@ class Problem:
         key = np.stack([obj.astype(float), np.round(v, 9), np.round(np.mod(phi, 2 * np.pi), 6)], 1)
         uniq, first, cond = np.unique(key, axis=0, return_index=True, return_inverse=True)
         n_obj = len(pushlog.objects)
-        wanted = {
-            "stop_time": use_stop_time,
-            "pusher_speed": use_pusher_speed,
-            **dict.fromkeys(TRACK_OBSERVABLES, use_track),
-        }
         held = etables.aux if etables is not None else ()
-        aux = tuple(a for a in held if wanted.get(a) and pushlog.aux(a) is not None)
+        aux = tuple(a for a in held if observables.wants(a) and pushlog.aux(a) is not None)
         use_t = bool(aux)
+        use_measured = observables.measured
+        probes = None
+        if observables.probes and pushlog.probes is not None:
+            probes = ProbeRows.of(pushlog.probes, aux=aux, scene=table.meta.get("scene"))
         return cls(
             log=pushlog,
             table=table,
@@ -290,6 +292,8 @@ class Problem:
             use_t=use_t,
             y_t=np.concatenate([pushlog.aux(a) for a in aux]) if use_t else None,
             aux=aux,
+            observables=observables,
+            probes=probes,
         )
 
     # -- noise, weights and model error: each a new problem ---------------------------
@@ -374,16 +378,27 @@ class Problem:
 
     # -- predictions -------------------------------------------------------------------
     def predict(self, model: Model, theta, lm_c, lu_c, cond=None, blocks: int = 1) -> Prediction:
-        """log d and log T at conditions ``cond`` (all by default) given per-condition log m, log mu,
-        and theta (p,) or per condition (n, p). ``blocks``: the rows are that many equal-length settings
+        """log d and the aux observables at conditions ``cond`` (all by default) given per-condition log m, log mu,
+        and theta (p,) or per condition (n, p) (:meth:`predict_at` at the conditions' speeds and directions)."""
+        idx = np.arange(self.n_cond) if cond is None else cond
+        return self.predict_at(model, theta, self.c_v[idx], self.c_phi[idx], lm_c, lu_c, blocks=blocks)
+
+    def predict_at(
+        self, model: Model, theta, speed, phi, lm_c, lu_c, *, load: np.ndarray | None = None, blocks: int = 1
+    ) -> Prediction:
+        """log d and the aux observables of pushes at logged ``speed`` and direction ``phi`` (n,) of objects of log
+        mass and log friction ``lm_c``, ``lu_c`` (n,) carrying ``load`` (n,) kg more (a probe's known added mass;
+        None: none), under theta (p,) or per push (n, p). ``blocks``: the rows are that many equal-length settings
         (:meth:`residuals`); the tables are read once for settings that put every push at the same point.
 
         A speed or friction that the model's effects carry outside the table's range is read at
         the range's edge and extrapolated linearly (the edge's slope); the prediction keeps what
         was extrapolated (:meth:`Prediction.extrapolation_sizes`)."""
-        idx = np.arange(self.n_cond) if cond is None else cond
-        v, phi = self.c_v[idx], self.c_phi[idx]
+        v = np.asarray(speed, float)
         m = np.exp(np.clip(lm_c, *self.lm_range))
+        if load is not None:
+            m = np.clip(m + load, *np.exp(self.lm_range))
+            lm_c = np.log(m)
         lu = np.asarray(lu_c, float)
         t = None
         if model.dim:
@@ -434,17 +449,18 @@ class Problem:
                     pt = pt + dt[:, self.aux_cols]
         found = model.discrepancy if model.dim else None
         if found is not None:
-            dd, dt = self.discrepancy_terms(found[0], np.asarray(theta, float)[..., found[1]], idx, lm_c, lu_c)
+            beta = np.asarray(theta, float)[..., found[1]]
+            dd, dt = self.discrepancy_terms(found[0], beta, np.asarray(speed, float), lm_c, lu_c)
             pd = pd + dd
             if self.use_t:
                 pt = pt + dt
         return Prediction(pd, pt, ext_d, ext_t)
 
-    def discrepancy_terms(self, c, beta: np.ndarray, idx: np.ndarray, lm_c, lu_c) -> tuple[np.ndarray, np.ndarray]:
-        """The discrepancy ``c`` at coefficients ``beta`` ((q,) or per condition (n, q)) at conditions ``idx``:
-        its log d part (n,) and each aux observable's part (n, K, its own coefficients), at the logged speed
-        and the objects' (log m, log mu)."""
-        sv = scaled(self.c_v[idx], *self.v_range)
+    def discrepancy_terms(self, c, beta: np.ndarray, speed: np.ndarray, lm_c, lu_c) -> tuple[np.ndarray, np.ndarray]:
+        """The discrepancy ``c`` at coefficients ``beta`` ((q,) or per push (n, q)) of pushes at logged ``speed``
+        (n,): its log d part (n,) and each aux observable's part (n, K, its own coefficients), at the objects'
+        (log m, log mu)."""
+        sv = scaled(speed, *self.v_range)
         sm = scaled(lm_c, *self.lm_range)
         su = scaled(lu_c, *self.lu_range)
         bd, bt = discrepancy_basis(sv, np.broadcast_to(sm, sv.shape), np.broadcast_to(su, sv.shape))
@@ -479,7 +495,13 @@ class Problem:
         return rd, rt
 
     def _row_obj(self) -> np.ndarray:
-        return np.concatenate([self.obj, self.obj[self.t_row]]) if self.use_t else self.obj
+        """(rows,) the object of each residual row: pushes, their aux rows, then the probes' rows."""
+        parts = [self.obj]
+        if self.use_t:
+            parts.append(self.obj[self.t_row])
+        if self.probes is not None:
+            parts.append(self.probes.row_obj)
+        return np.concatenate(parts) if len(parts) > 1 else self.obj
 
     def object_sse(self, r: np.ndarray) -> np.ndarray:
         return np.bincount(self._row_obj(), r * r, minlength=self.n_obj)
@@ -497,10 +519,46 @@ class Problem:
         pd = pred.log_d.reshape(k, C)
         pt = None if pred.log_t is None else pred.log_t.reshape(k, C, len(self.aux))
         rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
-        if not self.use_t:
-            return rd
-        rt = self.w_t * (pt[:, self.t_cond, self.t_kind] - self.y_t) / self.sd_t
-        return np.concatenate([rd, rt], axis=1)
+        parts = [rd]
+        if self.use_t:
+            parts.append(self.w_t * (pt[:, self.t_cond, self.t_kind] - self.y_t) / self.sd_t)
+        if self.probes is not None:
+            parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus))
+        return np.concatenate(parts, axis=1) if len(parts) > 1 else rd
+
+    def probe_residuals(self, model: Model, thetas: np.ndarray, lms: np.ndarray, lus: np.ndarray) -> np.ndarray:
+        """Whitened residuals (K, q) of the log's probes (:class:`imply.diagnose.probe_fit.ProbeRows`, in the order
+        of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N)."""
+        pr = self.probes
+        k = lms.shape[0]
+        parts = [(lus[:, pr.friction_obj] - pr.log_friction) / pr.friction_sd]
+        if pr.n_added:
+            a = pr.n_added
+            th = np.repeat(thetas, a, axis=0) if model.dim else np.zeros(0)
+            pred = self.predict_at(
+                model,
+                th,
+                np.tile(pr.added_speed, k),
+                np.tile(pr.added_phi, k),
+                lms[:, pr.added_obj].ravel(),
+                lus[:, pr.added_obj].ravel(),
+                load=np.tile(pr.added_mass, k),
+                blocks=k,
+            )
+            parts.append((pred.log_d.reshape(k, a) - pr.added_log_d) / self.noise_d)
+            for name, rows in pr.aux_rows():
+                col = self.aux.index(name)
+                sd = float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[col])
+                got = pred.log_t.reshape(k, a, len(self.aux))[:, rows, col]
+                parts.append((got - pr.added_aux[name][rows]) / sd)
+        if pr.stroke_speed.size:
+            sd = None
+            if "pusher_speed" in self.aux:
+                col = self.aux.index("pusher_speed")
+                sd = float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[col])
+            pred = pr.free_stroke_prediction(model, thetas if model.dim else np.zeros((k, 0)))
+            parts.append((pred - pr.log_stroke) / pr.stroke_noise(sd))
+        return np.concatenate(parts, axis=1)
 
     def _eval_many(self, model: Model, thetas: list, lms: list, lus: list) -> list[np.ndarray]:
         th = np.stack([np.asarray(t, float) for t in thetas]) if model.dim else np.zeros((len(thetas), 0))

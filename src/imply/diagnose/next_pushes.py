@@ -43,6 +43,7 @@ import pandas as pd
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.model_error import numerical_floors
+from imply.diagnose.observables import Observables
 from imply.diagnose.pushlog import SIZE_COLUMNS, TRACK_OBSERVABLES, PushLog
 from imply.diagnose.records import Record
 from imply.io import write_csv
@@ -130,7 +131,10 @@ def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str,
     ones = {a: np.ones(problem.log.n) for a in missing if a not in TRACK_OBSERVABLES}
     if any(a in TRACK_OBSERVABLES for a in missing):
         ones["crossing_times"] = np.ones((problem.log.n, len(TRACK_OBSERVABLES)))
-    full = Problem.of(replace(problem.log, **ones), problem.table, problem.etables, grid=problem.grid)
+    every = Observables(stop_time=True, pusher_speed=True, track=True, probes=False)
+    full = Problem.of(
+        replace(problem.log, **ones), problem.table, problem.etables, grid=problem.grid, observables=every
+    )
     preds = [predictions(full, f)[1] for _, f, _ in contenders]
     # the track is one measurement: its crossing times count together
     measured = {a: [a] for a in missing if a not in TRACK_OBSERVABLES}
@@ -185,9 +189,7 @@ def design_pushes(
         problem.table,
         problem.etables,
         grid=problem.grid,
-        use_stop_time="stop_time" in problem.aux,
-        use_pusher_speed="pusher_speed" in problem.aux,
-        use_track=any(a in problem.aux for a in TRACK_OBSERVABLES),
+        observables=replace(problem.observables, probes=False),
     )
     num_d, num_t = numerical_floors(problem, opts)
     lead = contenders[0][1]

@@ -14,7 +14,7 @@ problem the later steps fit under is ``noise.apply(problem)``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -171,7 +171,9 @@ def estimate_noise(problem: Problem, opts: Config) -> Noise:
     ones = np.ones(problem.y.size)
     groups = _groups(problem.cond, ones)
     # a first baseline fit, on everything, to tell which member of a pair is off
-    unit = problem.with_noise(1.0, 1.0).with_weights(ones, np.ones(problem.t_row.size) if problem.use_t else None)
+    # without the probes: their rows are whitened by their own stated or measured sds, not by unit noise
+    unit = replace(problem, probes=None).with_noise(1.0, 1.0)
+    unit = unit.with_weights(ones, np.ones(problem.t_row.size) if problem.use_t else None)
     fit0 = unit.initial_fit()
     rd, rt = unit.row_residuals(unit.predict(Model(), np.zeros(0), fit0.lm[unit.c_obj], fit0.lu[unit.c_obj]))
     disp, w_d = _observable(unit, unit.y, rd, groups=groups, option_sd=opts.noise_sd, k=opts.outlier_sd)

@@ -86,7 +86,7 @@ def effect_tables(
         nthread=nthread,
         progress=progress,
         across=needs_across(list(candidates)),
-        aux=options.use_stop_time or options.use_pusher_speed or options.use_track,
+        aux=options.observables().any_aux,
     )
 
 
@@ -145,10 +145,7 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
         session.table,
         session.effect_tables,
         grid=opts.grid,
-        use_measured=opts.use_measured,
-        use_stop_time=opts.use_stop_time,
-        use_pusher_speed=opts.use_pusher_speed,
-        use_track=opts.use_track,
+        observables=opts.observables(),
     )
     diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)

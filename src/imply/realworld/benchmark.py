@@ -37,6 +37,7 @@ import pandas as pd
 
 from imply.diagnose.analysis import Summary
 from imply.diagnose.estimates import AcceptedEffect
+from imply.diagnose.observables import Observables
 from imply.diagnose.verdict import Identification
 from imply.realworld.cases import BenchmarkConfig
 
@@ -68,7 +69,7 @@ def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float
         has_direction=True,
         mass=mass,
     )
-    prob = Problem.of(pl, table, None, grid=grid, use_stop_time=False)
+    prob = Problem.of(pl, table, None, grid=grid, observables=Observables(stop_time=False, probes=False))
     fit = prob.initial_fit(Model())
     return float(np.sqrt(fit.sse.sum() / v.size))
 

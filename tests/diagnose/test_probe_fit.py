@@ -1,0 +1,147 @@
+"""Calibration probes in every hypothesis's fit: the free stroke's servo physics against MuJoCo, and what each probe
+does to a fit of the closed-form table's logs (test_steps.make_log)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+from test_steps import OPTS, make_log
+
+from conftest import analytic_log_d
+from imply.diagnose import candidates
+from imply.diagnose.candidates import Model
+from imply.diagnose.fit import Problem
+from imply.diagnose.observables import Observables
+from imply.diagnose.probe_fit import Servo
+from imply.diagnose.probes import Probes
+from imply.sim.scene import SceneConfig, build_model
+
+SCENE = {"pusher_mass": 0.2, "pusher_kv": 80.0, "pusher_force_limit": 100.0, "stroke": 0.01}
+
+
+def mujoco_free_stroke(speed: float, *, force_limit: float = 100.0) -> float:
+    """The scene's pusher stroking with the box moved away, stepped finely with RK4: its mean speed (m/s)."""
+    scene = SceneConfig(pusher_force_limit=force_limit)
+    model = build_model(scene)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    model.opt.timestep = 1e-5
+    data = mujoco.MjData(model)
+    box = model.jnt_qposadr[model.joint("box").id]
+    push = model.jnt_qposadr[model.joint("push").id]
+    data.qpos[box] += 10.0
+    mujoco.mj_forward(model, data)
+    data.ctrl[0] = speed
+    before = (0.0, 0.0)
+    while data.qpos[push] < scene.stroke:
+        before = (data.time, data.qpos[push])
+        mujoco.mj_step(model, data)
+    # the crossing, interpolated within the last step
+    t = before[0] + (scene.stroke - before[1]) / (data.qpos[push] - before[1]) * (data.time - before[0])
+    return scene.stroke / t
+
+
+@pytest.mark.parametrize("force_limit", [100.0, 30.0])
+def test_the_free_stroke_servo_matches_a_fine_mujoco_stroke(force_limit):
+    servo = Servo(0.2, 80.0, force_limit, 0.01)
+    speeds = np.array([0.15, 0.6, 1.05])
+    simulated = np.array([mujoco_free_stroke(v, force_limit=force_limit) for v in speeds])
+    np.testing.assert_allclose(np.log(servo.mean_speed(speeds)), np.log(simulated), atol=2e-3)
+    # the lag is large at speed: what the pushes' table would read as a slow pusher if strokes were taken as v
+    assert servo.mean_speed(np.array([1.0]))[0] < 0.85
+
+
+def probes_of(log, *, friction=None, friction_sd=0.06, strokes=(), added=None) -> Probes:
+    """Probes for a synthetic log: friction readings per object, free strokes ((speed, measured) pairs), added-mass
+    pushes ((object, speed, displacement, load) rows)."""
+    n = len(log.objects)
+    added = np.zeros((0, 4)) if added is None else np.asarray(added, float)
+    strokes = np.asarray(strokes, float).reshape(-1, 2)
+    return Probes(
+        path="<synthetic>",
+        free_stroke_speed=strokes[:, 0],
+        free_stroke_pusher_speed=strokes[:, 1],
+        friction=np.full(n, np.nan) if friction is None else np.asarray(friction, float),
+        friction_sd=np.full(n, friction_sd),
+        added_obj=added[:, 0].astype(int),
+        added_speed=added[:, 1],
+        added_displacement=added[:, 2],
+        added_mass=added[:, 3],
+        added_direction=np.zeros(len(added)),
+        added_stop_time=np.full(len(added), np.nan),
+        added_pusher_speed=np.full(len(added), np.nan),
+    )
+
+
+def test_added_mass_pushes_are_predicted_at_the_loaded_mass(analytic_table):
+    log = make_log(seed=1, sd=0.0, replicates=1, measured_mass=False)
+    # make_log's objects (its first draws)
+    mass = np.geomspace(0.3, 1.5, 6)
+    friction = np.random.default_rng(1).permutation(np.geomspace(0.15, 0.45, 6))
+    rows = [(i, 0.9, np.exp(analytic_log_d(0.9, mass[i] + 0.4, friction[i])), 0.4) for i in range(6)]
+    table = replace(analytic_table, meta={"scene": SCENE})
+    prob = Problem.of(replace(log, probes=probes_of(log, added=rows)), table, None, grid=OPTS.grid)
+    prob = prob.with_noise(0.02, None)
+    lms, lus = np.log(mass)[None, :], np.log(friction)[None, :]
+    np.testing.assert_allclose(prob.residuals(Model(), np.zeros((1, 0)), lms, lus), 0.0, atol=1e-6)
+    assert prob.residuals(Model(), np.zeros((1, 0)), lms, lus).shape[1] == log.n + 6
+    # an object whose mass is off by 30% misses its loaded push by more than half a noise sd
+    off = prob.probe_residuals(Model(), np.zeros((1, 0)), lms + np.log(1.3), lus)
+    assert np.abs(off).min() > 0.5
+
+
+def test_a_friction_reading_is_a_prior_of_its_stated_weight(analytic_table):
+    log = make_log(seed=2, sd=0.02, replicates=1, measured_mass=False)
+    table = replace(analytic_table, meta={"scene": SCENE})
+    alone = Problem.of(log, table, None, grid=OPTS.grid).with_noise(0.02, None)
+    base = alone.initial_fit()
+    reading = np.exp(base.lu) * 1.3  # every reading 30% above what the pushes say
+
+    def fitted(sd):
+        probes = probes_of(log, friction=reading, friction_sd=sd * reading)
+        prob = Problem.of(replace(log, probes=probes), table, None, grid=OPTS.grid).with_noise(0.02, None)
+        return prob.initial_fit().lu
+
+    # a tight reading wins over the pushes (its mass moves to agree), a loose one is nearly ignored
+    assert np.abs(fitted(0.005) - np.log(reading)).max() < 0.05
+    assert np.abs(fitted(2.0) - base.lu).max() < 0.02
+    off = Problem.of(
+        replace(log, probes=probes_of(log, friction=reading)),
+        table,
+        None,
+        grid=OPTS.grid,
+        observables=Observables(probes=False),
+    )
+    assert off.probes is None
+
+
+def test_free_strokes_measure_a_speed_gain_that_friction_aliases(analytic_table):
+    """With weighed masses a speed gain and friction are nearly one direction in the closed-form table; free
+    strokes measure the gain with no box."""
+    gain = 0.06
+    log = make_log(seed=6, gain=gain, sd=0.02)
+    servo = Servo.of_scene(SCENE)
+    speeds = np.repeat([0.3, 0.6, 0.9], 2)
+    rng = np.random.default_rng(0)
+    measured = servo.mean_speed(speeds * (1 + gain)) * np.exp(rng.normal(0, 0.005, speeds.size))
+    table = replace(analytic_table, meta={"scene": SCENE})
+    model = Model((candidates.CANDIDATES["speed_gain"],))
+
+    def fit(with_strokes: bool):
+        probes = probes_of(log, strokes=np.stack([speeds, measured], 1)) if with_strokes else None
+        prob = Problem.of(replace(log, probes=probes), table, None, grid=OPTS.grid).with_noise(0.02, None)
+        start = prob.initial_fit()
+        f = prob.fit(model, np.array([0.0]), start)
+        return float(f.theta[0]), float(np.sqrt(f.covariance()[0, 0]))
+
+    g0, sd0 = fit(False)
+    g1, sd1 = fit(True)
+    assert abs(g1 - gain) < 0.01 and sd1 < sd0 / 3
+
+
+def test_the_fit_reads_what_the_options_ask_by_default():
+    from imply.diagnose.analysis import DiagnosisConfig
+
+    assert DiagnosisConfig().observables() == Observables()
