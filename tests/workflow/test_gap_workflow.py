@@ -11,13 +11,13 @@ import pytest
 from workflow_helpers import copy_workflow
 
 
-def _snakemake_tiny(tmp_path, repo_root, target: str) -> subprocess.CompletedProcess:
-    """``snakemake TARGET --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""
+def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedProcess:
+    """``snakemake TARGET... --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""
     cmd = [
         sys.executable,
         "-m",
         "snakemake",
-        target,
+        *targets,
         "--cores",
         "2",
         "--directory",
@@ -137,10 +137,12 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
 
 @pytest.mark.slow
 def test_gap_lab_workflow_tiny(tmp_path, repo_root):
-    """The lab benchmark's two sets on every engine, with probes, and each effect log marked."""
+    """The lab benchmark's two sets on every engine, with probes, each effect log marked, and the development set
+    diagnosed with and without its probes and scored."""
     copy_workflow(tmp_path)
     target = "results/gap/lab/separability.json"
-    run = _snakemake_tiny(tmp_path, repo_root, target)
+    score = "results/gap/lab/development/score.json"
+    run = _snakemake_tiny(tmp_path, repo_root, target, score)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / target).read_text())["result"]
     assert set(result["sets"]) == {"development", "sealed"}
@@ -169,3 +171,18 @@ def test_gap_lab_workflow_tiny(tmp_path, repo_root):
         pushlog = read_pushlog(folder / f"{name}.csv")
         probes = read_probes(folder / f"{name}.probes.csv", objects=pushlog.objects, log_path=pushlog.path)
         assert probes.free_stroke_speed.size and probes.friction.size and probes.n_added
+    # the development set's score: both variants over its logs, and a report
+    scored = json.loads((tmp_path / score).read_text())["result"]
+    dev_labels = json.loads((tmp_path / "results/gap/lab/development/labels.json").read_text())
+    assert scored["n_logs"] == len(dev_labels) == 2
+    for variant in ("probes", "no_probes"):
+        assert scored[variant]["all"]["n_logs"] == 2
+        assert {c["case"] for c in scored[variant]["all"]["cases"]} == set(dev_labels)
+    # a log with probes says in its report whether they entered its fits
+    for name, lab in dev_labels.items():
+        for variant in ("probes", "no_probes"):
+            report = (tmp_path / f"results/gap/lab/development/reports_{variant}/{name}/report.md").read_text()
+            if lab["probes"]:
+                said = "entered every fit" if variant == "probes" else "no fit used them"
+                assert said in report
+    assert (tmp_path / "results/gap/lab/development/score.md").read_text().startswith("# Lab benchmark")

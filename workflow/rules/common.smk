@@ -164,6 +164,11 @@ def gap_effects_option():
     return "--effects " + ",".join(candidates) if candidates else ""
 
 
+def gap_lab_diagnose_options(wildcards):
+    """The diagnosis options (config gap.diagnose), with the logs' probes used or not as the variant says."""
+    return as_json({**config["gap"]["diagnose"], "use_probes": wildcards.variant == "probes"})
+
+
 def gap_lab_set_json(wildcards):
     """The lab benchmark's config as one set's rule needs it (the other set's seed and logs left out)."""
     return as_json(LabBenchmarkConfig.set_subset(config["gap"]["lab_benchmark"], wildcards.set))
@@ -225,6 +230,7 @@ def final_outputs():
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
         out += ["results/gap/lab/separability.json", "results/gap/lab/separability.md"]
+        out += ["results/gap/lab/development/score.json", "results/gap/lab/development/score.md"]
     if "evaluate" in stages:
         out += [f"results/evaluate/standins/{name}" for name in EVALUATE_REPORT_FILES]
     if "pixel" in stages:

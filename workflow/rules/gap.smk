@@ -307,3 +307,67 @@ rule gap_lab_separability:
         "imply gap separability --lab-json {params.lab} --labels development={input.development}"
         " sealed={input.sealed} --timing development={input.development_timing} sealed={input.sealed_timing}"
         " -o {output.result} --markdown {output.markdown} > {log} 2>&1"
+
+
+# One lab set diagnosed with its calibration probes and without them (the logs without probes read alike either
+# way), then scored against its labels. The development set is the one to choose on; the sealed set is scored once
+# per design.
+rule gap_lab_diagnose:
+    conda:
+        IMPLY_ENV
+    input:
+        logs="results/gap/lab/{set}/logs",
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/lab/{set}/reports_{variant}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=gap_lab_diagnose_options,
+        effects=gap_effects_option(),
+    wildcard_constraints:
+        set="development|sealed",
+        variant="probes|no_probes",
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=30,
+    log:
+        "results/logs/gap_lab_diagnose_{set}_{variant}.log",
+    benchmark:
+        "results/benchmarks/gap_lab_diagnose/{set}_{variant}.tsv"
+    shell:
+        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
+
+
+rule gap_lab_score:
+    conda:
+        IMPLY_ENV
+    input:
+        labels="results/gap/lab/{set}/labels.json",
+        probes="results/gap/lab/{set}/reports_probes",
+        no_probes="results/gap/lab/{set}/reports_no_probes",
+    output:
+        result="results/gap/lab/{set}/score.json",
+        markdown=report(
+            "results/gap/lab/{set}/score.md",
+            caption="../report/gap_benchmark.rst",
+            category="Gap diagnostic benchmark",
+            subcategory="Lab benchmark",
+        ),
+    params:
+        lab=as_json(config["gap"]["lab_benchmark"]),
+    wildcard_constraints:
+        set="development|sealed",
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/gap_lab_score_{set}.log",
+    benchmark:
+        "results/benchmarks/gap_lab_score/{set}.tsv"
+    shell:
+        "imply gap lab-score --lab-json {params.lab} --set {wildcards.set} --labels {input.labels}"
+        " --reports-probes {input.probes} --reports-no-probes {input.no_probes}"
+        " -o {output.result} --markdown {output.markdown} > {log} 2>&1"

@@ -1,10 +1,10 @@
-"""``imply gap tables|generate|lab-generate|diagnose-many|closed-loop|separability|benchmark``: the benchmarks.
+"""``imply gap tables|generate|lab-generate|diagnose-many|closed-loop|separability|lab-score|benchmark``: the benchmarks.
 
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
 sealed in a separate file, ``lab-generate`` writes one set of the lab benchmark's logs (pushes with
-calibration probes, on several engines) and ``separability`` marks its effect logs separable or not from
-their contact, ``diagnose-many`` runs ``imply diagnose`` on many logs in
+calibration probes, on several engines), ``separability`` marks its effect logs separable or not from
+their contact and ``lab-score`` scores one set's diagnoses with and without its probes, ``diagnose-many`` runs ``imply diagnose`` on many logs in
 one process, ``closed-loop`` runs the recommended next pushes of the logs with several
 explanations in contention in their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
 document the gap stage's numbers are read from) and writes the benchmark's report.
@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     dm.add_argument(
         "pushlogs",
         nargs="+",
-        help="the push logs to diagnose (each with its .track.csv and .probes.csv where beside it)",
+        help="the push logs to diagnose (each with its .track.csv and .probes.csv where beside it), or folders of "
+        "them (every .csv or .parquet in it but the tracks and probes)",
     )
     dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
     add_diagnose_options(dm)
@@ -142,6 +143,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     sep.add_argument("--markdown", required=True, help="the report (Markdown)")
     sep.set_defaults(func=cmd_separability)
 
+    ls = gsub.add_parser(
+        "lab-score",
+        help="score one lab-benchmark set's diagnoses, with and without its probes (a result document and a report)",
+    )
+    ls.add_argument("--lab-json", type=json_arg, required=True, help="config gap.lab_benchmark (its targets)")
+    ls.add_argument("--set", required=True, choices=("development", "sealed"), help="which set")
+    ls.add_argument("--labels", required=True, help="the set's labels ('imply gap lab-generate')")
+    ls.add_argument("--reports-probes", required=True, help="the folder of its report folders, diagnosed with probes")
+    ls.add_argument("--reports-no-probes", required=True, help="the same diagnosed without them")
+    ls.add_argument("-o", "--output", required=True, help="the result document (JSON)")
+    ls.add_argument("--markdown", required=True, help="the report (Markdown)")
+    ls.set_defaults(func=cmd_lab_score)
+
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
     b.add_argument("--table", default=DEFAULT_TABLE, help="the push table (default results/table/table.npz)")
     b.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark (its targets)")
@@ -181,13 +195,28 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
 
     out = output_dir(args.output)
     stems: dict[str, str] = {}
-    for path in args.pushlogs:
+    pushlogs = [str(p) for path in args.pushlogs for p in logs_in(path)]
+    if not pushlogs:
+        raise UserError(f"no push logs in {', '.join(args.pushlogs)}")
+    for path in pushlogs:
         stem = Path(path).stem
         if stem in stems:
             raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
         stems[stem] = path
-    run(diagnose_request(args, [(path, out / Path(path).stem) for path in args.pushlogs]))
+    run(diagnose_request(args, [(path, out / Path(path).stem) for path in pushlogs]))
     return 0
+
+
+def logs_in(path: str) -> list[Path]:
+    """A push log path as given, or a folder's push logs (sorted; its tracks and probes left to their logs)."""
+    p = Path(path)
+    if not p.is_dir():
+        return [p]
+    return sorted(
+        f
+        for f in p.iterdir()
+        if f.suffix in (".csv", ".parquet") and not f.stem.endswith((".track", ".probes")) and f.is_file()
+    )
 
 
 def cmd_closed_loop(args: argparse.Namespace) -> int:
@@ -351,6 +380,35 @@ def cmd_separability(args: argparse.Namespace) -> int:
             )
     write_result(args.output, mark_logs, result)
     write_separability(result, args.markdown)
+    return 0
+
+
+def cmd_lab_score(args: argparse.Namespace) -> int:
+    from imply.paper.results import write_result
+    from imply.realworld.benchmark import find_summaries
+    from imply.realworld.lab_score import score_lab, write_lab_score
+
+    design = _lab_config(args)
+    with user_errors(FileNotFoundError, message="--labels: {error}"):
+        with open(args.labels) as fh:
+            labels = json.load(fh)
+    summaries = {}
+    for variant, folder in (("no_probes", args.reports_no_probes), ("probes", args.reports_probes)):
+        with user_errors(FileNotFoundError, message=f"--reports-{variant.replace('_', '-')}: {{error}}"):
+            summaries[variant] = find_summaries(labels, [Path(folder)])
+    result = score_lab(labels, summaries, targets=design.targets, min_size_sd=design.min_size_sd)
+    for variant in summaries:
+        r = result[variant]["all"]
+        log.info(
+            "%s set, %s: nulls stating no effect %.2f, one cause right %.2f, contact named %.2f",
+            args.set,
+            variant,
+            r["null_no_library"],
+            r["single_right"],
+            r["contact_named"],
+        )
+    write_result(args.output, score_lab, result)
+    write_lab_score(result, args.set, args.markdown)
     return 0
 
 

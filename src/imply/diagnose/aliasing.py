@@ -251,10 +251,7 @@ def _restriction(c: Candidate, P: np.ndarray, problem: Problem, opts: Config) ->
     (pushes in four directions 90 degrees apart see only the cos 2(theta) part of an anisotropy)."""
     if c.dim != 2 or not c.is_library:
         return None
-    sd = np.broadcast_to(problem.sd_d, (problem.y.size,))
-    if problem.use_t:
-        sd = np.concatenate([sd, np.broadcast_to(problem.sd_t, (problem.t_row.size,))])
-    M = P * sd[: P.shape[0], None]  # back to log units
+    M = P * problem.row_sd[:, None]  # back to log units
     _, sv, vt = np.linalg.svd(M, full_matrices=False)
     # the RMS change along each right singular vector at the effect's largest magnitude
     at_bound = sv / np.sqrt(max(M.shape[0], 1)) * float(c.radius)

@@ -30,7 +30,7 @@ from functools import cached_property
 import numpy as np
 
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
-from imply.sim.effects import EFFECTS, Effect
+from imply.sim.effects import EFFECTS, TABLE_SOLREF, Effect
 from imply.sim.track import FRACTIONS
 
 SPEED_GAIN, SPEED_OFFSET, FRICTION2, TABLE, TILT = "speed_gain", "speed_offset", "friction2", "table", "tilt"
@@ -214,6 +214,26 @@ def _library() -> list[Candidate]:
             "a softer pusher",
             lambda m, az: f"the pusher's contact is softer (solref time constant +{m:.3g} s)",
         ),
+        _one(
+            "table_timeconst",
+            "the box-table contact's solref time constant (log of its factor on the table's)",
+            "log factor",
+            "a softer or stiffer table contact",
+            lambda m, az: (
+                f"the table contact is {'softer' if m > 0 else 'stiffer'}: solref time constant "
+                f"{TABLE_SOLREF[0]:.3g} -> {TABLE_SOLREF[0] * np.exp(m):.3g} s in the MJCF"
+            ),
+        ),
+        _one(
+            "table_dampratio",
+            "the box-table contact's solref damping ratio (log of its factor on the table's)",
+            "log factor",
+            "a differently damped table contact",
+            lambda m, az: (
+                f"the table contact is {'less' if m < 0 else 'more'} damped: solref damping ratio "
+                f"{TABLE_SOLREF[1]:.3g} -> {TABLE_SOLREF[1] * np.exp(m):.3g} in the MJCF"
+            ),
+        ),
         Candidate(
             "tilt",
             "table tilt: a slope toward an azimuth (along and across every push)",
@@ -277,6 +297,8 @@ def _library() -> list[Candidate]:
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in _library()}
+# the library's effects that are the box-table contact itself (an MJCF change, not a mechanism beside the contact)
+CONTACT = ("table_timeconst", "table_dampratio")
 ALIASES = {"tilt_x": "tilt", "tilt_y": "tilt"}
 
 

@@ -526,12 +526,38 @@ class Problem:
             parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus))
         return np.concatenate(parts, axis=1) if len(parts) > 1 else rd
 
+    def _aux_noise(self, name: str) -> float | None:
+        """The noise sd of observable ``name`` beside the displacement (None where the fit does not use it)."""
+        if name not in self.aux:
+            return None
+        return float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[self.aux.index(name)])
+
+    @cached_property
+    def probe_sd(self) -> np.ndarray:
+        """(q,) each probe row's sd, in the order of the probes' ``row_obj``: a friction reading's stated one, the
+        loaded pushes' observables' noise, the free strokes' (:meth:`ProbeRows.stroke_noise`)."""
+        pr = self.probes
+        parts = [pr.friction_sd, np.full(pr.n_added, self.noise_d)]
+        parts += [np.full(rows.size, self._aux_noise(name)) for name, rows in pr.aux_rows()]
+        parts.append(np.full(pr.stroke_speed.size, pr.stroke_noise(self._aux_noise("pusher_speed"))))
+        return np.concatenate(parts)
+
+    @cached_property
+    def row_sd(self) -> np.ndarray:
+        """(rows,) the sd that whitens each residual row of :meth:`residuals`: pushes, aux rows, probe rows."""
+        parts = [np.broadcast_to(self.sd_d, (self.y.size,))]
+        if self.use_t:
+            parts.append(np.broadcast_to(self.sd_t, (self.t_row.size,)))
+        if self.probes is not None:
+            parts.append(self.probe_sd)
+        return np.concatenate(parts)
+
     def probe_residuals(self, model: Model, thetas: np.ndarray, lms: np.ndarray, lus: np.ndarray) -> np.ndarray:
         """Whitened residuals (K, q) of the log's probes (:class:`imply.diagnose.probe_fit.ProbeRows`, in the order
         of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N)."""
         pr = self.probes
         k = lms.shape[0]
-        parts = [(lus[:, pr.friction_obj] - pr.log_friction) / pr.friction_sd]
+        parts = [lus[:, pr.friction_obj] - pr.log_friction]
         if pr.n_added:
             a = pr.n_added
             th = np.repeat(thetas, a, axis=0) if model.dim else np.zeros(0)
@@ -545,20 +571,14 @@ class Problem:
                 load=np.tile(pr.added_mass, k),
                 blocks=k,
             )
-            parts.append((pred.log_d.reshape(k, a) - pr.added_log_d) / self.noise_d)
+            parts.append(pred.log_d.reshape(k, a) - pr.added_log_d)
             for name, rows in pr.aux_rows():
-                col = self.aux.index(name)
-                sd = float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[col])
-                got = pred.log_t.reshape(k, a, len(self.aux))[:, rows, col]
-                parts.append((got - pr.added_aux[name][rows]) / sd)
+                got = pred.log_t.reshape(k, a, len(self.aux))[:, rows, self.aux.index(name)]
+                parts.append(got - pr.added_aux[name][rows])
         if pr.stroke_speed.size:
-            sd = None
-            if "pusher_speed" in self.aux:
-                col = self.aux.index("pusher_speed")
-                sd = float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[col])
             pred = pr.free_stroke_prediction(model, thetas if model.dim else np.zeros((k, 0)))
-            parts.append((pred - pr.log_stroke) / pr.stroke_noise(sd))
-        return np.concatenate(parts, axis=1)
+            parts.append(pred - pr.log_stroke)
+        return np.concatenate(parts, axis=1) / self.probe_sd
 
     def _eval_many(self, model: Model, thetas: list, lms: list, lus: list) -> list[np.ndarray]:
         th = np.stack([np.asarray(t, float) for t in thetas]) if model.dim else np.zeros((len(thetas), 0))

@@ -60,6 +60,18 @@ SETS = ("development", "sealed")
 JACOBIAN_STEP = 0.05  # log units: the per-object fit's directions, by finite differences in the nominal world
 # the runs of every log: its world, its world without the effect, the nominal world and its two derivatives
 RUNS = ("all", "contact", "table", "log_mass", "log_friction")
+LAB_TARGETS = (
+    "null_no_library",
+    "pusher_unmeasured",
+    "among_named",
+    "contenders_mean",
+    "magnitude_within",
+    "single_right",
+    "single_right_no_probes",
+    "wrong_single",
+    "contact_named",
+    "closed_loop",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,6 +129,27 @@ class LabBenchmarkConfig(ContactBenchmarkConfig):
         0.02,
         doc="sd of the log of a track's crossing times (the separability's weight of the track)",
         exclusive_minimum=0,
+    )
+    targets: dict[str, float] = option(
+        {
+            "null_no_library": 0.9,
+            "pusher_unmeasured": 0.05,
+            "among_named": 0.9,
+            "contenders_mean": 3.0,
+            "magnitude_within": 0.3,
+            "single_right": 0.7,
+            "single_right_no_probes": 0.4,
+            "wrong_single": 0.1,
+            "contact_named": 0.8,
+            "closed_loop": 0.6,
+        },
+        doc="fixed before any run: null logs stating no effect beyond the contact (share, at least); null logs "
+        "without the pusher's measured speed or free strokes stating a pusher cause (at most); one-effect logs naming "
+        "theirs (at least), with contenders_mean contenders on average (at most), and stating it as the one cause "
+        "within magnitude_within with probes (single_right) and without (single_right_no_probes) (at least); outside "
+        "logs stating a library mechanism as the one cause (at most); MuJoCo variants whose table contact is off "
+        "naming the contact (at least); after the next experiments, the one cause right (at least)",
+        keys=LAB_TARGETS,
     )
 
     def __post_init__(self) -> None:

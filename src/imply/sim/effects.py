@@ -8,7 +8,7 @@ enters in one of three ways:
 ``model``
     An edit of the push scene made with MuJoCo's own mechanisms on an
     :class:`mujoco.MjSpec` of :func:`imply.sim.scene.build_xml` (the friction triple with
-    ``condim`` 4/6, joint damping, the pusher's ``solref``, gravity, the fluid model,
+    ``condim`` 4/6, joint damping, the pusher's ``solref``, the box-table contact's ``solref``, gravity, the fluid model,
     the box's geometry): :func:`effect_spec`. The diagnostic tabulates these at the
     effect's ``levels`` on a coarse grid (:mod:`imply.diagnose.effect_tables`).
 ``speed``
@@ -41,6 +41,8 @@ import numpy as np
 from imply.sim.scene import SceneConfig, build_xml
 
 MODEL, SPEED, FRICTION = "model", "speed", "friction"
+# the scene's box-table contact: MuJoCo's default solref (time constant s, damping ratio), which the box's geom keeps
+TABLE_SOLREF = (0.02, 1.0)
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,21 @@ def _pusher_softness(spec: mujoco.MjSpec, x: float) -> None:
     p.solref = [ref[0] + x, ref[1]]
 
 
+def _table_timeconst(spec: mujoco.MjSpec, x: float) -> None:
+    # the box has the higher priority than the table, so its solref governs the box-table contact;
+    # x is the log of the factor on the time constant (positive: a softer, more compliant contact)
+    g = spec.geom("box")
+    ref = np.array(g.solref, float)
+    g.solref = [ref[0] * np.exp(x), ref[1]]
+
+
+def _table_dampratio(spec: mujoco.MjSpec, x: float) -> None:
+    # x is the log of the factor on the box-table contact's damping ratio (negative: a bouncier contact)
+    g = spec.geom("box")
+    ref = np.array(g.solref, float)
+    g.solref = [ref[0], ref[1] * np.exp(x)]
+
+
 def _slope(spec: mujoco.MjSpec, s: float) -> None:
     # a table sloping down by angle s along +x (the push axis): rotate gravity
     g = float(np.linalg.norm(np.array(spec.option.gravity, float)))
@@ -131,6 +148,8 @@ SPEC_EDITS: dict[str, Callable[[mujoco.MjSpec, float], None]] = {
     "rolling": _rolling,
     "viscous": _viscous,
     "pusher_softness": _pusher_softness,
+    "table_timeconst": _table_timeconst,
+    "table_dampratio": _table_dampratio,
     "slope": _slope,
     "air_drag": _air_drag,
     "height": _height,
@@ -147,6 +166,11 @@ EFFECTS: dict[str, Effect] = {
         Effect("rolling", MODEL, (0.0, 0.02), (0.004, 0.01, 0.02)),
         Effect("viscous", MODEL, (0.0, 1.0), (0.1, 0.25, 0.5, 1.0)),
         Effect("pusher_softness", MODEL, (0.0, 0.08), (0.01, 0.03, 0.08)),
+        # the box-table contact an engineer tunes in the MJCF: log factors on its solref (time constant, damping
+        # ratio); a factor of 5 each way on the time constant keeps it above twice the 1 ms slide step, and a damping
+        # ratio below 0.4 makes boxes bounce and fail the settling check
+        Effect("table_timeconst", MODEL, (-1.6, 1.6), (-1.6, -0.8, -0.3, 0.3, 0.8, 1.6)),
+        Effect("table_dampratio", MODEL, (-0.9, 0.5), (-0.9, -0.45, 0.5)),
         Effect("tilt_x", MODEL, (-0.03, 0.03), (-0.03, -0.015, -0.005, 0.005, 0.015, 0.03), table_param="slope"),
         Effect("tilt_y", MODEL, (-0.03, 0.03), (-0.03, -0.015, -0.005, 0.005, 0.015, 0.03), table_param="slope"),
         Effect("air_drag", MODEL, (0.0, 400.0), (50.0, 150.0, 400.0)),

@@ -1,0 +1,103 @@
+"""Scoring the diagnostic on the lab benchmark (:mod:`imply.realworld.lab`): each set diagnosed with and without its
+calibration probes, scored as the contact benchmark is (:func:`imply.realworld.benchmark.score_contact_cases`).
+
+Two readings beside every metric: over all of the set's logs (a log without probes is diagnosed alike either way),
+and over the logs that carry probes alone, where the two variants differ only by the probes. The development set is
+the one to choose on; the sealed set is scored once per design.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+from imply.diagnose.analysis import Summary
+from imply.io import write_text
+from imply.realworld.benchmark import score_contact_cases
+
+VARIANTS = ("no_probes", "probes")  # the diagnosis without, then with, the logs' probes
+# (key, words, target, whether the target is a floor); the targets are config gap.lab_benchmark.targets
+METRICS = (
+    ("null_no_library", "null logs stating no effect beyond the contact", "null_no_library", True),
+    ("null_pusher_stated", "null logs stating a pusher cause", "pusher_unmeasured", False),
+    ("among_named", "one big effect: among the named", "among_named", True),
+    ("contenders_mean", "one big effect: contenders (mean)", "contenders_mean", False),
+    ("single_right", "one big effect: the one cause, within tolerance", "single_right", True),
+    ("told_right", "one big effect: its own hypothesis within tolerance (told the cause)", None, True),
+    ("wrong_single", "outside effect: a library mechanism as the one cause", "wrong_single", False),
+    ("contact_named", "MuJoCo variants with a table contact off: the contact named", "contact_named", True),
+)
+ENGINES = ("mujoco", "bullet", "sapien")
+
+
+def score_lab(
+    labels: Mapping[str, dict],
+    summaries: Mapping[str, Mapping[str, Summary]],
+    *,
+    targets: Mapping[str, float],
+    min_size_sd: float,
+) -> dict:
+    """Each variant's scores (``summaries``: {variant: {log id: summary}}) over all logs and over the probe logs."""
+    with_probes = sorted(c for c, lab in labels.items() if lab.get("probes"))
+    out: dict = {"targets": dict(targets), "min_size_sd": min_size_sd, "n_logs": len(labels)}
+    out["n_probe_logs"] = len(with_probes)
+    for name, found in summaries.items():
+        out[name] = {
+            "all": score_contact_cases(dict(labels), dict(found), targets=targets, min_size_sd=min_size_sd),
+            "probe_logs": score_contact_cases(
+                {c: labels[c] for c in with_probes},
+                {c: found[c] for c in with_probes},
+                targets=targets,
+                min_size_sd=min_size_sd,
+            ),
+        }
+    return out
+
+
+def _cell(r: dict, key: str, engine: str | None) -> str:
+    k = key if engine is None else f"{key}_{engine}"
+    n = r.get(f"n_{k}")
+    x = r.get(k)
+    if x is None or x != x:
+        return "–"
+    if key == "contenders_mean":
+        return f"{x:.1f}"
+    return f"{x:.2f} ({round(x * n)}/{n})" if n is not None else f"{x:.2f}"
+
+
+def lab_score_markdown(result: Mapping, set_name: str) -> str:
+    """The lab benchmark's scores as a report: per metric, each variant over all logs and per engine."""
+    lines = [
+        f"# Lab benchmark: the {set_name} set diagnosed with and without its probes",
+        "",
+        f"{result['n_logs']} logs, {result['n_probe_logs']} of them with calibration probes. "
+        f"Effects count as big at {result['min_size_sd']:g} noise sds or more on top of their world's contact.",
+        "",
+    ]
+    for subset, words in (("all", "all logs"), ("probe_logs", "the logs with probes")):
+        lines += [
+            f"## Over {words}",
+            "",
+            "| metric | target | " + " | ".join(VARIANTS) + " | per engine, with probes |",
+        ]
+        lines.append("|---|---|" + "---|" * len(VARIANTS) + "---|")
+        for key, words_, target, floor in METRICS:
+            t = result["targets"].get(target) if target else None
+            tt = "–" if t is None else (f"≥ {t:g}" if floor else f"≤ {t:g}")
+            cells = [_cell(result[v][subset], key, None) for v in VARIANTS if v in result]
+            last = result.get("probes", result.get(VARIANTS[0]))[subset]
+            per = ", ".join(f"{e} {_cell(last, key, e)}" for e in ENGINES if last.get(f"n_{key}_{e}"))
+            lines.append(f"| {words_} | {tt} | " + " | ".join(cells) + f" | {per or '–'} |")
+        lines.append("")
+    lines += ["## Confusion, with probes (true effect and world against the verdict's causes)", ""]
+    conf = result.get("probes", result.get(VARIANTS[0]))["all"]["confusion"]
+    cols = sorted({c for row in conf.values() for c in row})
+    lines.append("| true | " + " | ".join(cols) + " |")
+    lines.append("|---|" + "---|" * len(cols))
+    for r, row in conf.items():
+        lines.append(f"| {r} | " + " | ".join(str(row.get(c, 0) or "") for c in cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_lab_score(result: Mapping, set_name: str, path: str | os.PathLike) -> None:
+    write_text(path, lab_score_markdown(result, set_name))
