@@ -145,3 +145,67 @@ def test_the_fit_reads_what_the_options_ask_by_default():
     from imply.diagnose.analysis import DiagnosisConfig
 
     assert DiagnosisConfig().observables() == Observables()
+
+
+# -- the launch left free -----------------------------------------------------------------------------------------
+
+
+def analytic_log_t(v, m, mu):
+    """A Coulomb slide's stop time in the closed-form world: T = v / (mu g), as a log."""
+    return np.log(v) - np.log(mu) - np.log(9.81)
+
+
+class StopTimeTables:
+    """Just enough of :class:`imply.diagnose.effect_tables.EffectTables` for the baseline's stop times."""
+
+    aux = ("stop_time",)
+
+    def aux_index(self, name):
+        return 0
+
+    def aux_log(self, v, m, mu):
+        return analytic_log_t(np.asarray(v), np.asarray(m), np.asarray(mu))[:, None]
+
+    def aux_interpolation_indicator(self, v, m, mu):
+        return np.zeros((np.asarray(v).size, 1))
+
+
+def launched_log(launch_sd: float, seed: int = 3):
+    """A closed-form log with stop times whose every push leaves the pusher at its own speed (the contact's doing)."""
+    log = make_log(seed=seed, sd=0.0, replicates=1)
+    rng = np.random.default_rng(seed)
+    mass = np.geomspace(0.3, 1.5, 6)
+    friction = np.random.default_rng(seed).permutation(np.geomspace(0.15, 0.45, 6))
+    v = log.speed * np.exp(rng.normal(0, launch_sd, log.n))
+    m, mu = mass[log.obj], friction[log.obj]
+    noise = rng.normal(0, 0.01, (2, log.n))
+    d = np.exp(analytic_log_d(v, m, mu) + noise[0])
+    t = np.exp(analytic_log_t(v, m, mu) + noise[1])
+    return replace(log, displacement=d, stop_time=t)
+
+
+def test_a_free_launch_leaves_the_slide_to_read(analytic_table):
+    """Launches scattered by 10% are a large misfit under the table's launch, and leave only the noise once each
+    push's launch is profiled out: the displacement against the stop time still sits on the table's slide."""
+    log = launched_log(0.1)
+    prob = Problem.of(log, analytic_table, StopTimeTables(), grid=OPTS.grid).with_noise(0.01, 0.01)
+    assert prob.aux == ("stop_time",)
+    held = prob.fit(Model(), np.zeros(0), prob.initial_fit())
+    freed = prob.with_free_launch(held.objects)
+    fit = freed.fit(Model(), np.zeros(0), held.objects)
+    rows = 2 * log.n
+    assert held.sse / rows > 10  # the launches, read as misfit
+    assert fit.sse / (rows - freed.n_nuisance - 2 * 6) < 2.0  # what is left is the noise
+    # the raw residuals the reports read agree with what the fit sums
+    rd, rt = freed.row_residuals(
+        freed.predict(Model(), np.zeros(0), fit.objects.lm[freed.c_obj], fit.objects.lu[freed.c_obj])
+    )
+    np.testing.assert_allclose(np.sum((rd / 0.01) ** 2) + np.sum((rt / 0.01) ** 2), fit.sse, rtol=1e-6)
+    # a friction off by 20% is not a launch: the slide shows it
+    off = freed.residuals(Model(), np.zeros((1, 0)), fit.objects.lm[None, :], fit.objects.lu[None, :] + np.log(1.2))
+    assert np.sum(off**2) > 5 * fit.sse
+
+
+def test_without_stop_times_nothing_is_freed(analytic_table):
+    prob = Problem.of(make_log(seed=1), analytic_table, None, grid=OPTS.grid)
+    assert prob.with_free_launch(prob.initial_fit()) is prob

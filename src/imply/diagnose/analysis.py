@@ -119,6 +119,12 @@ class DiagnosisConfig(Config):
         False,
         doc="use the box's track (the times it covers fractions of its travel) where the log has one",
     )
+    free_launch: bool = option(
+        False,
+        doc="leave each push's launch free (a speed of its own per object, speed and direction, profiled out of every "
+        "fit), so that only the slide (the displacement against the stop time and the track) reads the effects; "
+        "needs an observable beside the displacement",
+    )
     use_probes: bool = option(
         True,
         doc="fit the calibration probes beside the log (<stem>.probes.csv) where it has them: free strokes, "
@@ -270,6 +276,8 @@ def _observables(problem: Problem) -> tuple[list[str], str]:
         note = "displacement only"
     if unused:
         note += " (the log's " + " and ".join(OBSERVABLE_WORDS[a] for a in unused) + " not used)"
+    if problem.launch is not None:
+        note += "; each push's launch was left free, so that only the slide read the effects"
     probes = problem.log.probes
     if probes is not None:
         c = probes.counts()
@@ -315,6 +323,9 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     t0 = time.perf_counter()
     noise = estimate_noise(problem, opts)  # 1. noise and outliers, then the baseline under them
     problem, base = baseline_fit(noise.apply(problem), opts)
+    if opts.free_launch and problem.use_t:
+        problem = problem.with_free_launch(base.objects)
+        base = problem.fit(Model(), np.zeros(0), base.objects)
     resid_d, resid_t = baseline_residuals(problem, base)
     where = localise(problem, base.objects, resid_d, alpha=opts.alpha)  # 2. where
     pool = list(candidates)

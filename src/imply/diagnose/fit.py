@@ -203,6 +203,9 @@ class Problem:
     w_t: np.ndarray | None = None  # per aux row (None: ones where aux observables are used)
     observables: Observables = Observables()  # what the fit was asked to read
     probes: ProbeRows | None = None  # the log's calibration probes as fit rows, where it has them and they are used
+    # (C, 1 + K) each condition's prediction (log d, then the aux observables) per unit log speed: the direction its
+    # launch is free to move it (None: the launch is the table's); see with_free_launch
+    launch: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         # defaults that depend on the log's length
@@ -489,10 +492,69 @@ class Problem:
         return out
 
     def row_residuals(self, pred: Prediction) -> tuple[np.ndarray, np.ndarray | None]:
-        """Raw (unwhitened, unweighted) residuals, observed minus predicted: per push (log d) and per aux row."""
+        """Raw (unwhitened, unweighted) residuals, observed minus predicted: per push (log d) and per aux row; with
+        the launch freed, what is left once each condition's launch is profiled out (on the rows that count)."""
         rd = self.y - pred.log_d[self.cond]
         rt = self.y_t - pred.log_t[self.t_cond, self.t_kind] if self.use_t else None
-        return rd, rt
+        if self.launch is None:
+            return rd, rt
+        n = self.y.size
+        sd = self.row_sd[: n + (self.t_row.size if self.use_t else 0)]
+        raw = np.concatenate([rd, rt]) if self.use_t else rd
+        freed = self._free_launch(raw[None, :] / sd, weighted=False)[0] * sd
+        return (freed[:n], freed[n:]) if self.use_t else (freed, None)
+
+    def with_free_launch(self, objects: ObjectFit) -> Problem:
+        """The launch freed: each condition (an object at a speed and direction) may leave the pusher at a speed of
+        its own, a nuisance every fit profiles out, so that only what the slide shows (the displacement against the
+        stop time, and the track) reads the effects. The contact decides the launch, the slide's physics decides
+        the rest. Linearised once, at ``objects`` under the table alone: the direction along which a condition's
+        predictions move with the log of the speed the box is launched at. Without an observable beside the
+        displacement nothing would be left, and the problem is returned as it is."""
+        if not self.use_t:
+            return self
+        h = 0.01
+        lm, lu = objects.lm[self.c_obj], objects.lu[self.c_obj]
+        up = self.predict_at(Model(), np.zeros(0), self.c_v * np.exp(h), self.c_phi, lm, lu)
+        down = self.predict_at(Model(), np.zeros(0), self.c_v * np.exp(-h), self.c_phi, lm, lu)
+        jd = (up.log_d - down.log_d) / (2 * h)
+        jt = (up.log_t - down.log_t) / (2 * h)
+        return replace(self, launch=np.column_stack([jd, jt]))
+
+    @cached_property
+    def _launch_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(m,) the condition of each push and aux row, and (m,) its whitened launch direction (unweighted)."""
+        cond, j = [self.cond], [self.launch[self.cond, 0] / self.sd_d]
+        if self.use_t:
+            cond.append(self.t_cond)
+            j.append(self.launch[self.t_cond, 1 + self.t_kind] / self.sd_t)
+        return np.concatenate(cond), np.concatenate(j)
+
+    @cached_property
+    def _row_weights(self) -> np.ndarray:
+        """(m,) each push and aux row's weight."""
+        return np.concatenate([self.w_d, self.w_t]) if self.use_t else self.w_d
+
+    def _free_launch(self, r: np.ndarray, *, weighted: bool = True) -> np.ndarray:
+        """Whitened residuals (K, m) of the pushes and aux rows with each condition's launch profiled out: the part
+        along the condition's launch direction, fitted on the rows that count, taken away. ``weighted``: the rows
+        are already weighted (as :meth:`residuals` gives them); else they are not, and a row left out keeps its
+        residual less the launch its condition's other rows fit."""
+        cond, j = self._launch_rows
+        w = self._row_weights
+        jw = j * w
+        rw = r if weighted else r * w
+        k, c = r.shape[0], self.n_cond
+        idx = (np.arange(k)[:, None] * c + cond[None, :]).ravel()
+        num = np.bincount(idx, (rw * jw).ravel(), minlength=k * c).reshape(k, c)
+        den = np.bincount(cond, jw * jw, minlength=c)
+        lam = np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+        return r - lam[:, cond] * (jw if weighted else j)
+
+    @property
+    def n_nuisance(self) -> int:
+        """Parameters every fit profiles out beside the objects' own: one launch per condition where freed."""
+        return self.n_cond if self.launch is not None else 0
 
     def _row_obj(self) -> np.ndarray:
         """(rows,) the object of each residual row: pushes, their aux rows, then the probes' rows."""
@@ -522,9 +584,11 @@ class Problem:
         parts = [rd]
         if self.use_t:
             parts.append(self.w_t * (pt[:, self.t_cond, self.t_kind] - self.y_t) / self.sd_t)
+        if self.launch is not None:
+            parts = [self._free_launch(np.concatenate(parts, axis=1))]
         if self.probes is not None:
             parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus))
-        return np.concatenate(parts, axis=1) if len(parts) > 1 else rd
+        return np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
 
     def _aux_noise(self, name: str) -> float | None:
         """The noise sd of observable ``name`` beside the displacement (None where the fit does not use it)."""

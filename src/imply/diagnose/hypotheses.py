@@ -99,13 +99,16 @@ def log_prior_volume(c: Candidate) -> float:
 
 
 def rows_fitted(problem: Problem) -> int:
-    """Whitened rows in every fit: displacements, and stop times where used (outliers left out)."""
-    return int((problem.w_d > 0).sum()) + (int((problem.w_t > 0).sum()) if problem.use_t else 0)
+    """Whitened rows in every fit: displacements, the observables beside them where used (outliers left out), and
+    the probes' rows."""
+    rows = int((problem.w_d > 0).sum()) + (int((problem.w_t > 0).sum()) if problem.use_t else 0)
+    return rows + (problem.probe_sd.size if problem.probes is not None else 0)
 
 
 def dof(problem: Problem, fit: JointFit) -> int:
-    """Degrees of freedom left by ``fit``: rows less the objects' free parameters and the model's."""
-    return max(rows_fitted(problem) - problem.k_free * problem.n_obj - fit.model.dim, 1)
+    """Degrees of freedom left by ``fit``: rows less the objects' free parameters, the launches where freed, and the
+    model's."""
+    return max(rows_fitted(problem) - problem.k_free * problem.n_obj - problem.n_nuisance - fit.model.dim, 1)
 
 
 def posterior_precision(fit: JointFit, dispersion: float) -> np.ndarray:

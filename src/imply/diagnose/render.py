@@ -58,6 +58,8 @@ SEPARATE_BY = {
     "viscous": "record the box's track over time (viscous drag slows it in proportion to its speed)",
     "air_drag": "record the box's track over time (drag grows with the square of its speed)",
     "pusher_softness": "record the pusher's contact force or the box's speed during the stroke",
+    "table_timeconst": "record the box's track over time (the table's contact shapes the launch, not the slide)",
+    "table_dampratio": "record the box's track over time (the table's contact shapes the launch, not the slide)",
     "tilt": "push in more directions",
     "anisotropic": "push in more directions",
     "torsional": "record the box's rotation",
