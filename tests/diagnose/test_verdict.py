@@ -279,3 +279,41 @@ def test_the_renderer_never_parses_text():
     assert not calls & parsing
     imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     assert "re" not in imported
+
+
+def test_the_contact_is_kept_apart_from_the_effects():
+    """An effect with and without a change of the table's contact is one explanation; the change is stated beside
+    the effect where hypotheses of half the weight hold it, as the MJCF edit that closes the gap."""
+    table = [
+        _h(["table_timeconst", "viscous"], 0.5),
+        _h(["viscous"], 0.2, disc=True),
+        _h(["table_timeconst"], 0.2, disc=True),
+        _h(["speed_gain"], 0.1),
+    ]
+    groups = explanations(table)
+    assert [g.effects for g in groups] == [["viscous"], [], ["speed_gain"]]
+    assert groups[0].weight == pytest.approx(0.7) and groups[0].contact == ["table_timeconst"]
+    assert groups[0].contact_weight == pytest.approx(0.7) and groups[2].contact_weight == 0.0
+    v = judge(table, share=0.9, min_share=0.8, contender_ratio=0.5)
+    # viscous stands on its own (the other contenders are the contact alone): one cause, the contact's change beside it
+    assert v.identification == Identification.ONE_CAUSE and v.effects == ["viscous", "table_timeconst"]
+    assert "table_timeconst" in v.named
+    # the contact alone leads: no library cause, and its change stated
+    alone = judge(
+        [_h(["table_timeconst"], 0.8), _h([], 0.15, disc=True), _h(["viscous"], 0.05)],
+        share=0.9,
+        min_share=0.8,
+        contender_ratio=0.05,
+    )
+    assert alone.identification == Identification.NO_LIBRARY_CAUSE and alone.effects == ["table_timeconst"]
+    # a change held by less than half the weight is not stated
+    split = judge(
+        [_h(["table_timeconst"], 0.4), _h([], 0.6, disc=True)], share=0.9, min_share=0.8, contender_ratio=0.05
+    )
+    assert split.identification == Identification.NO_LIBRARY_CAUSE and split.effects == []
+
+
+def test_the_contact_change_is_said_as_an_mjcf_edit():
+    assert clauses([_estimate("table_timeconst", 1.0986)]) == [
+        "the table contact is softer: solref time constant 0.02 -> 0.06 s in the MJCF"
+    ]

@@ -155,7 +155,9 @@ def _estimates(summary: Summary, label: str) -> list[EffectEstimate]:
 
 def contender_words(summary: Summary, c: Contender) -> str:
     """One contender in words, with its magnitudes and weight."""
-    if not c.effects:
+    if not c.effects and c.contact:
+        what = "; ".join(clauses(_estimates(summary, c.label)))
+    elif not c.effects:
         what = "a smooth discrepancy alone (no library effect)" if c.discrepancy_weight > 0 else "no effect at all"
     else:
         what = "; ".join(clauses(_estimates(summary, c.label)))

@@ -28,8 +28,14 @@ for more than the library holds). The identification is
   weight (the next pushes, :mod:`imply.diagnose.next_pushes`, are designed to separate
   them). The core is stated where the gap is explained.
 
-An effect of a contender that is not stated is *not separable* from the discrepancy where
-another contender holds the discrepancy without it, and *not ruled out* otherwise.
+The box-table contact is kept apart from the effects: a hypothesis's *contact* is the
+discrepancy or a change of the contact's MJCF parameters (the library's ``CONTACT``
+effects), and explanations are grouped by their effects beyond it, so that an effect
+with or without a change of the contact is one explanation. A change of the contact is
+stated beside the causes where the leading hypothesis holds it and hypotheses of at least
+half the weight do. An effect of a contender that is not stated is *not separable* from the
+contact where another contender describes the contact without it, and *not ruled out*
+otherwise.
 
 Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` and
 ``contender_ratio``. The verdict is data; :mod:`imply.diagnose.render` says it in words.
@@ -37,9 +43,10 @@ Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 
+from imply.diagnose.candidates import CONTACT
 from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
 from imply.diagnose.records import Record
 
@@ -67,11 +74,15 @@ class Identification(StrEnum):
 class Contender(Record):
     """An explanation still in contention: its library effects and their weight."""
 
-    effects: list[str]  # library effects (none: a smooth discrepancy, or nothing)
-    weight: float  # summed weight of its hypotheses (with and without the discrepancy)
+    effects: list[str]  # library effects beyond the contact (none: the contact alone, or nothing)
+    weight: float  # summed weight of its hypotheses (with and without the discrepancy or a change of the contact)
     discrepancy_weight: float  # the part of it from hypotheses that hold the discrepancy
     label: str  # its hypothesis of largest weight
     at_bound: list[str]  # effects of that hypothesis at the bound of their library range
+    contact_weight: float = (
+        0.0  # the part from hypotheses that describe the contact (the discrepancy or a CONTACT effect)
+    )
+    contact: list[str] = field(default_factory=list)  # the CONTACT effects of its hypothesis of largest weight
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,7 +91,7 @@ class Verdict(Record):
 
     adequacy: Adequacy
     identification: Identification
-    effects: list[str]  # library effects stated as causes
+    effects: list[str]  # library effects stated as causes (beyond the contact, then the contact's change)
     contenders: list[Contender]  # best first
     core: int  # the index in contenders of the one whose effects every contender holds (-1: none is)
     not_separable: list[str]  # effects of contenders that a contender with the discrepancy explains without them
@@ -99,29 +110,51 @@ class Verdict(Record):
         """Every library effect the verdict names: the causes, then the contenders' other effects (best first)."""
         out = list(self.effects)
         for c in self.contenders:
-            out += [e for e in c.effects if e not in out]
+            out += [e for e in c.effects + c.contact if e not in out]
         return out
 
 
+def beyond_contact(effects: list[str]) -> list[str]:
+    """The effects that are not the box-table contact itself (:data:`imply.diagnose.candidates.CONTACT`)."""
+    return [e for e in effects if e not in CONTACT]
+
+
+def describes_contact(h: Hypothesis) -> bool:
+    """Whether a hypothesis describes a contact that differs from the table's (the discrepancy, or a CONTACT effect)."""
+    return h.discrepancy or any(e in CONTACT for e in h.effects)
+
+
 def explanations(table: list[Hypothesis]) -> list[Contender]:
-    """The hypotheses grouped by their library effects, heaviest first."""
+    """The hypotheses grouped by their library effects beyond the contact, heaviest first: whether the contact is
+    described by the discrepancy, by a change of its MJCF parameters or not at all, one explanation."""
     groups: dict[tuple[str, ...], list[Hypothesis]] = {}
     for h in table:
-        groups.setdefault(tuple(sorted(h.effects)), []).append(h)
+        groups.setdefault(tuple(sorted(beyond_contact(h.effects))), []).append(h)
     out = []
-    for hs in groups.values():
+    for key, hs in groups.items():
         lead = max(hs, key=lambda h: h.weight)
         out.append(
             Contender(
-                effects=list(lead.effects),
+                effects=[e for e in lead.effects if e in key],
                 weight=float(sum(h.weight for h in hs)),
                 discrepancy_weight=float(sum(h.weight for h in hs if h.discrepancy)),
                 label=lead.label,
                 at_bound=list(lead.at_bound),
+                contact_weight=float(sum(h.weight for h in hs if describes_contact(h))),
+                contact=[e for e in lead.effects if e in CONTACT],
             )
         )
     out.sort(key=lambda c: (-c.weight, c.label))
     return out
+
+
+def contact_change(table: list[Hypothesis], leading: Hypothesis) -> list[str]:
+    """The changes of the contact's MJCF parameters (CONTACT effects) the weighed hypotheses agree on: held by the
+    leading hypothesis and by hypotheses of at least half the total weight."""
+    total = sum(h.weight for h in table) or 1.0
+    return [
+        e for e in leading.effects if e in CONTACT and sum(h.weight for h in table if e in h.effects) >= 0.5 * total
+    ]
 
 
 def adequacy(share: float | None, *, no_gap: bool, min_share: float) -> Adequacy:
@@ -151,7 +184,7 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
     stands = next((c for c in contenders if set(c.effects) == core), None)
     if share_adequacy == Adequacy.NO_GAP:  # the baseline leads, or nothing is left above the noise floor to close
         ident = Identification.NOTHING_TO_IDENTIFY
-    elif stands is None or (not core and (stands is not contenders[0] or stands.discrepancy_weight == 0)):
+    elif stands is None or (not core and (stands is not contenders[0] or stands.contact_weight == 0)):
         ident = Identification.UNDECIDED
     elif core and (not explained or core & set(bound)):
         ident = Identification.OUTSIDE_LIBRARY
@@ -160,9 +193,10 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
     else:
         ident = Identification.NO_LIBRARY_CAUSE
     causes = [e for e in contenders[0].effects if e in core and e not in bound]
+    causes += [e for e in contact_change(table, leading) if e not in bound]
     if not explained or ident == Identification.OUTSIDE_LIBRARY:  # no cause is stated for a gap left open
         causes = []
-    with_disc = [set(c.effects) for c in contenders if c.discrepancy_weight > 0]
+    with_disc = [set(c.effects) for c in contenders if c.contact_weight > 0]
     not_separable, open_ = [], []
     for c in contenders:
         for e in c.effects:
