@@ -197,6 +197,7 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
             "report.md",
             "residuals.csv",
             "next_pushes.csv",
+            "next_probes.csv",
             "residuals_vs_speed.png",
             "before_after.png",
             "ranking.png",

@@ -209,3 +209,33 @@ def test_a_free_launch_leaves_the_slide_to_read(analytic_table):
 def test_without_stop_times_nothing_is_freed(analytic_table):
     prob = Problem.of(make_log(seed=1), analytic_table, None, grid=OPTS.grid)
     assert prob.with_free_launch(prob.initial_fit()) is prob
+
+
+# -- the next experiment may be a probe ------------------------------------------------------------------------
+
+
+def test_a_free_stroke_is_recommended_where_it_separates_a_speed_gain_best(analytic_table):
+    from imply.diagnose.next_probes import next_probes_frame, recommend_probe
+
+    log = make_log(seed=6, gain=0.06, sd=0.02)
+    table = replace(analytic_table, meta={"scene": SCENE})
+    prob = Problem.of(log, table, None, grid=OPTS.grid).with_noise(0.02, None)
+    start = prob.initial_fit()
+    gain = prob.fit(Model((candidates.CANDIDATES["speed_gain"],)), np.array([0.05]), start)
+    none = prob.fit(Model(), np.zeros(0), start)
+    contenders = [("speed_gain", gain, 0.5), ("none", none, 0.5)]
+    speeds = np.array([0.3, 0.6, 0.9])
+    probe = recommend_probe(prob, contenders, speeds=speeds, best_push_sd=0.5)
+    # with masses weighed, the friction absorbs the gain in the pushes; a free stroke reads it directly
+    # (slowest: the servo's lag dilutes a gain least there)
+    assert probe is not None and probe.probe == "free_stroke" and probe.speed == 0.3
+    servo = Servo.of_scene(SCENE)
+    assert probe.expected["none"] == pytest.approx(servo.mean_speed(np.array([0.3]))[0])
+    assert probe.expected["speed_gain"] > probe.expected["none"] * 1.03
+    assert probe.separation_sd > 0.5
+    row = next_probes_frame(probe)
+    assert list(row.columns[:4]) == ["probe", "object_id", "speed", "added_mass"]
+    assert row["expected_pusher_speed_if_none"].iloc[0] == pytest.approx(probe.expected["none"])
+    # a push that separates them better leaves the probe out
+    assert recommend_probe(prob, contenders, speeds=speeds, best_push_sd=100.0) is None
+    assert next_probes_frame(None).empty

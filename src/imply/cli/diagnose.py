@@ -28,7 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "<log>.track.csv beside it) and the calibration probes in a third (<log>.probes.csv beside it). "
             "Writes into the report folder (new or empty; with --force, one holding an earlier report, whose files "
             "alone are replaced): report.md (the verdict first), summary.json (every number), residuals.csv, "
-            "next_pushes.csv (the pushes that would best tell the leading explanations apart), and the figures "
+            "next_pushes.csv (the pushes that would best tell the leading explanations apart), next_probes.csv "
+            "(the calibration probe that would tell them apart better than any push, where one would), and the figures "
             "residuals_vs_speed.png, before_after.png, ranking.png and hypotheses.png."
         ),
     )

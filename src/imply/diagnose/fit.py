@@ -590,7 +590,7 @@ class Problem:
             parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus))
         return np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
 
-    def _aux_noise(self, name: str) -> float | None:
+    def aux_noise(self, name: str) -> float | None:
         """The noise sd of observable ``name`` beside the displacement (None where the fit does not use it)."""
         if name not in self.aux:
             return None
@@ -602,8 +602,8 @@ class Problem:
         loaded pushes' observables' noise, the free strokes' (:meth:`ProbeRows.stroke_noise`)."""
         pr = self.probes
         parts = [pr.friction_sd, np.full(pr.n_added, self.noise_d)]
-        parts += [np.full(rows.size, self._aux_noise(name)) for name, rows in pr.aux_rows()]
-        parts.append(np.full(pr.stroke_speed.size, pr.stroke_noise(self._aux_noise("pusher_speed"))))
+        parts += [np.full(rows.size, self.aux_noise(name)) for name, rows in pr.aux_rows()]
+        parts.append(np.full(pr.stroke_speed.size, pr.stroke_noise(self.aux_noise("pusher_speed"))))
         return np.concatenate(parts)
 
     @cached_property

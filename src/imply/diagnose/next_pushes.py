@@ -43,9 +43,10 @@ import pandas as pd
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.model_error import numerical_floors
+from imply.diagnose.next_probes import NextProbe, recommend_probe
 from imply.diagnose.observables import Observables
 from imply.diagnose.pushlog import SIZE_COLUMNS, TRACK_OBSERVABLES, PushLog
-from imply.diagnose.records import Record
+from imply.diagnose.records import Record, json_field
 from imply.io import write_csv
 from imply.options import Config
 
@@ -76,6 +77,8 @@ class PushDesign(Record):
     measure: dict[str, dict[str, float]] | None = None
     # per pair, per observable the log has: how far the log's own pushes set the pair apart (noise sds)
     by_observable: dict[str, dict[str, float]] | None = None
+    # the calibration probe that would separate the contenders more than any single push (None: none would)
+    probe: NextProbe | None = json_field(omit_none=True, default=None)
 
 
 # the noise sd (log units) assumed for an observable the log lacks, to say what measuring it would add
@@ -241,6 +244,8 @@ def design_pushes(
             )
         )
     total = sep[picks].sum(0)
+    best_push_sd = float(np.sqrt(sep.min(1).max())) if sep.size else 0.0
+    probe = recommend_probe(problem, contenders, speeds=np.unique(cand.v), best_push_sd=best_push_sd)
     return PushDesign(
         contenders=labels,
         pushes=pushes,
@@ -248,6 +253,7 @@ def design_pushes(
         log_design_separation_sd=log_sep,
         measure=_measure(problem, contenders, pairs, labels),
         by_observable=by_observable,
+        probe=probe,
     )
 
 

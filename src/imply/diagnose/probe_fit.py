@@ -171,11 +171,17 @@ class ProbeRows:
 
     def free_stroke_prediction(self, model: Model, thetas: np.ndarray) -> np.ndarray:
         """(K, s) the log mean speed of each free stroke under the model at each of K parameter settings."""
-        K, s = thetas.shape[0], self.stroke_speed.size
-        if s == 0:
-            return np.zeros((K, 0))
-        speed = np.broadcast_to(self.stroke_speed, (K, s))
-        if model.dim:
-            t = terms(model, np.repeat(thetas, s, axis=0), np.zeros(K * s))
-            speed = speed * (1.0 + t.gain.reshape(K, s)) + t.offset.reshape(K, s)
-        return np.log(self.servo.mean_speed(speed.ravel())).reshape(K, s)
+        return free_stroke_log_speed(self.servo, model, thetas, self.stroke_speed)
+
+
+def free_stroke_log_speed(servo: Servo, model: Model, thetas: np.ndarray, speeds: np.ndarray) -> np.ndarray:
+    """(K, s) the log of the pusher's mean speed over a free stroke commanded at ``speeds`` (s,) m/s, under ``model``
+    at K parameter settings ``thetas`` (K, p): the servo driven at the speed the model gives the pusher."""
+    K, s = thetas.shape[0], speeds.size
+    if s == 0:
+        return np.zeros((K, 0))
+    speed = np.broadcast_to(speeds, (K, s))
+    if model.dim:
+        t = terms(model, np.repeat(thetas, s, axis=0), np.zeros(K * s))
+        speed = speed * (1.0 + t.gain.reshape(K, s)) + t.offset.reshape(K, s)
+    return np.log(servo.mean_speed(speed.ravel())).reshape(K, s)

@@ -18,6 +18,7 @@ from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED
 from imply.diagnose.discrepancy import DiscrepancyReport
 from imply.diagnose.estimates import EffectEstimate
 from imply.diagnose.hypotheses import Hypothesis
+from imply.diagnose.next_probes import NextProbe, probe_words
 from imply.diagnose.next_pushes import PushDesign
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.shrinkage import Shrinkage
@@ -67,6 +68,15 @@ SEPARATE_BY = {
     "height": "measure the boxes' height",
     DISCREPANCY: "measure friction and the pusher's speed directly, and record stop times",
 }
+
+
+def probe_sentence(p: NextProbe) -> str:
+    """One line on the probe recommended beside the next pushes: which, and why."""
+    return (
+        f"A calibration probe would tell them apart better than any single push: {probe_words(p)} "
+        f"({p.separation_sd:.1f} noise sds between the closest two, against {p.best_push_sd:.1f} for the best push; "
+        "next_probes.csv gives what each would read)."
+    )
 
 
 def restricted_clause(effect: str, magnitude: float, axis_deg: float) -> str:
@@ -265,6 +275,8 @@ def verdict_text(summary: Summary) -> str:
             f"by {design.separation_sd[first]:.1f} noise sds (as many pushes of this log's own kind: "
             f"{design.log_design_separation_sd[first]:.1f})."
         )
+        if design.probe is not None:
+            parts.append(probe_sentence(design.probe))
         undecided = [e for c in v.contenders for e in c.effects if e not in v.effects]
         how = separators(list(dict.fromkeys(undecided + ([DISCREPANCY] if v.not_separable else []))))
         if how:

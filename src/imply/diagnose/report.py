@@ -17,7 +17,10 @@ likelihood-ratio statistic and its critical value, delta BIC, held-out gain),
 floor, shares closed), ``noise`` and ``options``. ``residuals.csv`` holds every push's
 residual before and after the leading hypothesis (held out) and whether it was flagged;
 ``next_pushes.csv`` the recommended pushes as push-log columns with what each contender
-predicts (:mod:`imply.diagnose.next_pushes`). The plots: ``residuals_vs_speed.png``,
+predicts (:mod:`imply.diagnose.next_pushes`), and ``next_probes.csv`` the calibration probe
+that would separate them more than any push, where one would, as a probes-file row with
+what each contender predicts it reads (:mod:`imply.diagnose.next_probes`; a file of its own,
+so that ``imply sim pushes`` can run ``next_pushes.csv`` as it is). The plots: ``residuals_vs_speed.png``,
 ``before_after.png``, ``ranking.png`` and ``hypotheses.png`` (the contenders' weights).
 """
 
@@ -33,9 +36,10 @@ import pandas as pd
 from imply.diagnose.analysis import Diagnosis, Summary
 from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.localisation import FACTORS
+from imply.diagnose.next_probes import write_next_probes
 from imply.diagnose.next_pushes import write_next_pushes
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
-from imply.diagnose.render import OBSERVABLE_WORDS
+from imply.diagnose.render import OBSERVABLE_WORDS, probe_sentence
 from imply.diagnose.verdict import explanations
 from imply.io import atomic_path, write_csv, write_json, write_text
 
@@ -44,6 +48,7 @@ REPORT_FILES = (
     "summary.json",
     "residuals.csv",
     "next_pushes.csv",
+    "next_probes.csv",
     "residuals_vs_speed.png",
     "before_after.png",
     "ranking.png",
@@ -80,12 +85,10 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike, *, plots: bool = Tr
     frame["outlier"] = np.asarray(r.flagged, bool)
     write_csv(out / "residuals.csv", frame)
     write_next_pushes(out / "next_pushes.csv", s.next_pushes, diag.pushlog)
+    write_next_probes(out / "next_probes.csv", s.next_pushes.probe if s.next_pushes is not None else None)
     if plots:
         _plots(diag, out)
-    text = markdown(s)
-    if not plots:
-        text = "\n".join(line for line in text.split("\n") if not line.startswith("!["))
-    write_text(out / "report.md", text)
+    write_text(out / "report.md", markdown(s, plots=plots))
 
 
 def _plots(diag: Diagnosis, out: Path) -> None:
@@ -281,6 +284,8 @@ def _next_push_lines(s: Summary) -> list[str]:
     ]
     for pair, sd in d.separation_sd.items():
         lines.append(f"| {pair} | {sd:.1f} | {d.log_design_separation_sd.get(pair, float('nan')):.1f} |")
+    if d.probe is not None:
+        lines += ["", probe_sentence(d.probe)]
     if d.by_observable:
         names = list(next(iter(d.by_observable.values())))
         lines += [
@@ -309,8 +314,13 @@ def _next_push_lines(s: Summary) -> list[str]:
     return lines
 
 
-def markdown(s: Summary) -> str:
+def markdown(s: Summary, *, plots: bool = True) -> str:
+    """The human report; ``plots``: whether the folder holds the plots (their image lines are left out otherwise)."""
     v, sh, noise = s.verdict, s.shrinkage, s.noise
+
+    def image(alt: str, name: str) -> list[str]:
+        return [f"![{alt}]({name})", ""] if plots else []
+
     lines = [
         "# Sim-to-real gap diagnosis",
         "",
@@ -387,8 +397,7 @@ def markdown(s: Summary) -> str:
         f"Baseline RMS residual {_fmt(s.baseline.rms)}. Regions whose mean residual differs from zero "
         f"(95% interval across objects excludes 0): {', '.join(s.localisation.regions_beyond_noise) or 'none'}.",
         "",
-        "![residuals vs speed](residuals_vs_speed.png)",
-        "",
+        *image("residuals vs speed", "residuals_vs_speed.png"),
     ]
     for factor in FACTORS:
         rows = s.localisation.bands(factor)
@@ -415,8 +424,7 @@ def markdown(s: Summary) -> str:
         "Laplace-approximated evidence (fit, prior volume and posterior width), chi-squares divided by the "
         "dispersion. Inclusion weights: " + (", ".join(f"{k} {w:.3f}" for k, w in s.inclusion.items()) or "none") + ".",
         "",
-        "![hypotheses](hypotheses.png)",
-        "",
+        *image("hypotheses", "hypotheses.png"),
         "| hypothesis | weight | log evidence | chi-square | held out | parameters | at bound |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -454,8 +462,7 @@ def markdown(s: Summary) -> str:
         lines += [f"- {x}" for x in fit_alias]
     lines += [
         "",
-        "![ranking](ranking.png)",
-        "",
+        *image("ranking", "ranking.png"),
         "## How far",
         "",
         f"Held-out RMS gap: {_fmt(sh.before_rms)} before, {_fmt(sh.after_rms)} after "
@@ -465,7 +472,6 @@ def markdown(s: Summary) -> str:
         f"{_fmt(sh.anchored_after_mean)} after; floor {_fmt(sh.anchored_floor)}; share closed "
         f"{_fmt(sh.anchored_share_closed, '.2f')}.",
         "",
-        "![before and after](before_after.png)",
-        "",
+        *image("before and after", "before_after.png"),
     ]
     return "\n".join(lines)
