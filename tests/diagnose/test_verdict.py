@@ -215,7 +215,8 @@ def test_one_cause_in_words():
     )
     assert verdict_text(s) == (
         "The gap is explained (the leading hypothesis closes 95% of the gap), and by one cause: the table slopes "
-        "0.0212 rad toward 0 degrees (table frame) (weight 0.90). These pushes cannot rule out viscous friction beside "
+        "0.0212 rad toward 0 degrees (table frame) (weight 0.90): a tilted table is identified (no other description "
+        "of the contact competes). These pushes cannot rule out viscous friction beside "
         "it (inclusion weight 0.10)."
     )
 
@@ -243,7 +244,8 @@ def test_undecided_in_words_with_the_next_pushes():
     assert verdict_text(s) == (
         "The gap is explained (the leading hypothesis closes 95% of the gap), and the pushes cannot tell 2 "
         "explanations apart: the pusher runs 10.0% slower than commanded, beside a smooth discrepancy (weight 0.60); "
-        "a smooth discrepancy alone (no library effect) (weight 0.40). On these pushes a speed gain cannot be told "
+        "a smooth discrepancy alone (no library effect) (weight 0.40); so its cause cannot be attributed. On these "
+        "pushes a speed gain cannot be told "
         "from a smooth discrepancy between the table and the pushes. The discrepancy: relative to the table, these "
         "pushes' slides grow 18% less from the slowest push to the fastest. The 12 pushes in next_pushes.csv would "
         "separate the two leading explanations by 4.2 noise sds (as many pushes of this log's own kind: 1.5). "
@@ -317,3 +319,28 @@ def test_the_contact_change_is_said_as_an_mjcf_edit():
     assert clauses([_estimate("table_timeconst", 1.0986)]) == [
         "the table contact is softer: solref time constant 0.02 -> 0.06 s in the MJCF"
     ]
+
+
+def test_a_cause_is_identified_only_where_the_contact_does_not_move_its_size():
+    """Every stated estimate has the interval (0, 1): a description of the contact under which the magnitude leaves it
+    makes the cause present, its size uncertain, with the span it moves over."""
+    holds = _judge(
+        [
+            _h(["viscous"], 0.6, magnitudes={"viscous": 0.5}),
+            _h(["table_timeconst", "viscous"], 0.3, magnitudes={"viscous": 0.7, "table_timeconst": 0.4}),
+            _h(["viscous"], 0.1, disc=True, magnitudes={"viscous": 0.3}),
+        ]
+    )
+    assert holds.effects == ["viscous"] and [(t.effect, t.tier) for t in holds.tiers] == [("viscous", "identified")]
+    assert holds.tiers[0].descriptions == 3 and holds.tiers[0].across_contact == (0.3, 0.7)
+    table = [
+        _h(["viscous"], 0.6, magnitudes={"viscous": 0.5}),
+        _h(["table_timeconst", "viscous"], 0.4, magnitudes={"viscous": 1.6, "table_timeconst": 0.4}),
+    ]
+    t = _judge(table).tiers[0]
+    assert t.tier == "size_uncertain" and t.across_contact == (0.5, 1.6) and t.contact_share == pytest.approx(1.1)
+    said = render.headline(_summary(table))
+    assert said.endswith(
+        ": viscous friction is present, its size uncertain (0.5 to 1.6 N s/m as the contact is described, 110% of its "
+        "95% interval)."
+    )

@@ -22,7 +22,7 @@ from imply.diagnose.next_probes import NextProbe, probe_words
 from imply.diagnose.next_pushes import PushDesign
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.shrinkage import Shrinkage
-from imply.diagnose.verdict import Adequacy, Contender, Identification, Verdict
+from imply.diagnose.verdict import Adequacy, Contender, Identification, Tier, Verdict
 from imply.sim.track import FRACTIONS
 
 # the observables, as the report and the observables note name them
@@ -182,6 +182,27 @@ def _closes(share: float | None) -> str:
     return f"{max(share, 0.0):.0%} of the gap"
 
 
+def tier_words(v: Verdict) -> str:
+    """How firmly each stated cause is identified (empty where none is stated beyond the contact)."""
+    words = []
+    for t in v.tiers:
+        c = CANDIDATES[t.effect]
+        if t.tier == Tier.IDENTIFIED:
+            why = (
+                "its size holds whichever way the contact is described"
+                if t.descriptions > 1
+                else "no other description of the contact competes"
+            )
+            words.append(f"{c.phrase} is identified ({why})")
+        else:
+            lo, hi = t.across_contact
+            words.append(
+                f"{c.phrase} is present, its size uncertain ({lo:.3g} to {hi:.3g} {c.unit} as the contact is "
+                f"described, {t.contact_share:.0%} of its 95% interval)"
+            )
+    return "; ".join(words)
+
+
 def headline(summary: Summary) -> str:
     """The first sentence: adequacy and identification."""
     v: Verdict = summary.verdict
@@ -228,6 +249,11 @@ def headline(summary: Summary) -> str:
             + "."
         ),
     }[v.identification]
+    tiers = tier_words(v)
+    if tiers:
+        ident = ident[:-1] + f": {tiers}."
+    elif v.identification == Identification.UNDECIDED and not v.effects:
+        ident = ident[:-1] + "; so its cause cannot be attributed."
     return adequacy + ident
 
 

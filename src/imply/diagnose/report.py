@@ -345,7 +345,13 @@ def markdown(s: Summary, *, plots: bool = True) -> str:
     ]
     lines.append(
         f"Adequacy: **{v.adequacy.replace('_', ' ')}**; identification: "
-        f"**{v.identification.replace('_', ' ')}**; causes stated: {', '.join(v.effects) or 'none'}."
+        f"**{v.identification.replace('_', ' ')}**; causes stated: {', '.join(v.effects) or 'none'}"
+        + "".join(
+            f"; {t.effect}: {t.tier.replace('_', ' ')} ({_fmt(t.across_contact[0])} to {_fmt(t.across_contact[1])} "
+            f"over {t.descriptions} description(s) of the contact, 95% interval [{_fmt(t.ci95[0])}, {_fmt(t.ci95[1])}])"
+            for t in v.tiers
+        )
+        + "."
     )
     lines += [
         "",

@@ -37,6 +37,13 @@ half the weight do. An effect of a contender that is not stated is *not separabl
 contact where another contender describes the contact without it, and *not ruled out*
 otherwise.
 
+A stated cause beyond the contact has a *tier* (:class:`CauseTier`): *identified* where its
+magnitude stays inside the leading hypothesis's 95% interval under every description of the
+contact the explanation's weighed hypotheses keep (nothing, the discrepancy, a change of the
+contact's MJCF parameters); *present, size uncertain* where a description moves it out,
+with how much of the interval the contact's descriptions span. A gap with no stated cause
+is one whose cause *cannot be attributed*. No threshold of its own: the interval decides.
+
 Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` and
 ``contender_ratio``. The verdict is data; :mod:`imply.diagnose.render` says it in words.
 """
@@ -85,6 +92,28 @@ class Contender(Record):
     contact: list[str] = field(default_factory=list)  # the CONTACT effects of its hypothesis of largest weight
 
 
+class Tier(StrEnum):
+    """How firmly a stated cause is identified, against the ways the contact can be described."""
+
+    IDENTIFIED = "identified"  # its magnitude holds across the contact's descriptions, within its interval
+    SIZE_UNCERTAIN = "size_uncertain"  # present, but how the contact is described moves its size out of the interval
+
+
+@dataclass(frozen=True, kw_only=True)
+class CauseTier(Record):
+    """A stated cause's tier: its magnitudes under every description of the contact the weighed hypotheses keep (the
+    leading explanation's hypotheses of at least ``contender_ratio`` of its leading one's weight), against the
+    leading hypothesis's 95% interval."""
+
+    effect: str
+    tier: Tier
+    magnitude: float  # the leading hypothesis's
+    ci95: tuple[float, float]  # the leading hypothesis's
+    across_contact: tuple[float, float]  # the smallest and largest magnitude over the contact's descriptions
+    contact_share: float  # how much of the interval's width the contact's descriptions span (1: all of it)
+    descriptions: int  # how many descriptions of the contact were compared
+
+
 @dataclass(frozen=True, kw_only=True)
 class Verdict(Record):
     """The verdict as data: adequacy, identification, the causes stated and the contenders."""
@@ -99,6 +128,7 @@ class Verdict(Record):
     at_bound: list[str]  # effects of contenders at their library bound, never stated
     share_closed: float | None  # of the held-out gap above the noise floor, by the leading hypothesis
     leading: str  # the label of the hypothesis of largest weight
+    tiers: list[CauseTier] = field(default_factory=list)  # each stated cause beyond the contact: how firmly
 
     @property
     def is_none(self) -> bool:
@@ -203,6 +233,7 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
             if e in core or e in not_separable or e in open_ or e in bound:
                 continue
             (not_separable if any(e not in w for w in with_disc) else open_).append(e)
+    tiers = cause_tiers(table, contenders[0], [e for e in causes if e not in CONTACT], contender_ratio=contender_ratio)
     return Verdict(
         adequacy=share_adequacy,
         identification=ident,
@@ -214,4 +245,42 @@ def judge(table: list[Hypothesis], *, share: float | None, min_share: float, con
         at_bound=bound,
         share_closed=share,
         leading=leading.label,
+        tiers=tiers,
     )
+
+
+def cause_tiers(
+    table: list[Hypothesis], explanation: Contender, causes: list[str], *, contender_ratio: float
+) -> list[CauseTier]:
+    """Each cause's tier: across the explanation's hypotheses (the same effects beyond the contact, the contact
+    described by nothing, the discrepancy or a change of its MJCF parameters) of at least ``contender_ratio`` of its
+    heaviest one's weight, whether the cause's magnitude stays inside the heaviest one's 95% interval."""
+    key = sorted(explanation.effects)
+    group = [h for h in table if sorted(beyond_contact(h.effects)) == key]
+    if not group:
+        return []
+    lead = max(group, key=lambda h: h.weight)
+    kept = [h for h in group if h.weight >= contender_ratio * lead.weight]
+    out = []
+    for e in causes:
+        found = {h.label: next((x for x in h.estimates if x.effect == e), None) for h in kept}
+        found = {k: x for k, x in found.items() if x is not None}
+        if lead.label not in found:
+            continue
+        ref = found[lead.label]
+        lo, hi = float(min(ref.ci95)), float(max(ref.ci95))
+        mags = [x.magnitude for x in found.values()]
+        inside = all(lo <= m <= hi for m in mags)
+        width = hi - lo
+        out.append(
+            CauseTier(
+                effect=e,
+                tier=Tier.IDENTIFIED if inside else Tier.SIZE_UNCERTAIN,
+                magnitude=ref.magnitude,
+                ci95=(lo, hi),
+                across_contact=(float(min(mags)), float(max(mags))),
+                contact_share=float((max(mags) - min(mags)) / width) if width > 0 else 0.0,
+                descriptions=len(found),
+            )
+        )
+    return out
