@@ -29,8 +29,9 @@ def test_the_design_separates_the_contenders_better_than_the_logs_own_pushes(ana
     prob = problem_of(make_log(seed=7, offset=0.05), analytic_table).with_noise(0.02, None)
     design = design_pushes(prob, _contenders(prob), n=6, speeds=9, directions=4, opts=OPTS.replace(model_floor=0.0))
     assert len(design.pushes) == 6 and design.contenders == ["speed_gain", "speed_offset"]
-    pair = "speed_gain | speed_offset"
-    assert design.separation_sd[pair] > 2 * design.log_design_separation_sd[pair]
+    (pair,) = design.pairs
+    assert (pair.first, pair.second) == ("speed_gain", "speed_offset")
+    assert pair.next_pushes_sd > 2 * pair.log_design_sd
     # a gain and an offset part most at the ends of the speed range: the design goes there, never the same push twice
     speeds = [p.speed for p in design.pushes]
     lo, hi = prob.v_range

@@ -17,7 +17,7 @@ from imply.diagnose.candidates import CANDIDATES
 from imply.diagnose.discrepancy import DiscrepancyReport
 from imply.diagnose.estimates import AcceptedEffect, EffectEstimate
 from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
-from imply.diagnose.next_pushes import PushDesign
+from imply.diagnose.next_pushes import PairSeparation, PushDesign
 from imply.diagnose.render import clauses, verdict_text
 from imply.diagnose.verdict import Adequacy, Identification, adequacy, explanations, judge
 
@@ -225,8 +225,15 @@ def test_undecided_in_words_with_the_next_pushes():
     design = PushDesign(
         contenders=["speed_gain+discrepancy", "discrepancy"],
         pushes=[],
-        separation_sd={"speed_gain+discrepancy | discrepancy": 4.25},
-        log_design_separation_sd={"speed_gain+discrepancy | discrepancy": 1.5},
+        pairs=[
+            PairSeparation(
+                first="speed_gain+discrepancy",
+                second="discrepancy",
+                next_pushes_sd=4.25,
+                log_design_sd=1.5,
+                by_observable={"displacement": 1.0},
+            )
+        ],
     )
     design = PushDesign(**{**design.__dict__, "pushes": [object()] * 12})
     disc = DiscrepancyReport(

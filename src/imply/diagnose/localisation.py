@@ -31,6 +31,9 @@ class Band(Record):
     ci95: tuple[float, float]
     rms: float
     differs: bool
+    # the band's range of its factor's values (a value of its own: low = high)
+    low: float | None = json_field(omit_none=True, default=None)
+    high: float | None = json_field(omit_none=True, default=None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,7 +66,9 @@ class Localisation(Record):
         return getattr(self, factor)
 
 
-def _band_stats(label: str, values: np.ndarray, *, obj: np.ndarray, n_obj: int) -> Band:
+def _band_stats(
+    label: str, values: np.ndarray, *, obj: np.ndarray, n_obj: int, span: tuple[float, float] | None = None
+) -> Band:
     """Mean residual over objects' band means, with a 95% t interval across objects."""
     per_obj = np.bincount(obj, values, minlength=n_obj)
     cnt = np.bincount(obj, minlength=n_obj)
@@ -80,16 +85,21 @@ def _band_stats(label: str, values: np.ndarray, *, obj: np.ndarray, n_obj: int) 
         ci95=(lo, hi),
         rms=float(np.sqrt(np.mean(values**2))),
         differs=bool(np.isfinite(half) and (lo > 0 or hi < 0)),
+        low=None if span is None else float(span[0]),
+        high=None if span is None else float(span[1]),
     )
 
 
-def _bands(x: np.ndarray, n_bins: int, distinct_max: int = 12) -> tuple[np.ndarray, list[str]]:
+def _bands(x: np.ndarray, n_bins: int, distinct_max: int = 12) -> tuple[np.ndarray, list[str], list[tuple]]:
+    """Each value's band, the bands' labels and their (low, high) ranges: one band per distinct value where there are
+    at most ``distinct_max``, else ``n_bins`` quantile bins."""
     uniq = np.unique(x)
     if uniq.size <= distinct_max:
-        return np.searchsorted(uniq, x), [f"{u:.4g}" for u in uniq]
+        return np.searchsorted(uniq, x), [f"{u:.4g}" for u in uniq], [(u, u) for u in uniq]
     edges = np.quantile(x, np.linspace(0, 1, n_bins + 1))
     idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, n_bins - 1)
-    return idx, [f"[{edges[i]:.4g}, {edges[i + 1]:.4g}]" for i in range(n_bins)]
+    spans = [(edges[i], edges[i + 1]) for i in range(n_bins)]
+    return idx, [f"[{lo:.4g}, {hi:.4g}]" for lo, hi in spans], spans
 
 
 def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, *, alpha: float) -> Localisation:
@@ -106,14 +116,18 @@ def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, *, alpha: floa
     if problem.log.has_direction:
         sector = np.round(np.mod(problem.phi[keep], 2 * np.pi) / (np.pi / 4)).astype(int) % 8
         uniq = np.unique(sector)
-        factors["direction"] = (np.searchsorted(uniq, sector), [f"{s * 45} deg" for s in uniq])
+        factors["direction"] = (
+            np.searchsorted(uniq, sector),
+            [f"{s * 45} deg" for s in uniq],
+            [(s * 45.0, s * 45.0) for s in uniq],
+        )
     banded = {
         name: [
-            _band_stats(label, r[idx == b], obj=obj[idx == b], n_obj=n_obj)
+            _band_stats(label, r[idx == b], obj=obj[idx == b], n_obj=n_obj, span=spans[b])
             for b, label in enumerate(labels)
             if (idx == b).any()
         ]
-        for name, (idx, labels) in factors.items()
+        for name, (idx, labels, spans) in factors.items()
     }
     sse = np.bincount(obj, r**2, minlength=n_obj)
     sd_row = np.broadcast_to(problem.sd_d, problem.y.shape)[keep]

@@ -7,8 +7,9 @@ largest weight of each explanation in contention, :mod:`imply.diagnose.verdict`)
 candidate push has a predicted log displacement (and log stop time and pusher speed where
 the log has them), from that hypothesis's fitted effects and the object's fitted mass and friction.
 
-:attr:`PushDesign.by_observable` says how far the log's own pushes already set each pair
-apart, observable by observable: which measurement told the leading hypotheses apart.
+Each pair's :class:`PairSeparation` says how far the recommended pushes, as many pushes of the
+log's own design, and the log's own pushes observable by observable set it apart: which
+measurement told the leading hypotheses apart.
 
 For two hypotheses a and b, a push adds (pred_a - pred_b)^2 / sd^2 to their separation,
 with sd the noise and the model's own error at that push (:mod:`imply.diagnose.model_error`),
@@ -22,7 +23,7 @@ nothing but predictions the fits already make. It takes each object's fitted mas
 friction as known: the log's own pushes of that object pin them down.
 
 Where the log lacks an observable the tables hold (the stop time, the pusher's speed),
-:attr:`PushDesign.measure` says how far measuring it on the log's own pushes would set the
+:attr:`PairSeparation.measure` says how far measuring it on the log's own pushes would set the
 contenders apart, in units of an assumed noise sd of 0.02 in its log: "measure the
 pusher's speed" can separate what more displacements cannot.
 
@@ -64,26 +65,32 @@ class NextPush(Record):
 
 
 @dataclass(frozen=True, kw_only=True)
+class PairSeparation(Record):
+    """How far apart two contenders (``first``, ``second``: hypothesis labels) are set, in noise sds (the square root
+    of the summed chi-square)."""
+
+    first: str
+    second: str
+    next_pushes_sd: float  # by the recommended pushes
+    log_design_sd: float  # by as many pushes drawn from the log's own design, for comparison
+    by_observable: dict[str, float]  # by the log's own pushes, per observable it has
+    measure: dict[str, float] | None = json_field(omit_none=True, default=None)  # per observable it lacks, measured
+
+
+@dataclass(frozen=True, kw_only=True)
 class PushDesign(Record):
-    """The recommended pushes, and how far apart they would set each pair of contenders."""
+    """The recommended pushes, and how far apart they would set each pair of contenders (the leading pair first)."""
 
     contenders: list[str]  # labels of the hypotheses the pushes separate
     pushes: list[NextPush]
-    # per pair "a | b": the separation the new pushes add, in noise sds (square root of the summed chi-square)
-    separation_sd: dict[str, float]
-    # the same for as many pushes drawn from the log's own design, for comparison
-    log_design_separation_sd: dict[str, float]
-    # per observable the log lacks: per pair, the separation its measurement on the log's own pushes would add
-    measure: dict[str, dict[str, float]] | None = None
-    # per pair, per observable the log has: how far the log's own pushes set the pair apart (noise sds)
-    by_observable: dict[str, dict[str, float]] | None = None
+    pairs: list[PairSeparation]
     # the calibration probe that would separate the contenders more than any single push (None: none would)
     probe: NextProbe | None = json_field(omit_none=True, default=None)
 
 
 # the noise sd (log units) assumed for an observable the log lacks, to say what measuring it would add
 ASSUMED_SD = 0.02
-# the name :attr:`PushDesign.measure` gives the box's track (its crossing times together)
+# the name :attr:`PairSeparation.measure` gives the box's track (its crossing times together)
 TRACK = "track"
 
 
@@ -125,8 +132,9 @@ def predictions(problem: Problem, fit: JointFit) -> tuple[np.ndarray, np.ndarray
     return pred.log_d[problem.cond], aux
 
 
-def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str, float]] | None:
-    """Per observable the tables hold and the log lacks: the separation its measurement on the log's pushes adds."""
+def _measure(problem: Problem, contenders, pairs) -> dict[str, list[float]] | None:
+    """Per observable the tables hold and the log lacks: the separation its measurement on the log's pushes adds to
+    each pair of contenders (in the order of ``pairs``)."""
     held = problem.etables.aux if problem.etables is not None else ()
     missing = [a for a in held if problem.log.aux(a) is None]
     if not missing:
@@ -146,10 +154,7 @@ def _measure(problem: Problem, contenders, pairs, labels) -> dict[str, dict[str,
     out = {}
     for name, parts in measured.items():
         rows = [full.aux.index(a) for a in parts]
-        out[name] = {
-            f"{labels[i]} | {labels[j]}": float(np.sqrt(np.sum(((preds[i][rows] - preds[j][rows]) / ASSUMED_SD) ** 2)))
-            for i, j in pairs
-        }
+        out[name] = [float(np.sqrt(np.sum(((preds[i][rows] - preds[j][rows]) / ASSUMED_SD) ** 2))) for i, j in pairs]
     return out
 
 
@@ -217,20 +222,28 @@ def design_pushes(
     rng = np.random.default_rng(seed)
     own_preds = [predictions(problem, f) for _, f, _ in contenders]  # the log's own pushes
     rows = rng.choice(problem.y.size, size=min(len(picks), problem.y.size), replace=False)
-    log_sep = {}
     sd_aux = problem.sd_t.reshape(len(problem.aux), -1) if problem.use_t else None
     keep = problem.w_d > 0
-    by_observable = {}
-    for a, b in pairs:
+    total = sep[picks].sum(0)
+    measure = _measure(problem, contenders, pairs)
+    separations = []
+    for j, (a, b) in enumerate(pairs):
         chi_d = ((own_preds[a][0] - own_preds[b][0]) / problem.sd_d) ** 2
         parts = {"displacement": chi_d}
         if problem.use_t and own_preds[a][1] is not None:
             chi_t = ((own_preds[a][1] - own_preds[b][1]) / sd_aux) ** 2
             parts.update({name: chi_t[i] for i, name in enumerate(problem.aux)})
         chi = sum(parts.values())
-        pair = f"{labels[a]} | {labels[b]}"
-        log_sep[pair] = float(np.sqrt(chi[rows].sum()))
-        by_observable[pair] = {name: float(np.sqrt(x[keep].sum())) for name, x in parts.items()}
+        separations.append(
+            PairSeparation(
+                first=labels[a],
+                second=labels[b],
+                next_pushes_sd=float(np.sqrt(total[j])),
+                log_design_sd=float(np.sqrt(chi[rows].sum())),
+                by_observable={name: float(np.sqrt(x[keep].sum())) for name, x in parts.items()},
+                measure=None if measure is None else {name: sd[j] for name, sd in measure.items()},
+            )
+        )
     pushes = []
     for k in picks:
         pushes.append(
@@ -243,16 +256,12 @@ def design_pushes(
                 expected_pusher_speed=_expected(cand, "pusher_speed", labels, preds, k),
             )
         )
-    total = sep[picks].sum(0)
     best_push_sd = float(np.sqrt(sep.min(1).max())) if sep.size else 0.0
     probe = recommend_probe(problem, contenders, speeds=np.unique(cand.v), best_push_sd=best_push_sd)
     return PushDesign(
         contenders=labels,
         pushes=pushes,
-        separation_sd={f"{labels[a]} | {labels[b]}": float(np.sqrt(total[j])) for j, (a, b) in enumerate(pairs)},
-        log_design_separation_sd=log_sep,
-        measure=_measure(problem, contenders, pairs, labels),
-        by_observable=by_observable,
+        pairs=separations,
         probe=probe,
     )
 

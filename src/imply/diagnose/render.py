@@ -295,11 +295,11 @@ def verdict_text(summary: Summary) -> str:
         parts.append(f"The discrepancy: {text}.")
     design = summary.next_pushes
     if design is not None and design.pushes:
-        first = f"{design.contenders[0]} | {design.contenders[1]}"
+        first = design.pairs[0]
         parts.append(
             f"The {len(design.pushes)} pushes in next_pushes.csv would separate the two leading explanations "
-            f"by {design.separation_sd[first]:.1f} noise sds (as many pushes of this log's own kind: "
-            f"{design.log_design_separation_sd[first]:.1f})."
+            f"by {first.next_pushes_sd:.1f} noise sds (as many pushes of this log's own kind: "
+            f"{first.log_design_sd:.1f})."
         )
         if design.probe is not None:
             parts.append(probe_sentence(design.probe))

@@ -107,7 +107,7 @@ def _plots(diag: Diagnosis, out: Path) -> None:
             r.speed[flagged], r.resid_before[flagged], s=18, marker="x", color="C1", label="gross outliers (left out)"
         )
     bands = s.localisation.speed
-    xs = [float(b.band) if b.band.replace(".", "", 1).isdigit() else i for i, b in enumerate(bands)]
+    xs = [0.5 * (b.low + b.high) if b.low is not None else i for i, b in enumerate(bands)]
     means = [b.mean for b in bands]
     err = [[b.mean - b.ci95[0] for b in bands], [b.ci95[1] - b.mean for b in bands]]
     ax.errorbar(xs, means, yerr=err, fmt="o", color="C3", label="band mean, 95% CI")
@@ -282,12 +282,12 @@ def _next_push_lines(s: Summary) -> list[str]:
         "| pair | these pushes | the log's kind |",
         "|---|---|---|",
     ]
-    for pair, sd in d.separation_sd.items():
-        lines.append(f"| {pair} | {sd:.1f} | {d.log_design_separation_sd.get(pair, float('nan')):.1f} |")
+    for p in d.pairs:
+        lines.append(f"| {p.first} vs {p.second} | {p.next_pushes_sd:.1f} | {p.log_design_sd:.1f} |")
     if d.probe is not None:
         lines += ["", probe_sentence(d.probe)]
-    if d.by_observable:
-        names = list(next(iter(d.by_observable.values())))
+    names = list(d.pairs[0].by_observable) if d.pairs else []
+    if names:
         lines += [
             "",
             "How far the log's own pushes set each pair apart, observable by observable (noise sds):",
@@ -295,22 +295,22 @@ def _next_push_lines(s: Summary) -> list[str]:
             "| pair | " + " | ".join(OBSERVABLE_WORDS.get(n, n) for n in names) + " |",
             "|---" * (len(names) + 1) + "|",
         ]
-        for pair, parts in d.by_observable.items():
-            lines.append(f"| {pair} | " + " | ".join(f"{parts[n]:.1f}" for n in names) + " |")
-    if d.measure:
-        names = list(d.measure)
+        for p in d.pairs:
+            lines.append(
+                f"| {p.first} vs {p.second} | " + " | ".join(f"{p.by_observable[n]:.1f}" for n in names) + " |"
+            )
+    lacks = list(d.pairs[0].measure or {}) if d.pairs else []
+    if lacks:
         lines += [
             "",
             "What measuring what this log lacks, on its own pushes, would add (noise sds, at an assumed "
             "noise of 0.02 in its log):",
             "",
-            "| pair | " + " | ".join(f"measure {OBSERVABLE_WORDS.get(n, n)}" for n in names) + " |",
-            "|---" * (len(names) + 1) + "|",
+            "| pair | " + " | ".join(f"measure {OBSERVABLE_WORDS.get(n, n)}" for n in lacks) + " |",
+            "|---" * (len(lacks) + 1) + "|",
         ]
-        for pair in d.separation_sd:
-            lines.append(
-                f"| {pair} | " + " | ".join(f"{d.measure[n].get(pair, float('nan')):.1f}" for n in names) + " |"
-            )
+        for p in d.pairs:
+            lines.append(f"| {p.first} vs {p.second} | " + " | ".join(f"{p.measure[n]:.1f}" for n in lacks) + " |")
     return lines
 
 
