@@ -18,11 +18,12 @@ from imply.diagnose import candidates
 from imply.diagnose.aliasing import aliasing
 from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
 from imply.diagnose.candidates import Model
-from imply.diagnose.fit import Problem, distinct_blocks
+from imply.diagnose.fit import Problem
 from imply.diagnose.hypotheses import NO_EFFECT, enumerate_hypotheses, log_evidence
 from imply.diagnose.localisation import localise
 from imply.diagnose.model_error import model_error
 from imply.diagnose.noise import estimate_noise
+from imply.diagnose.prediction import distinct_blocks
 from imply.diagnose.pushlog import PushLog
 from imply.diagnose.shrinkage import heldout, share_closed, shrinkage
 
