@@ -131,25 +131,39 @@ def read_stamp(snapshot: Path) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
-def label(stamp: dict) -> str:
-    """One line naming a snapshot's run: commit, date, machine, wall time."""
-    m = stamp["machine"]
+def cpu_minutes(stamp: dict) -> float | None:
+    """The run's jobs' CPU time summed (minutes): what the run cost, whatever else the machine was doing."""
+    stages = (stamp.get("stage_times") or {}).get("stages") or []
+    total = sum(float(row.get("cpu_seconds") or 0.0) for row in stages)
+    return total / 60 if total else None
+
+
+def timing(stamp: dict) -> str:
+    """How long the run took: from its first job to its last, and its jobs' CPU time ("" where not recorded)."""
     wall = stamp.get("wall_seconds")
-    took = f", {wall / 60:.0f} min from the first job to the last on {m['cores']} cores" if wall else ""
+    if not wall:
+        return ""
+    cpu = cpu_minutes(stamp)
+    text = f"{wall / 60:.0f} min from the first job to the last on {stamp['machine']['cores']} cores"
+    return text + (f", {cpu:.0f} CPU-min of jobs" if cpu else "")
+
+
+def label(stamp: dict) -> str:
+    """One line naming a snapshot's run: commit, date, machine, time."""
+    m = stamp["machine"]
+    took = timing(stamp)
     return (
         f"commit {(stamp.get('commit') or 'unknown')[:7]}, run on {stamp['date']} on an {m['cpu']} "
-        f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'}){took}"
+        f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'})"
+        + (f", {took}" if took else "")
     )
 
 
 def readme_line(stamp: dict) -> str:
-    """The README's line on the last snapshot: its wall time and how many claims hold."""
+    """The README's line on the last snapshot: its time and how many claims hold."""
     c = stamp["claims"]
-    wall = stamp.get("wall_seconds")
-    took = f"took {wall / 60:.0f} minutes" if wall else "ran"
     return (
-        f"The last snapshot of the study in the docs ({label(stamp)}) {took}, and {c['hold']} of its "
-        f"{c['checked']} claims hold."
+        f"The last snapshot of the study in the docs ({label(stamp)}): {c['hold']} of its {c['checked']} claims hold."
     )
 
 
