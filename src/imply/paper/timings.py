@@ -153,7 +153,11 @@ def rule_stages(root: str | Path) -> dict[str, str]:
     """Rule name -> its stage (the rules file it is in, ``workflow/rules/<stage>.smk``) of the workflow at ``root``."""
     out = {}
     for smk in sorted((Path(root) / "workflow" / "rules").glob("*.smk")):
-        for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", smk.read_text(), re.M):
+        text = smk.read_text()
+        for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", text, re.M):
+            out[name] = smk.stem
+        # a rule derived from another: ``use rule gap_diagnose as gap_diagnose_observed with:``
+        for name in re.findall(r"^use\s+rule\s+\w+\s+as\s+(\w+)", text, re.M):
             out[name] = smk.stem
     return out
 
