@@ -28,12 +28,17 @@ def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedP
     return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
 
 
+LAB_TARGETS = ("results/gap/lab/separability.json", "results/gap/lab/development/score.json")
+
+
 @pytest.mark.slow
 def test_gap_workflow_tiny(tmp_path, repo_root):
+    """The gap stage's part and the lab benchmark, in one run (they share the table and the effect tables)."""
     copy_workflow(tmp_path)
     target = "results/paper/parts/gap.json"
-    run = _snakemake_tiny(tmp_path, repo_root, target)
+    run = _snakemake_tiny(tmp_path, repo_root, target, *LAB_TARGETS)
     assert run.returncode == 0, run.stderr[-3000:]
+    check_lab(tmp_path)
     part = json.loads((tmp_path / target).read_text())
     assert part["stage"] == "gap"
     assert {
@@ -135,15 +140,10 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md
 
 
-@pytest.mark.slow
-def test_gap_lab_workflow_tiny(tmp_path, repo_root):
+def check_lab(tmp_path):
     """The lab benchmark's two sets on every engine, with probes, each effect log marked, and the development set
     diagnosed with and without its probes and scored."""
-    copy_workflow(tmp_path)
-    target = "results/gap/lab/separability.json"
-    score = "results/gap/lab/development/score.json"
-    run = _snakemake_tiny(tmp_path, repo_root, target, score)
-    assert run.returncode == 0, run.stderr[-3000:]
+    target, score = LAB_TARGETS
     result = json.loads((tmp_path / target).read_text())["result"]
     assert set(result["sets"]) == {"development", "sealed"}
     sealed, dev = result["sets"]["sealed"], result["sets"]["development"]
