@@ -86,9 +86,8 @@ class Contender(Record):
     discrepancy_weight: float  # the part of it from hypotheses that hold the discrepancy
     label: str  # its hypothesis of largest weight
     at_bound: list[str]  # effects of that hypothesis at the bound of their library range
-    contact_weight: float = (
-        0.0  # the part from hypotheses that describe the contact (the discrepancy or a CONTACT effect)
-    )
+    # the part of the weight from hypotheses that describe the contact (the discrepancy or a CONTACT effect)
+    contact_weight: float = 0.0
     contact: list[str] = field(default_factory=list)  # the CONTACT effects of its hypothesis of largest weight
 
 

@@ -91,7 +91,7 @@ def _classes(summary: Summary) -> list[set[str]]:
 PUSHER_CAUSES = ("speed_gain", "speed_offset", "pusher_softness")
 
 
-def beyond_contact(classes: list[set[str]]) -> list[set[str]]:
+def classes_beyond_contact(classes: list[set[str]]) -> list[set[str]]:
     """The classes that are not the box-table contact itself (:data:`imply.diagnose.candidates.CONTACT`): on a
     world whose contact differs from the table's, naming the contact is never wrong, and an effect stated beside
     it is still the one effect."""
@@ -445,7 +445,7 @@ def score_contact_cases(
         true = [e["name"] for e in lab["effects"]]
         v = s.verdict
         causes = [e.effect for e in stated(s)]
-        classes = beyond_contact(_classes(s))
+        classes = classes_beyond_contact(_classes(s))
         kinds = (lab.get("contact") or {}).get("kinds") or []
         row = {
             "case": cid,
