@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import yaml
+from gap_contact_dev import run_shards
 
 from imply.diagnose.candidates import CONTACT, get
 from imply.realworld.benchmark import find_summaries, score_contact_cases
@@ -54,15 +54,15 @@ VARIANTS = {
 }
 
 
-def diagnose(variant: str, logs: list[Path], args, options: dict) -> Path:
+def diagnose(variant: str, logs: list[Path], args, config: dict) -> Path:
     """Diagnose every log under a variant (two shards, one per core); returns the reports folder."""
     out = Path(args.out) / variant
     if (out / "done").is_file():
         return out
     changes, effects = VARIANTS[variant]
-    opts = json.dumps({**options, **changes})
-    grid = json.dumps(yaml.safe_load((ROOT / "config.yaml").read_text())["gap"]["effect_grid"])
-    procs = []
+    opts = json.dumps({**config["diagnose"], **changes})
+    grid = json.dumps(config["effect_grid"])
+    cmds = []
     for k in range(2):
         shard = [str(p) for p in logs[k::2]]
         cmd = ["imply", "gap", "diagnose-many", *shard, "--table", args.table, "--effect-grid-json", grid]
@@ -70,12 +70,9 @@ def diagnose(variant: str, logs: list[Path], args, options: dict) -> Path:
         cmd += ["-o", str(out / f"shard{k}")]
         if effects is not None:
             cmd += ["--effects", ",".join(effects)]
-        procs.append(
-            subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=open(out.parent / f"{variant}{k}.log", "w"))
-        )
-    codes = [p.wait() for p in procs]
-    if any(codes):
-        sys.exit(f"{variant}: diagnose-many failed ({codes}); see {out.parent}/{variant}*.log")
+        cmds.append(cmd)
+    if not run_shards(cmds):
+        sys.exit(f"{variant}: diagnose-many failed")
     (out / "done").write_text("")
     return out
 
@@ -98,7 +95,7 @@ def main() -> None:
     result = {}
     for variant in args.variants.split(","):
         t0 = time.perf_counter()
-        folder = diagnose(variant, logs, args, config["diagnose"])
+        folder = diagnose(variant, logs, args, config)
         seconds = time.perf_counter() - t0
         found = find_summaries(labels, [folder / "shard0", folder / "shard1"])
         kw = dict(targets=design.targets, min_size_sd=design.min_size_sd)

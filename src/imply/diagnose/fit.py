@@ -293,9 +293,14 @@ class Problem(Predicting, FreeLaunch):
         return np.sqrt(self.noise_d**2 + self.model_err_d**2)
 
     @cached_property
+    def noise_aux(self) -> np.ndarray:
+        """(K,) each observable beside the displacement's noise sd."""
+        return np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))
+
+    @cached_property
     def noise_t_rows(self) -> np.ndarray:
         """(n K,) each aux row's noise sd."""
-        return np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[self.t_kind]
+        return self.noise_aux[self.t_kind]
 
     @cached_property
     def sd_t(self) -> np.ndarray:
@@ -321,14 +326,19 @@ class Problem(Predicting, FreeLaunch):
         freed = self._free_launch(raw[None, :] / sd, weighted=False)[0] * sd
         return (freed[:n], freed[n:]) if self.use_t else (freed, None)
 
-    def _row_obj(self) -> np.ndarray:
-        """(rows,) the object of each residual row: pushes, their aux rows, then the probes' rows."""
+    @cached_property
+    def _row_objects(self) -> np.ndarray:
         parts = [self.obj]
         if self.use_t:
             parts.append(self.obj[self.t_row])
         if self.probes is not None:
             parts.append(self.probes.row_obj)
         return np.concatenate(parts) if len(parts) > 1 else self.obj
+
+    def _row_obj(self) -> np.ndarray:
+        """(rows,) the object of each residual row: pushes, their aux rows, then the probes' rows (every fit
+        iteration asks: assembled once)."""
+        return self._row_objects
 
     def object_sse(self, r: np.ndarray) -> np.ndarray:
         return np.bincount(self._row_obj(), r * r, minlength=self.n_obj)
@@ -359,7 +369,7 @@ class Problem(Predicting, FreeLaunch):
         """The noise sd of observable ``name`` beside the displacement (None where the fit does not use it)."""
         if name not in self.aux:
             return None
-        return float(np.broadcast_to(np.asarray(self.noise_t, float), (len(self.aux),))[self.aux.index(name)])
+        return float(self.noise_aux[self.aux.index(name)])
 
     @cached_property
     def probe_sd(self) -> np.ndarray:

@@ -33,6 +33,8 @@ from imply.diagnose.records import Record
 from imply.io import write_csv
 
 ASSUMED_STROKE_SD = 0.02  # log units: a free stroke's noise where the log does not say (as next_pushes assumes)
+LOAD_SHARE = 0.5  # a loaded push's load, as a share of the box's fitted mass (kept inside the table's mass range)
+MIN_LOAD = 0.05  # kg: a smaller load is not worth a push
 # what each kind of probe reads, as the file's column names it
 READS = {"free_stroke": "pusher_speed", "friction": "friction", "added_mass": "displacement"}
 
@@ -59,16 +61,13 @@ def _candidates(problem: Problem, speeds: np.ndarray, fits: list[JointFit]):
     preds: list[np.ndarray] = []
     sds: list[np.ndarray] = []
     lead = fits[0]
-    scene = problem.table.meta.get("scene") or {}
-    if all(k in scene for k in ("pusher_mass", "pusher_kv", "pusher_force_limit", "stroke")):
-        servo = Servo.of_scene(scene)
+    servo = Servo.of_scene(problem.table.meta.get("scene"))
+    if servo is not None:
         p = np.stack([free_stroke_log_speed(servo, f.model, f.theta[None, :], speeds)[0] for f in fits], 1)
         if problem.probes is not None and problem.probes.stroke_speed.size:
-            sd = problem.probe_sd[-1]
-        elif "pusher_speed" in problem.aux:
-            sd = problem.aux_noise("pusher_speed")
+            sd = problem.probes.stroke_noise(problem.aux_noise("pusher_speed"))
         else:
-            sd = ASSUMED_STROKE_SD
+            sd = problem.aux_noise("pusher_speed") or ASSUMED_STROKE_SD
         rows += [("free_stroke", -1, float(v), np.nan) for v in speeds]
         preds.append(p)
         sds.append(np.full(speeds.size, sd))
@@ -82,8 +81,8 @@ def _candidates(problem: Problem, speeds: np.ndarray, fits: list[JointFit]):
         sds.append(DEFAULT_FRICTION_SD / np.exp(lead.objects.lu[free]))
     mass = np.exp(lead.objects.lm)
     hi_mass = float(problem.table.mass_range[1])
-    load = np.round(np.minimum(0.5 * mass, hi_mass - mass), 3)
-    which = np.flatnonzero(load >= 0.05)
+    load = np.round(np.minimum(LOAD_SHARE * mass, hi_mass - mass), 3)
+    which = np.flatnonzero(load >= MIN_LOAD)
     if which.size:
         v_lo, v_hi = float(problem.v.min()), float(problem.v.max())
         obj = np.repeat(which, 2)

@@ -205,7 +205,7 @@ def design_pushes(
     sd_d = np.sqrt(problem.noise_d**2 + num_d**2 + ind_d**2)
     sd_t = None
     if cand.use_t and ind_t is not None:
-        noise_t = np.broadcast_to(np.asarray(problem.noise_t, float), (len(cand.aux),))
+        noise_t = problem.noise_aux
         sd_t = np.sqrt(noise_t[cand.t_kind] ** 2 + num_t[cand.t_kind] ** 2 + ind_t**2).reshape(len(cand.aux), -1)
     preds = [predictions(cand, f) for _, f, _ in contenders]
     pairs = [(a, b) for a in range(len(contenders)) for b in range(a + 1, len(contenders))]

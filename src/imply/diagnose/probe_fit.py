@@ -34,7 +34,10 @@ from imply.diagnose.candidates import Model, terms
 from imply.diagnose.probes import Probes
 
 PROBE_AUX = ("stop_time", "pusher_speed")  # what an added-mass push may measure beside its displacement
+SERVO_KEYS = ("pusher_mass", "pusher_kv", "pusher_force_limit", "stroke")  # what the table's scene says of the rig
 STROKE_SD_FLOOR = 0.002  # log units: the free strokes' noise is never taken below this (encoders' resolution)
+# log units: a free stroke's noise where nothing in the log measures it (the benchmark worlds' encoder noise)
+STROKE_SD_DEFAULT = 0.01
 
 
 @dataclass(frozen=True)
@@ -49,9 +52,11 @@ class Servo:
     stroke: float
 
     @classmethod
-    def of_scene(cls, scene: dict) -> Servo:
+    def of_scene(cls, scene: dict | None) -> Servo | None:
         """From a table's scene (its metadata ``scene``: ``pusher_mass``, ``pusher_kv``, ``pusher_force_limit``,
-        ``stroke``)."""
+        ``stroke``); None where the scene does not hold them all."""
+        if not scene or not all(k in scene for k in SERVO_KEYS):
+            return None
         return cls(
             float(scene["pusher_mass"]),
             float(scene["pusher_kv"]),
@@ -130,9 +135,7 @@ class ProbeRows:
         ``scene``: the table's scene (for the free strokes' servo; None leaves them out)."""
         measured = np.flatnonzero(np.isfinite(probes.friction))
         reading = probes.friction[measured]
-        servo = None
-        if scene and all(k in scene for k in ("pusher_mass", "pusher_kv", "pusher_force_limit", "stroke")):
-            servo = Servo.of_scene(scene)
+        servo = Servo.of_scene(scene)
         keep_stroke = servo is not None
         added_aux = {
             "stop_time": probes.added_stop_time,
@@ -171,7 +174,7 @@ class ProbeRows:
 
     def stroke_noise(self, pusher_speed_sd: float | None) -> float:
         """The free strokes' noise sd (log units): the log's pusher-speed noise where the fit has it, else the
-        spread of replicate strokes at one speed, else the log d noise's floor."""
+        spread of replicate strokes at one speed, else :data:`STROKE_SD_DEFAULT`."""
         if pusher_speed_sd is not None:
             return max(float(pusher_speed_sd), STROKE_SD_FLOOR)
         _, inverse = np.unique(self.stroke_speed, return_inverse=True)
@@ -183,7 +186,7 @@ class ProbeRows:
             dof = int(groups.sum() - groups.size)
             if dof > 0:
                 return max(float(np.sqrt((dev * dev).sum() / dof)), STROKE_SD_FLOOR)
-        return 0.01
+        return STROKE_SD_DEFAULT
 
     def free_stroke_prediction(self, model: Model, thetas: np.ndarray) -> np.ndarray:
         """(K, s) the log mean speed of each free stroke under the model at each of K parameter settings."""

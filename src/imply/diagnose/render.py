@@ -165,13 +165,11 @@ def _estimates(summary: Summary, label: str) -> list[EffectEstimate]:
 
 def contender_words(summary: Summary, c: Contender) -> str:
     """One contender in words, with its magnitudes and weight."""
-    if not c.effects and c.contact:
-        what = "; ".join(clauses(_estimates(summary, c.label)))
-    elif not c.effects:
+    if not c.effects and not c.contact:
         what = "a smooth discrepancy alone (no library effect)" if c.discrepancy_weight > 0 else "no effect at all"
     else:
         what = "; ".join(clauses(_estimates(summary, c.label)))
-        if c.discrepancy_weight >= 0.5 * c.weight:
+        if c.effects and c.discrepancy_weight >= 0.5 * c.weight:
             what += ", beside a smooth discrepancy"
     return f"{what} (weight {c.weight:.2f})"
 
@@ -225,9 +223,9 @@ def headline(summary: Summary) -> str:
         ),
     }[v.adequacy]
     ident = {
-        Identification.ONE_CAUSE: f", and by one cause: {contender_words(summary, stands)}.",
+        Identification.ONE_CAUSE: f", and by one cause: {contender_words(summary, stands)}",
         Identification.NO_LIBRARY_CAUSE: (
-            f", by a contact that differs from the table's and no library effect: {contender_words(summary, stands)}."
+            f", by a contact that differs from the table's and no library effect: {contender_words(summary, stands)}"
         ),
         Identification.OUTSIDE_LIBRARY: (
             f"; the library's best explanation, {contender_words(summary, stands)}, "
@@ -236,7 +234,7 @@ def headline(summary: Summary) -> str:
                 if v.at_bound
                 else "leaves too much of the gap open"
             )
-            + ": most likely a mechanism outside the library, so no cause is stated."
+            + ": most likely a mechanism outside the library, so no cause is stated"
         ),
         Identification.UNDECIDED: (
             f", and the pushes cannot tell {len(v.contenders)} explanations apart: "
@@ -246,15 +244,14 @@ def headline(summary: Summary) -> str:
                 if len(v.contenders) > LISTED
                 else ""
             )
-            + "."
         ),
     }[v.identification]
     tiers = tier_words(v)
     if tiers:
-        ident = ident[:-1] + f": {tiers}."
+        ident += f": {tiers}"
     elif v.identification == Identification.UNDECIDED and not v.effects:
-        ident = ident[:-1] + "; so its cause cannot be attributed."
-    return adequacy + ident
+        ident += "; so its cause cannot be attributed"
+    return adequacy + ident + "."
 
 
 def verdict_text(summary: Summary) -> str:

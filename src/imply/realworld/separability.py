@@ -224,6 +224,21 @@ def _cell(value: float, digits: int = 2) -> str:
     return "–" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
 
 
+def _count_table(summary: Mapping, what: str, title: str) -> list[str]:
+    """A report table of how many effect logs are ``what`` (``separable`` or ``readable``; the big ones in brackets),
+    per world and observable set."""
+    lines = [
+        title,
+        "",
+        "| world | effect logs (big) | " + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
+        "|---|---|" + "---|" * len(OBSERVABLE_SETS),
+    ]
+    for engine, row in summary.items():
+        cells = [f"{row['sets'][s][what]} ({row['sets'][s][f'big_{what}']})" for s in OBSERVABLE_SETS]
+        lines.append(f"| {engine} | {row['effect_logs']} ({row['big']}) | " + " | ".join(cells) + " |")
+    return lines
+
+
 def separability_markdown(result: Mapping) -> str:
     """The separability report: per set, a table by engine and observable set, the null gaps, each world's time
     per push, and every log's marking."""
@@ -239,28 +254,19 @@ def separability_markdown(result: Mapping) -> str:
         "",
     ]
     for set_name, data in result["sets"].items():
-        lines += [
-            f"## The {set_name} set ({len(data['logs'])} logs)",
-            "",
+        lines += [f"## The {set_name} set ({len(data['logs'])} logs)", ""]
+        lines += _count_table(
+            data["summary"],
+            "separable",
             "Separable effect logs (big and separable in brackets), by world and observable set:",
-            "",
-            "| world | effect logs (big) | " + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
-            "|---|---|" + "---|" * len(OBSERVABLE_SETS),
-        ]
-        for engine, row in data["summary"].items():
-            cells = [f"{row['sets'][s]['separable']} ({row['sets'][s]['big_separable']})" for s in OBSERVABLE_SETS]
-            lines.append(f"| {engine} | {row['effect_logs']} ({row['big']}) | " + " | ".join(cells) + " |")
-        lines += [
-            "",
+        )
+        lines += [""]
+        lines += _count_table(
+            data["summary"],
+            "readable",
             "Readable effect logs (big and readable in brackets): the contact's leak into the effect's amplitude "
             "below the tolerance:",
-            "",
-            "| world | effect logs (big) | " + " | ".join(SET_WORDS[s] for s in OBSERVABLE_SETS) + " |",
-            "|---|---|" + "---|" * len(OBSERVABLE_SETS),
-        ]
-        for engine, row in data["summary"].items():
-            cells = [f"{row['sets'][s]['readable']} ({row['sets'][s]['big_readable']})" for s in OBSERVABLE_SETS]
-            lines.append(f"| {engine} | {row['effect_logs']} ({row['big']}) | " + " | ".join(cells) + " |")
+        )
         lines += [
             "",
             "Null gap against the table's physics (RMS over pushes after the per-object fit):",
