@@ -9,6 +9,7 @@ over all logs and over the logs with probes. The variants:
 - ``probes``: + the probes in every fit;
 - ``contact``: + the box-table contact's effects (``table_timeconst``, ``table_dampratio``);
 - ``launch``: + each push's launch left free;
+- ``probes_contact``: probes and the contact's effects, the launch the table's (the default design);
 - ``all``: probes, the contact's effects and the free launch.
 
 Run: python benchmarks/lab_dev_variants.py --logs DIR --labels labels.json --table table.npz --cache-dir DIR
@@ -50,6 +51,7 @@ VARIANTS = {
     "probes": ({"use_probes": True}, WITHOUT_CONTACT),
     "contact": ({"use_probes": False}, None),
     "launch": ({"use_probes": False, "free_launch": True}, WITHOUT_CONTACT),
+    "probes_contact": ({"use_probes": True, "free_launch": False}, None),
     "all": ({"use_probes": True, "free_launch": True}, None),
 }
 

@@ -41,3 +41,16 @@ def test_time_per_rule_and_the_jobs_the_run_waited_on(tmp_path):
 def test_no_benchmarks_says_so(tmp_path):
     assert read_benchmarks(tmp_path / "none") == []
     assert "No per-rule benchmarks were found" in markdown([])[2]
+
+
+def test_a_run_resumed_after_a_pause_counts_each_sitting_s_span(tmp_path):
+    from imply.paper.timings import sittings, span_seconds
+
+    # a first sitting of two jobs (0-100 s), then a day's pause, then a rerun of one stage (200 s)
+    _job(tmp_path, "table", "all", 60, 1060)
+    _job(tmp_path, "gap_tables", "all", 40, 1100)
+    _job(tmp_path, "gap_diagnose", "0", 200, 1100 + 86400 + 200)
+    jobs = read_benchmarks(tmp_path)
+    assert [len(s) for s in sittings(jobs)] == [2, 1]
+    assert span_seconds(jobs) == 100 + 200
+    assert "in 2 sittings" in "\n".join(markdown(jobs))

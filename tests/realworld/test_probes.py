@@ -54,3 +54,47 @@ def test_a_speed_gain_shows_in_the_free_stroke_and_a_tilt_in_the_pull_test(scene
     up = probe_observables(layout, simulate_world(tilted, scene), tilted, scene.stroke)
     pull = layout.kind == "friction"
     assert np.allclose(np.array(up["reading"])[pull] - np.array(base["reading"])[pull], np.tan(0.03), atol=0.01)
+
+
+def test_a_recommended_probe_runs_in_the_log_s_world_as_its_own_probes_do(scene):
+    """The closed loop's probes (imply.realworld.lab.extra_probes): a friction test, a free stroke and a loaded push,
+    asked for as next_probes.csv names them, read what the same probes of the log's own protocol read."""
+    import dataclasses
+
+    import pandas as pd
+
+    from imply.realworld.lab import LabBenchmarkConfig, draw_lab_cases, extra_probes
+    from imply.realworld.probes import PROBE_COLUMNS
+
+    design = LabBenchmarkConfig.from_dict(
+        {
+            "seed": 5,
+            "logs": dict.fromkeys(LabBenchmarkConfig.groups, 0) | {"single_contact": 1},
+            "n_objects": 2,
+            "speeds": [0.3, 0.8],
+        }
+    )
+    design = dataclasses.replace(design, noise=dataclasses.replace(design.noise, sd=1e-6, pusher_speed_sd=1e-6))
+    case = draw_lab_cases(design)[0]
+    ask = pd.DataFrame(
+        {
+            "probe": ["friction", "free_stroke", "added_mass"],
+            "object_id": ["obj01", "", "obj00"],
+            "speed": [np.nan, 0.8, 0.3],
+            "added_mass": [np.nan, np.nan, 0.1],
+        }
+    )
+    rows = extra_probes(case, design, scene, ask, seed=1)
+    assert list(rows.columns) == PROBE_COLUMNS
+    assert rows["probe"].value_counts().to_dict() == {
+        "friction": 1,
+        "free_stroke": design.probes.free_strokes,
+        "added_mass": design.replicates,
+    }
+    friction = rows.loc[rows["probe"] == "friction", "friction"].astype(float).iloc[0]
+    # the reading is the world's own friction plus the test's stated error (sd friction_sd)
+    assert abs(friction - case["friction"][1]) < 5 * design.probes.friction_sd + 0.05 * case["friction"][1]
+    loaded = rows[rows["probe"] == "added_mass"]
+    assert set(loaded["object_id"]) == {"obj00"} and np.allclose(loaded["added_mass"].astype(float), 0.1)
+    free = rows.loc[rows["probe"] == "free_stroke", "pusher_speed"].astype(float)
+    assert np.all((free < 0.8) & (free > 0.5)), free

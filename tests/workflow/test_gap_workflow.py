@@ -28,7 +28,7 @@ def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedP
     return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
 
 
-LAB_TARGETS = ("results/gap/lab/separability.json", "results/gap/lab/development/score.json")
+LAB_TARGETS = ("results/gap/lab/separability.json", "results/gap/lab/sealed/score.json")
 
 
 @pytest.mark.slow
@@ -76,8 +76,18 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
         "gap-observed-contact-null",
         "gap-observed-contact-single",
         "gap-observed-contact-wrong",
+        # the lab benchmark's sealed set, with and without probes, and its closed loop
+        "gap-lab-null",
+        "gap-lab-pusher",
+        "gap-lab-named",
+        "gap-lab-single-probes",
+        "gap-lab-single",
+        "gap-lab-wrong",
+        "gap-lab-contact",
+        "gap-lab-loop",
     }
     assert {"gapObsFalseAlarm", "gapObsContactSingleRight", "gapContactSingleRight"} <= set(part["numbers"])
+    assert {"gapLabNullNoLib", "gapLabSingleRightProbes", "gapLabLoopRight"} <= set(part["numbers"])
     assert {
         "gapContactLogsN",
         "gapContactNullNoLib",
@@ -171,18 +181,24 @@ def check_lab(tmp_path):
         pushlog = read_pushlog(folder / f"{name}.csv")
         probes = read_probes(folder / f"{name}.probes.csv", objects=pushlog.objects, log_path=pushlog.path)
         assert probes.free_stroke_speed.size and probes.friction.size and probes.n_added
-    # the development set's score: both variants over its logs, and a report
+    # the sealed set's score: both variants over its logs, split by separability, the closed loop, and a report
     scored = json.loads((tmp_path / score).read_text())["result"]
-    dev_labels = json.loads((tmp_path / "results/gap/lab/development/labels.json").read_text())
-    assert scored["n_logs"] == len(dev_labels) == 2
+    assert scored["n_logs"] == len(labels) == 4
     for variant in ("probes", "no_probes"):
-        assert scored[variant]["all"]["n_logs"] == 2
-        assert {c["case"] for c in scored[variant]["all"]["cases"]} == set(dev_labels)
+        assert scored[variant]["all"]["n_logs"] == 4
+        assert {c["case"] for c in scored[variant]["all"]["cases"]} == set(labels)
+        singles = scored[variant]["separable"]["n_logs"] + scored[variant]["not_separable"]["n_logs"]
+        assert singles == sum(lab["group"].startswith("single") for lab in labels.values())
     # a log with probes says in its report whether they entered its fits
-    for name, lab in dev_labels.items():
+    for name, lab in labels.items():
         for variant in ("probes", "no_probes"):
-            report = (tmp_path / f"results/gap/lab/development/reports_{variant}/{name}/report.md").read_text()
+            report = (tmp_path / f"results/gap/lab/sealed/reports_{variant}/{name}/report.md").read_text()
             if lab["probes"]:
                 said = "entered every fit" if variant == "probes" else "no fit used them"
                 assert said in report
-    assert (tmp_path / "results/gap/lab/development/score.md").read_text().startswith("# Lab benchmark")
+    # the closed loop ran (probes allowed) on the logs the probes' diagnosis left with several contenders
+    loop = json.loads((tmp_path / "results/gap/lab/sealed/closed_loop/closed_loop.json").read_text())
+    assert {r["arm"] for r in loop["rows"]} <= {"next", "random"}
+    assert set(scored["closed_loop"]) >= {"next", "random", "rows"}
+    md = (tmp_path / "results/gap/lab/sealed/score.md").read_text()
+    assert md.startswith("# Lab benchmark") and "## Closed loop" in md

@@ -48,7 +48,7 @@ STAGE_RESULTS = {
     "section4": ["results/section4/metrics.json", "results/section4/noise.json", "results/section4/selection.json"],
     "clips": ["results/readout/metrics.json"],
     "section5": ["results/section5/metrics.json"],
-    "gap": ["results/gap/benchmark.json"],
+    "gap": ["results/gap/benchmark.json", "results/gap/lab/sealed/score.json"],
     "evaluate": ["results/evaluate/standins.json"],
     "pixel": ["results/pixel/metrics.json"],
 }
@@ -164,9 +164,11 @@ def gap_effects_option():
     return "--effects " + ",".join(candidates) if candidates else ""
 
 
-def gap_lab_diagnose_options(wildcards):
-    """The diagnosis options (config gap.diagnose), with the logs' probes used or not as the variant says."""
-    return as_json({**config["gap"]["diagnose"], "use_probes": wildcards.variant == "probes"})
+def gap_lab_diagnose_options(wildcards, probes=None):
+    """The diagnosis options (config gap.diagnose), with the logs' probes used or not as the variant (or ``probes``)
+    says."""
+    with_probes = wildcards.variant == "probes" if probes is None else probes
+    return as_json({**config["gap"]["diagnose"], "use_probes": with_probes})
 
 
 def gap_lab_set_json(wildcards):
@@ -230,7 +232,7 @@ def final_outputs():
     if "gap" in stages:
         out += ["results/gap/benchmark.json", "results/gap/benchmark.md"]
         out += ["results/gap/lab/separability.json", "results/gap/lab/separability.md"]
-        out += ["results/gap/lab/development/score.json", "results/gap/lab/development/score.md"]
+        out += ["results/gap/lab/sealed/score.json", "results/gap/lab/sealed/score.md"]
     if "evaluate" in stages:
         out += [f"results/evaluate/standins/{name}" for name in EVALUATE_REPORT_FILES]
     if "pixel" in stages:

@@ -341,6 +341,40 @@ rule gap_lab_diagnose:
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
+# The closed loop with probes allowed: each log the probes' diagnosis leaves with several contenders gets its
+# recommended next pushes and probe, or as many random pushes of its own design, in its own world, and is diagnosed
+# again.
+rule gap_lab_closed_loop:
+    conda:
+        IMPLY_ENV
+    input:
+        logs="results/gap/lab/{set}/logs",
+        reports="results/gap/lab/{set}/reports_probes",
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/lab/{set}/closed_loop"),
+    params:
+        lab=gap_lab_set_json,
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=lambda wildcards: gap_lab_diagnose_options(wildcards, probes=True),
+        effects=gap_effects_option(),
+    wildcard_constraints:
+        set="development|sealed",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=40,
+    log:
+        "results/logs/gap_lab_closed_loop_{set}.log",
+    benchmark:
+        "results/benchmarks/gap_lab_closed_loop/{set}.tsv"
+    shell:
+        "imply gap closed-loop --lab-json {params.lab} --set {wildcards.set} --logs {input.logs}"
+        " --reports {input.reports} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
+
+
 rule gap_lab_score:
     conda:
         IMPLY_ENV
@@ -348,6 +382,7 @@ rule gap_lab_score:
         labels="results/gap/lab/{set}/labels.json",
         probes="results/gap/lab/{set}/reports_probes",
         no_probes="results/gap/lab/{set}/reports_no_probes",
+        closed_loop="results/gap/lab/{set}/closed_loop",
     output:
         result="results/gap/lab/{set}/score.json",
         markdown=report(
@@ -369,5 +404,5 @@ rule gap_lab_score:
         "results/benchmarks/gap_lab_score/{set}.tsv"
     shell:
         "imply gap lab-score --lab-json {params.lab} --set {wildcards.set} --labels {input.labels}"
-        " --reports-probes {input.probes} --reports-no-probes {input.no_probes}"
+        " --reports-probes {input.probes} --reports-no-probes {input.no_probes} --closed-loop {input.closed_loop}"
         " -o {output.result} --markdown {output.markdown} > {log} 2>&1"

@@ -88,9 +88,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     cl = gsub.add_parser(
         "closed-loop",
         help="run the next pushes of every log with several explanations in contention (and as many random pushes of "
-        "its own design) in the same world, append them and diagnose again (the other-contact benchmark)",
+        "its own design) in the same world, append them and diagnose again (the other-contact benchmark; the lab "
+        "benchmark's, with the recommended probes too)",
     )
-    cl.add_argument("--contact-bench-json", type=json_arg, required=True, help="config gap.contact_benchmark")
+    which = cl.add_mutually_exclusive_group(required=True)
+    which.add_argument("--contact-bench-json", type=json_arg, help="config gap.contact_benchmark")
+    which.add_argument("--lab-json", type=json_arg, help="config gap.lab_benchmark (with --set): probes are allowed")
+    cl.add_argument("--set", choices=("development", "sealed"), help="the lab benchmark's set (with --lab-json)")
     cl.add_argument("--logs", required=True, help="folder of the benchmark's push logs")
     cl.add_argument("--reports", required=True, help="folder of their report folders (one per log)")
     cl.add_argument("-o", "--output", required=True, help="folder for the appended logs and their reports")
@@ -152,6 +156,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ls.add_argument("--labels", required=True, help="the set's labels ('imply gap lab-generate')")
     ls.add_argument("--reports-probes", required=True, help="the folder of its report folders, diagnosed with probes")
     ls.add_argument("--reports-no-probes", required=True, help="the same diagnosed without them")
+    ls.add_argument(
+        "--closed-loop", nargs="*", default=[], help="folders written by 'imply gap closed-loop --lab-json' on this set"
+    )
     ls.add_argument("-o", "--output", required=True, help="the result document (JSON)")
     ls.add_argument("--markdown", required=True, help="the report (Markdown)")
     ls.set_defaults(func=cmd_lab_score)
@@ -221,11 +228,22 @@ def logs_in(path: str) -> list[Path]:
 
 def cmd_closed_loop(args: argparse.Namespace) -> int:
     from imply.diagnose.run import prepare
-    from imply.realworld.cases import ContactBenchmarkConfig
+    from imply.realworld.cases import ContactBenchmarkConfig, draw_cases
     from imply.realworld.closed_loop import run_closed_loop
+    from imply.realworld.lab import LabBenchmarkConfig, draw_lab_cases
     from imply.sim import SceneConfig
 
-    design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+    if args.lab_json is not None:
+        if args.set is None:
+            raise UserError("--lab-json needs --set (development or sealed)")
+        with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
+            design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
+        drawn = draw_lab_cases(design)
+    else:
+        if args.set is not None:
+            raise UserError("--set is the lab benchmark's (with --lab-json)")
+        design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+        drawn = draw_cases(design)
     for name in ("logs", "reports"):
         if not Path(getattr(args, name)).is_dir():
             raise UserError(f"--{name} {getattr(args, name)}: no such folder")
@@ -234,6 +252,7 @@ def cmd_closed_loop(args: argparse.Namespace) -> int:
     scene = SceneConfig.from_dict(request.table.meta.get("scene"), "the table's scene")
     rows = run_closed_loop(
         design=design,
+        drawn=drawn,
         scene=scene,
         logs=Path(args.logs),
         reports=Path(args.reports),
@@ -396,7 +415,24 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
     for variant, folder in (("no_probes", args.reports_no_probes), ("probes", args.reports_probes)):
         with user_errors(FileNotFoundError, message=f"--reports-{variant.replace('_', '-')}: {{error}}"):
             summaries[variant] = find_summaries(labels, [Path(folder)])
-    result = score_lab(labels, summaries, targets=design.targets, min_size_sd=design.min_size_sd)
+    result = score_lab(
+        labels,
+        summaries,
+        targets=design.targets,
+        min_size_sd=design.min_size_sd,
+        alias_cos=design.alias_cos,
+        crossing_sd=design.crossing_sd,
+    )
+    if args.closed_loop:
+        from imply.realworld.closed_loop import score_closed_loop
+
+        with user_errors(FileNotFoundError, message="--closed-loop: {error}"):
+            result["closed_loop"] = score_closed_loop(
+                labels,
+                [Path(p) for p in args.closed_loop],
+                within=design.targets["magnitude_within"],
+                min_size_sd=design.min_size_sd,
+            )
     for variant in summaries:
         r = result[variant]["all"]
         log.info(

@@ -78,18 +78,32 @@ def _claims(parts: Path) -> dict[str, int]:
 
 def stage_times(root: Path) -> dict[str, Any]:
     """Each stage's rules, jobs, wall seconds (jobs summed), longest job and CPU seconds, and the run's span."""
-    from imply.paper.timings import by_stage, read_benchmarks, rule_stages
+    from imply.paper.timings import by_stage, read_benchmarks, rule_stages, sittings, span_seconds
 
     jobs = read_benchmarks(root / "results" / "benchmarks")
     if not jobs:
         return {"jobs": 0, "stages": [], "wall_seconds": None}
-    table = by_stage(jobs, rule_stages(root))
-    span = max(j.end for j in jobs) - min(j.start for j in jobs)
+    stages = rule_stages(root)
+    table = by_stage(jobs, stages)
+
+    def day(t: float) -> str:
+        return datetime.fromtimestamp(t, UTC).strftime("%Y-%m-%d %H:%M")
+
     return {
         "jobs": len(jobs),
         "stages": table,
-        "wall_seconds": span,
+        "wall_seconds": span_seconds(jobs),
         "ended": datetime.fromtimestamp(max(j.end for j in jobs), UTC).strftime("%Y-%m-%d"),
+        # a run resumed after a pause: each sitting's span and the stages whose jobs ran in it
+        "sittings": [
+            {
+                "start": day(min(j.start for j in s)),
+                "end": day(max(j.end for j in s)),
+                "jobs": len(s),
+                "stages": sorted({stages.get(j.rule, "other") for j in s}),
+            }
+            for s in sittings(jobs)
+        ],
     }
 
 
@@ -144,7 +158,10 @@ def timing(stamp: dict) -> str:
     if not wall:
         return ""
     cpu = cpu_minutes(stamp)
+    n_sit = len((stamp.get("stage_times") or {}).get("sittings") or [None])
     text = f"{wall / 60:.0f} min from the first job to the last on {stamp['machine']['cores']} cores"
+    if n_sit > 1:
+        text = f"{wall / 60:.0f} min of jobs on {stamp['machine']['cores']} cores in {n_sit} sittings"
     return text + (f", {cpu:.0f} CPU-min of jobs" if cpu else "")
 
 

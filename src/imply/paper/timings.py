@@ -98,6 +98,27 @@ def by_rule(jobs: list[Job]) -> list[RuleTime]:
     return sorted(out, key=lambda r: -r.seconds)
 
 
+PAUSE = 1800.0  # s: no job running for longer than this splits a run into sittings
+
+
+def sittings(jobs: list[Job], pause: float = PAUSE) -> list[list[Job]]:
+    """The jobs in sittings: a run resumed after a pause (a crash, a rerun of some stages on a later day) spans the
+    pause too, so its time is each sitting's span, from its first start to its last end, summed."""
+    out: list[list[Job]] = []
+    last_end = -float("inf")
+    for j in sorted(jobs, key=lambda j: j.start):
+        if j.start - last_end > pause:
+            out.append([])
+        out[-1].append(j)
+        last_end = max(last_end, j.end)
+    return out
+
+
+def span_seconds(jobs: list[Job]) -> float:
+    """The run's time: its sittings' spans summed (:func:`sittings`)."""
+    return sum(max(j.end for j in s) - min(j.start for j in s) for s in sittings(jobs))
+
+
 def alone(jobs: list[Job], cores: int = 2) -> tuple[float, dict[str, float]]:
     """Seconds of the run during which fewer jobs ran than there are ``cores`` (a core idle), and how much of it each
     job ran alone (the jobs the run waited on): (idle core-seconds, {job name: seconds it ran alone})."""
@@ -121,13 +142,15 @@ def markdown(jobs: list[Job]) -> list[str]:
             "No per-rule benchmarks were found (`results/benchmarks/`): the workflow's rules write them when they run.",
             "",
         ]
-    span = max(j.end for j in jobs) - min(j.start for j in jobs)
+    span = span_seconds(jobs)
+    n_sit = len(sittings(jobs))
     cpu = sum(j.cpu_seconds for j in jobs)
+    where = f" in {n_sit} sittings (each from its first start to its last end)" if n_sit > 1 else ""
     lines = [
         "## Time per rule",
         "",
         f"The last run's {len(jobs)} jobs (Snakemake's `benchmark:` files in `results/benchmarks/`) span "
-        f"{span / 60:.1f} min from the first start to the last end, {cpu / 60:.1f} CPU min in all.",
+        f"{span / 60:.1f} min{where or ' from the first start to the last end'}, {cpu / 60:.1f} CPU min in all.",
         "",
         "| rule | jobs | wall s (all jobs) | longest job s | CPU s | peak MB |",
         "|---|---|---|---|---|---|",

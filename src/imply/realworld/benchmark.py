@@ -417,6 +417,27 @@ def named_classes(summary: Summary) -> list[set[str]]:
     ]
 
 
+SCORED_COLUMNS = (
+    "group",
+    "engine",
+    "effects",
+    "identification",
+    "causes",
+    "effect_causes",
+    "contact_kinds",
+    "contact_named",
+    "n_contenders",
+    "seconds",
+    "pusher_stated",
+    "one_cause",
+    "big",
+    "among_named",
+    "named",
+    "one_cause_right",
+    "told_right",
+)
+
+
 def score_contact_cases(
     labels: dict[str, dict], summaries: dict[str, Summary], *, targets: dict, min_size_sd: float
 ) -> dict:
@@ -488,8 +509,10 @@ def score_contact_cases(
                 one_cause_right=bool(row["one_cause"] and named and len(classes) == 1),
             )
         rows.append(row)
-    frame = pd.DataFrame(rows)
-    g = frame["group"] if len(frame) else pd.Series(dtype=str)
+    # every column the scores read, so that an empty subset (no logs of a kind) scores as nan
+    frame = pd.DataFrame(rows).reindex(columns=list(dict.fromkeys([*(rows[0] if rows else {}), *SCORED_COLUMNS])))
+    frame = frame.astype({c: str for c in ("group", "engine", "effects", "causes", "effect_causes", "contact_kinds")})
+    g = frame["group"]
 
     def share(mask, column) -> tuple[float, int]:
         sub = frame[mask]

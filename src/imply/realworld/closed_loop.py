@@ -1,12 +1,15 @@
-"""The next pushes, checked in a closed loop on the other-contact benchmark's worlds.
+"""The next experiments, checked in a closed loop on the other-contact and the lab benchmarks' worlds.
 
 For every log whose verdict keeps several explanations in contention (a set of
 hypotheses, whatever it states), the pushes its report recommends
 (``next_pushes.csv``) are run in the same world (its objects, contact model, engine and
 effects, the log's protocol and noise: :func:`imply.realworld.cases.extra_pushes`),
-appended to the log, and the log is diagnosed again. The baseline arm appends as many
-pushes drawn at random from the log's own design (its distinct object, speed and
-direction), run the same way. :func:`run_closed_loop` writes both arms' logs and reports;
+appended to the log, and the log is diagnosed again. Where probes are allowed (the lab
+benchmark), the calibration probe the report recommends (``next_probes.csv``) is run too
+(:func:`imply.realworld.lab.extra_probes`) and appended to the log's probes file. The
+baseline arm appends as many pushes drawn at random from the log's own design (its
+distinct object, speed and direction; one more for each probe the other arm ran), run
+the same way. :func:`run_closed_loop` writes both arms' logs and reports;
 :func:`score_closed_loop` scores them against the sealed labels: how often the true effect
 is then stated as the one cause with its magnitude within the target's tolerance (one-effect
 logs; beside it, how often the true effect's own hypothesis has its magnitude within that
@@ -37,7 +40,8 @@ from imply.realworld.benchmark import (
     stated_error,
     told_within,
 )
-from imply.realworld.cases import ContactBenchmarkConfig, draw_cases, extra_pushes, object_names
+from imply.realworld.cases import ContactBenchmarkConfig, extra_pushes, object_names
+from imply.realworld.lab import LabBenchmarkConfig, extra_probes
 from imply.sim.scene import SceneConfig
 
 log = logging.getLogger("imply.diagnose")
@@ -56,9 +60,14 @@ def _log_design(frame: pd.DataFrame, n: int, rng: np.random.Generator) -> pd.Dat
     return design.iloc[np.sort(rng.choice(len(design), size=min(n, len(design)), replace=False))]
 
 
+def _probes_file(path: Path) -> Path:
+    return path.with_name(path.stem + ".probes.csv")
+
+
 def run_closed_loop(
     *,
     design: ContactBenchmarkConfig,
+    drawn: list[dict],
     scene: SceneConfig,
     logs: Path,
     reports: Path,
@@ -67,9 +76,11 @@ def run_closed_loop(
     nthread: int = 0,
     progress: bool = True,
 ) -> list[dict]:
-    """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``): the
-    appended logs in ``out/logs``, their reports in ``out/reports``; returns one row per log and arm."""
-    drawn = draw_cases(design)
+    """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``;
+    ``drawn``: the benchmark's cases, :func:`imply.realworld.cases.draw_cases` or
+    :func:`imply.realworld.lab.draw_lab_cases`): the appended logs (and probes files) in ``out/logs``, their reports
+    in ``out/reports``; returns one row per log and arm. Probes are run where ``design`` is a lab benchmark's."""
+    probes_allowed = isinstance(design, LabBenchmarkConfig)
     cases = {c["id"]: c for c in drawn}
     # the random arm's draws follow the log's place in the benchmark, not in this job's share of it
     number = {c["id"]: k for k, c in enumerate(drawn)}
@@ -87,7 +98,11 @@ def run_closed_loop(
         case = cases[cid]
         frame = pd.read_csv(logs / f"{cid}.csv")
         nxt = pd.read_csv(folder / "next_pushes.csv")
-        picks = {"next": nxt, "random": _log_design(frame, len(nxt), np.random.default_rng([design.seed, number[cid]]))}
+        own_probes = _probes_file(logs / f"{cid}.csv")
+        probe_rec = folder / "next_probes.csv"
+        rec = pd.read_csv(probe_rec) if probes_allowed and probe_rec.is_file() else pd.DataFrame()
+        rng = np.random.default_rng([design.seed, number[cid]])
+        picks = {"next": nxt, "random": _log_design(frame, len(nxt) + len(rec), rng)}
         for arm, pushes in picks.items():
             new = extra_pushes(
                 case,
@@ -102,9 +117,25 @@ def run_closed_loop(
             appended = pd.concat([frame, new[frame.columns]], ignore_index=True)
             path = out / "logs" / f"{cid}-{arm}.csv"
             write_csv(path, appended)
+            probe_rows = pd.read_csv(own_probes) if own_probes.is_file() else None
+            ran = 0
+            if arm == "next" and len(rec):
+                more = extra_probes(case, design, scene, rec, seed=ARMS[arm], nthread=nthread)
+                ran = len(rec)
+                probe_rows = more if probe_rows is None else pd.concat([probe_rows, more], ignore_index=True)
+            if probe_rows is not None:
+                write_csv(_probes_file(path), probe_rows)
             report = Report(pushlog=read_checked_pushlog(path, session.table), folder=out / "reports" / f"{cid}-{arm}")
             diagnose_report(report, session, force=True)
-            rows.append({"case": cid, "arm": arm, "pushes_added": int(len(new)), "report": f"{cid}-{arm}"})
+            rows.append(
+                {
+                    "case": cid,
+                    "arm": arm,
+                    "pushes_added": int(len(new)),
+                    "probes_added": ran,
+                    "report": f"{cid}-{arm}",
+                }
+            )
     write_json(out / "closed_loop.json", {"rows": rows})
     return rows
 
@@ -159,6 +190,7 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
         "wrong_single",
         "n_contenders",
         "pushes_added",
+        "probes_added",
     ]
     frame = pd.DataFrame(rows).reindex(columns=columns)  # every column, so that an empty loop scores as nan
 
@@ -181,5 +213,6 @@ def score_closed_loop(labels: dict[str, dict], folders: list[Path], *, within: f
             "n_outside": int(len(outside)),
             "contenders_mean": mean(sub["n_contenders"]),
             "pushes_added_mean": mean(sub["pushes_added"]),
+            "probes_added_mean": mean(sub["probes_added"].fillna(0)),
         }
     return out

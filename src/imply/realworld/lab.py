@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
+import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.io import write_csv, write_json
@@ -45,7 +46,15 @@ from imply.realworld.cases import (
     pushes_in_world,
 )
 from imply.realworld.contact import simulate_engine
-from imply.realworld.probes import ProbeDesign, ProbeLayout, probe_layout, probe_observables, probe_pushes, probe_rows
+from imply.realworld.probes import (
+    PROBE_COLUMNS,
+    ProbeDesign,
+    ProbeLayout,
+    probe_layout,
+    probe_observables,
+    probe_pushes,
+    probe_rows,
+)
 from imply.realworld.sapien_world import SapienStepping
 from imply.realworld.world import WorldPushes, WorldResult
 from imply.sim.scene import SceneConfig
@@ -369,3 +378,53 @@ def write_lab_set(
     write_json(labels, out)
     write_json(timing, times)
     return times
+
+
+def extra_probes(
+    case: dict,
+    design: LabBenchmarkConfig,
+    scene: SceneConfig,
+    probes: pd.DataFrame,
+    *,
+    seed: int,
+    nthread: int = 0,
+) -> pd.DataFrame:
+    """New calibration probes of ``case`` (rows ``probe, object_id, speed, added_mass``, as ``next_probes.csv``
+    recommends them), run in the log's world (its contact, engine and effects) with its probes' protocol and noise
+    (fresh draws, from ``seed``): the probes-file rows (:data:`imply.realworld.probes.PROBE_COLUMNS`), those that
+    failed their world's checks left out. A friction test drags at the design's pull speed; an object's probes take
+    its first push's direction, as the log's own do."""
+    names = object_names(design.n_objects)
+    index = {name: i for i, name in enumerate(names)}
+    own = lab_probe_layout(case, design)
+    # every probe of an object takes one direction
+    first_direction = {int(o): float(d) for o, d in zip(own.obj, own.direction, strict=True) if o >= 0}
+    kinds, objs, speeds, directions, loads = [], [], [], [], []
+    for row in probes.itertuples(index=False):
+        obj = index[row.object_id] if isinstance(row.object_id, str) and row.object_id else -1
+        kinds.append(row.probe)
+        objs.append(obj)
+        speeds.append(design.probes.pull_speed if row.probe == "friction" else float(row.speed))
+        directions.append(first_direction.get(obj, 0.0))
+        loads.append(float(row.added_mass) if row.probe == "added_mass" else 0.0)
+    layout = ProbeLayout(
+        np.array(kinds), np.array(objs, int), np.array(speeds, float), np.array(directions, float), np.array(loads)
+    )
+    if not layout.n:
+        return pd.DataFrame(columns=PROBE_COLUMNS)
+    p = pushes_in_world(case, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, case["effects"])
+    p = probe_pushes(layout, p, design.probes)
+    res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
+    nm = design.noise
+    return probe_rows(
+        probe_observables(layout, res, p, scene.stroke),
+        layout,
+        names,
+        design=design.probes,
+        replicates=design.replicates,
+        sd=nm.sd,
+        stop_time_sd=nm.stop_time_sd,
+        pusher_speed_sd=nm.pusher_speed_sd,
+        with_stop_time=case["stop_time"],
+        rng=np.random.default_rng([case["noise_seed"], seed, 3]),
+    )
