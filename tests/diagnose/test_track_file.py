@@ -145,3 +145,22 @@ def test_imply_diagnose_refuses_a_bad_track_before_any_work(tmp_path, tiny_table
     err = capsys.readouterr().err.strip()
     assert code != 0 and "row 6 (line 7), column t" in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "report").exists()
+
+
+def test_a_push_too_short_to_time_leaves_the_track_out_and_says_why(tmp_path):
+    """A box that moved less than a camera's few millimetres has a track of noise: the log keeps its pushes and
+    loses its track, with the reason; a push that moved far with an untimed track is still refused."""
+    lines = PUSHLOG_CSV.strip().splitlines()
+    lines[4] = "b,0.3,0.0008,0"  # push 4 moved 0.8 mm
+    log = _log(tmp_path, "\n".join(lines) + "\n")
+    track = _track(log)
+    track.loc[track["push"] == 4, "x"] = 0.2  # within the camera's resolution, the box never moved
+    tracked = read_track(_write(tmp_path, track), log)
+    assert tracked.crossing_times is None and tracked.aux("crossing_50") is None
+    assert "push 4 moved 0.0008 m" in tracked.track_note
+    # the same track for a push that moved 4 cm is refused
+    far = _log(tmp_path)
+    track = _track(far)
+    track.loc[track["push"] == 4, "x"] = 0.2
+    with pytest.raises(InputError, match="the track of push 4"):
+        read_track(_write(tmp_path, track), far)

@@ -276,6 +276,8 @@ def _observables(problem: Problem) -> tuple[list[str], str]:
         note = "displacement only"
     if unused:
         note += " (the log's " + " and ".join(OBSERVABLE_WORDS[a] for a in unused) + " not used)"
+    if problem.log.track_note:
+        note += "; " + problem.log.track_note
     if problem.launch is not None:
         note += "; each push's launch was left free, so that only the slide read the effects"
     probes = problem.log.probes

@@ -65,6 +65,7 @@ class PushLog:
     pusher_speed: np.ndarray | None = None  # (n,) the pusher's measured mean speed over the stroke (m/s), where logged
     crossing_times: np.ndarray | None = None  # (n, Q) from the box's track: when it covered each of FRACTIONS (s)
     track_path: str | None = None  # the track file they were read from
+    track_note: str | None = None  # why the log's track was left out, where it was
     probes: Probes | None = None  # the calibration probes beside the log (imply.diagnose.probes), where it has them
 
     def aux(self, name: str) -> np.ndarray | None:

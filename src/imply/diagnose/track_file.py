@@ -25,7 +25,9 @@ push (0 <= t <= :data:`MAX_START`, the box has not yet moved far); a track has a
 :data:`MIN_FRAMES` frames; its final travel along the push agrees with the log's
 displacement within a factor :data:`TRAVEL_FACTOR`, give or take :data:`TRAVEL_SLACK`
 (else it is another push's track, another unit or another frame); every push of the log has a track once any has; a track names a push the
-log has, with that push's object.
+log has, with that push's object; every fraction of a push's travel is crossed at a positive time. A push that
+moved less than :data:`TRAVEL_SLACK` cannot be timed from its track: there the whole track is left out, and the
+report says so (``PushLog.track_note``).
 """
 
 from __future__ import annotations
@@ -152,6 +154,14 @@ def read_track(path: str | os.PathLike, pushlog: PushLog) -> PushLog:
     bad = np.flatnonzero(~np.all(np.isfinite(times) & (times > 0), axis=1))
     if bad.size:
         i = int(bad[0])
+        if float(pushlog.displacement[i]) < TRAVEL_SLACK:
+            # a box that barely moves (less than a camera's few millimetres) has a track of noise: no time can be
+            # read from it, and the fits take every push's crossing times or none, so the track is left out
+            return replace(
+                pushlog,
+                track_note=f"the track was left out: push {log_numbers[i]:g} moved {pushlog.displacement[i]:.2g} m, "
+                "too little for its track to time",
+            )
         raise row_error(
             path,
             seen[float(log_numbers[i])],
