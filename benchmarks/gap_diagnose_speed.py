@@ -8,6 +8,7 @@ the children's peak memory, the medians and their ratio, and compares the two co
 file: every byte the same but the seconds each diagnosis took.
 
 Run: python benchmarks/gap_diagnose_speed.py [--baseline REV] [--logs 8] [--contact] [--observed] [--repeats 2]
+     [--baseline-lacks use_probes,free_launch]  (a baseline of an earlier design: its own options only)
 Needs the gap stage's logs and effect tables (snakemake --cores 2 results/gap/reports/shard0).
 """
 
@@ -77,6 +78,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--contact", action="store_true", help="the other-contact benchmark's logs")
     ap.add_argument("--observed", action="store_true", help="with the pusher's measured speed and the box's track")
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument(
+        "--baseline-lacks",
+        default="",
+        metavar="KEY,...",
+        help="options the baseline does not know, left out of its runs (its design without them: the reports then "
+        "differ, and the ratio is the new design's cost)",
+    )
     args = ap.parse_args(argv)
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
     folder = ROOT / ("results/gap/contact/logs" if args.contact else "results/gap/logs")
@@ -85,11 +93,14 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"no logs in {folder}: run the gap stage first")
     logs = every[:: max(1, len(every) // args.logs)][: args.logs]
     options = {**config["gap"]["diagnose"], **(OBSERVED if args.observed else {})}
+    lacks = [k for k in args.baseline_lacks.split(",") if k]
+    baseline_options = {k: v for k, v in options.items() if k not in lacks}
     times: dict[str, list[float]] = {"baseline": [], "current": []}
     with tempfile.TemporaryDirectory() as tmp, baseline_tree(args.baseline) as tree:
         for r, which in ab_rounds(args.repeats):
             src = tree / "src" if which == "baseline" else ROOT / "src"
-            wall = diagnose(src, logs, options, config, Path(tmp) / f"{which}-{r}")
+            opts = baseline_options if which == "baseline" else options
+            wall = diagnose(src, logs, opts, config, Path(tmp) / f"{which}-{r}")
             times[which].append(wall)
             peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
             print(f"round {r + 1} {which:8s} {wall:6.1f} s for {len(logs)} logs  (peak RSS so far {peak:.0f} MiB)")
