@@ -1,8 +1,10 @@
 """The benchmark's report (Markdown) and the gap stage's claims.
 
 The gap stage's numbers are read by the registry (:mod:`imply.paper.registry`) from the
-result of :func:`imply.realworld.benchmark.score_cases`; :func:`benchmark_claims` checks
-the targets (config ``gap.benchmark.targets``) on that result.
+result of :func:`imply.realworld.benchmark.score_cases` and the lab benchmark's sealed score
+(:func:`imply.realworld.lab_score.score_lab`); :func:`benchmark_claims` checks the targets
+(config ``gap.benchmark.targets``, ``gap.contact_benchmark.targets``,
+``gap.lab_benchmark.targets``) on those results.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from imply.io import write_text
+from imply.realworld.lab_score import ENGINES
 from imply.results import Claim, Values
 
 RESULT = "imply.realworld.benchmark.score_cases"
@@ -53,8 +56,6 @@ def _meets(r: dict, targets: dict, target: tuple[str, str, str, bool]) -> bool:
 def benchmark_claims(v: Values, results: Mapping[str, Any]) -> list[Claim]:
     """One claim per target of the benchmark, and that its world is converged at least as closely as the table; then
     the lab benchmark's targets on its sealed set, where the stage has that result."""
-    from imply.realworld.lab_score import lab_claims
-
     return claims_of(results[RESULT]) + lab_claims(results.get(LAB_RESULT))
 
 
@@ -246,6 +247,108 @@ def contact_claims(c: dict | None) -> list[Claim]:
             f"own design: {_f(rnd.get('one_cause_right'))}; told the cause, its own hypothesis within "
             f"{t['magnitude_within']:.0%} in {_f(nxt.get('told_right'), '.2f')} (random pushes "
             f"{_f(rnd.get('told_right'), '.2f')})",
+        ),
+    ]
+
+
+def lab_claims(r: Mapping | None) -> list[Claim]:
+    """The lab benchmark's targets (config ``gap.lab_benchmark.targets``, fixed before any run) on the sealed set's
+    :func:`score_lab` result, its closed loop included; none where the stage has no lab result."""
+    if not r:
+        return []
+    t = r["targets"]
+    w, wo = r["probes"], r["no_probes"]
+    within = f"{t['magnitude_within']:.0%}"
+
+    def at_least(x, key):
+        return _holds(x, lambda v: v >= t[key])
+
+    def at_most(x, key):
+        return _holds(x, lambda v: v <= t[key])
+
+    def share(res: Mapping, key: str, engine: bool = True) -> str:
+        words = f"{_f(res.get(key), '.2f')} on {res.get(f'n_{key}', 0)}"
+        per = [
+            f"{e} {_f(res.get(f'{key}_{e}'), '.2f')}/{res.get(f'n_{key}_{e}')}"
+            for e in ENGINES
+            if engine and res.get(f"n_{key}_{e}")
+        ]
+        return words + (f" ({', '.join(per)})" if per else "")
+
+    sep_w, sep_wo = w["probe_logs_separable"], wo["separable"]
+    loop = r.get("closed_loop") or {}
+    nxt, rnd = loop.get("next") or {}, loop.get("random") or {}
+    return [
+        Claim(
+            "gap-lab-null",
+            "gap",
+            f"Lab benchmark, null logs (contacts and engines not the table's): no effect beyond the contact stated in "
+            f">= {t['null_no_library']:.0%}, with and without probes",
+            at_least(w["all"]["null_no_library"], "null_no_library")
+            and at_least(wo["all"]["null_no_library"], "null_no_library"),
+            f"with probes {share(w['all'], 'null_no_library')}; without {share(wo['all'], 'null_no_library')}",
+        ),
+        Claim(
+            "gap-lab-pusher",
+            "gap",
+            "Lab benchmark, null logs read without the pusher's speed or free strokes: a pusher cause stated in "
+            f"<= {t['pusher_unmeasured']:.0%}",
+            at_most(wo["all"]["null_pusher_stated"], "pusher_unmeasured"),
+            share(wo["all"], "null_pusher_stated"),
+        ),
+        Claim(
+            "gap-lab-named",
+            "gap",
+            f"Lab benchmark, one big effect: among the named in >= {t['among_named']:.0%}, with at most "
+            f"{t['contenders_mean']:g} contenders on average (with probes)",
+            at_least(w["all"]["among_named"], "among_named")
+            and at_most(w["all"]["contenders_mean"], "contenders_mean"),
+            f"{share(w['all'], 'among_named')}; contenders {_f(w['all']['contenders_mean'], '.2f')}",
+        ),
+        Claim(
+            "gap-lab-single-probes",
+            "gap",
+            f"Lab benchmark, one big effect separable from its contact, logs with probes: stated as the one cause "
+            f"within {within} in >= {t['single_right']:.0%}",
+            at_least(sep_w["single_right"], "single_right"),
+            f"{share(sep_w, 'single_right')}; told the cause {_f(sep_w.get('told_right'), '.2f')}; not separable: "
+            f"{_f(w['not_separable'].get('single_right'), '.2f')} on {w['not_separable'].get('n_single_right', 0)}, "
+            f"told {_f(w['not_separable'].get('told_right'), '.2f')}",
+        ),
+        Claim(
+            "gap-lab-single",
+            "gap",
+            f"Lab benchmark, one big effect separable from its contact, without probes: stated as the one cause within "
+            f"{within} in >= {t['single_right_no_probes']:.0%}",
+            at_least(sep_wo["single_right"], "single_right_no_probes"),
+            f"{share(sep_wo, 'single_right')}; told the cause {_f(sep_wo.get('told_right'), '.2f')}; not separable: "
+            f"{_f(wo['not_separable'].get('single_right'), '.2f')} on {wo['not_separable'].get('n_single_right', 0)}, "
+            f"told {_f(wo['not_separable'].get('told_right'), '.2f')}",
+        ),
+        Claim(
+            "gap-lab-wrong",
+            "gap",
+            f"Lab benchmark, effects outside the library: a library mechanism stated as the one cause in "
+            f"<= {t['wrong_single']:.0%}, with and without probes",
+            at_most(w["all"]["wrong_single"], "wrong_single") and at_most(wo["all"]["wrong_single"], "wrong_single"),
+            f"with probes {share(w['all'], 'wrong_single')}; without {share(wo['all'], 'wrong_single')}",
+        ),
+        Claim(
+            "gap-lab-contact",
+            "gap",
+            f"Lab benchmark, MuJoCo variants whose table contact is off: the contact named in >= {t['contact_named']:.0%}",
+            at_least(w["all"]["contact_named"], "contact_named"),
+            share(w["all"], "contact_named", engine=False),
+        ),
+        Claim(
+            "gap-lab-loop",
+            "gap",
+            f"Lab benchmark, one big effect with several contenders, probes allowed: the one cause right within "
+            f"{within} in >= {t['closed_loop']:.0%} once the recommended next experiments are run",
+            at_least(nxt.get("one_cause_right"), "closed_loop"),
+            f"{_f(nxt.get('one_cause_right'), '.2f')} on {nxt.get('n_single', 0)} logs; as many random pushes of the "
+            f"log's design: {_f(rnd.get('one_cause_right'), '.2f')}; told the cause {_f(nxt.get('told_right'), '.2f')} "
+            f"(random {_f(rnd.get('told_right'), '.2f')}); probes run per log {_f(nxt.get('probes_added_mean'), '.2f')}",
         ),
     ]
 
