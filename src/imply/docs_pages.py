@@ -837,15 +837,24 @@ def _stage_table(rows: list[dict]) -> list[str]:
 
 def _snapshot_stage_times(stamp: dict, page: str) -> str:
     """The stage-times table of the snapshot's run."""
+    from imply.paper.snapshot import timing
+
     times = stamp["stage_times"]
     out = [snapshot_note(stamp, page), "", *_stage_table(times["stages"])]
+    sittings = times.get("sittings") or []
+    where = (
+        " Its sittings: "
+        + "; ".join(f"{s['start']} to {s['end']} UTC ({', '.join(s['stages'])})" for s in sittings)
+        + "."
+        if len(sittings) > 1
+        else ""
+    )
     return "\n".join(
         [
             *out,
             "",
-            f"*{times['jobs']} jobs; the whole run took {times['wall_seconds'] / 60:.0f} min from "
-            "the first job's start to the last one's end. Jobs of different stages run side by side on the "
-            "cores, so the whole study takes less than the sum.*",
+            f"*{times['jobs']} jobs; the whole run took {timing(stamp)}.{where} Jobs of different stages run side by "
+            "side on the cores, so the whole study takes less than the sum.*",
         ]
     )
 

@@ -161,7 +161,10 @@ def timing(stamp: dict) -> str:
     n_sit = len((stamp.get("stage_times") or {}).get("sittings") or [None])
     text = f"{wall / 60:.0f} min from the first job to the last on {stamp['machine']['cores']} cores"
     if n_sit > 1:
-        text = f"{wall / 60:.0f} min of jobs on {stamp['machine']['cores']} cores in {n_sit} sittings"
+        text = (
+            f"{wall / 60:.0f} min on {stamp['machine']['cores']} cores in {n_sit} sittings (each from its first job "
+            "to its last)"
+        )
     return text + (f", {cpu:.0f} CPU-min of jobs" if cpu else "")
 
 
