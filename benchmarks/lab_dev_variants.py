@@ -33,18 +33,10 @@ from gap_contact_dev import run_shards
 from imply.diagnose.candidates import CONTACT, get
 from imply.realworld.benchmark import find_summaries, score_contact_cases
 from imply.realworld.lab import LabBenchmarkConfig
+from imply.realworld.lab_score import METRICS as LAB_METRICS
 
 ROOT = Path(__file__).resolve().parents[1]
-METRICS = (
-    "null_no_library",
-    "null_pusher_stated",
-    "among_named",
-    "contenders_mean",
-    "single_right",
-    "told_right",
-    "wrong_single",
-    "contact_named",
-)
+METRICS = tuple(key for key, *_ in LAB_METRICS)  # the lab score's metrics, in its order
 WITHOUT_CONTACT = [c.name for c in get() if c.name not in CONTACT]
 VARIANTS = {
     "before": ({"use_probes": False}, WITHOUT_CONTACT),

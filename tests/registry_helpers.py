@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from imply.realworld.lab import LabBenchmarkConfig
+from imply.realworld.lab_score import METRICS as LAB_METRICS
+
 
 def fake_results(reg, stage: str, value: float = 0.5) -> dict:
     """Result documents holding ``value`` at every registered path of a stage (and what its claims read)."""
@@ -34,31 +37,11 @@ def fake_results(reg, stage: str, value: float = 0.5) -> dict:
         doc.update(extra)
     if stage == "gap":
         lab = results["imply.realworld.lab_score.score_lab"]
-        lab["targets"] = {
-            "null_no_library": 0.9,
-            "pusher_unmeasured": 0.05,
-            "among_named": 0.9,
-            "contenders_mean": 3.0,
-            "magnitude_within": 0.3,
-            "single_right": 0.7,
-            "single_right_no_probes": 0.4,
-            "wrong_single": 0.1,
-            "contact_named": 0.8,
-            "closed_loop": 0.6,
-        }
+        lab["targets"] = dict(LabBenchmarkConfig().targets)
         for variant in ("probes", "no_probes"):
             for subset in ("all", "separable", "not_separable", "probe_logs_separable"):
                 node = lab.setdefault(variant, {}).setdefault(subset, {})
-                for key in (
-                    "null_no_library",
-                    "null_pusher_stated",
-                    "among_named",
-                    "contenders_mean",
-                    "single_right",
-                    "told_right",
-                    "wrong_single",
-                    "contact_named",
-                ):
+                for key, *_ in LAB_METRICS:
                     node.setdefault(key, value)
         doc = results["imply.realworld.benchmark.score_cases"]
         doc["world_error"]["table_rms"] = value

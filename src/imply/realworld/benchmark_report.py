@@ -275,6 +275,14 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
         ]
         return words + (f" ({', '.join(per)})" if per else "")
 
+    def single(separable: Mapping, not_separable: Mapping) -> str:
+        """The one cause right and told the cause on the separable logs, and the same on the others."""
+        return (
+            f"{share(separable, 'single_right')}; told the cause {_f(separable.get('told_right'), '.2f')}; not "
+            f"separable: {_f(not_separable.get('single_right'), '.2f')} on {not_separable.get('n_single_right', 0)}, "
+            f"told {_f(not_separable.get('told_right'), '.2f')}"
+        )
+
     sep_w, sep_wo = w["probe_logs_separable"], wo["separable"]
     loop = r.get("closed_loop") or {}
     nxt, rnd = loop.get("next") or {}, loop.get("random") or {}
@@ -311,9 +319,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"Lab benchmark, one big effect separable from its contact, logs with probes: stated as the one cause "
             f"within {within} in >= {t['single_right']:.0%}",
             at_least(sep_w["single_right"], "single_right"),
-            f"{share(sep_w, 'single_right')}; told the cause {_f(sep_w.get('told_right'), '.2f')}; not separable: "
-            f"{_f(w['not_separable'].get('single_right'), '.2f')} on {w['not_separable'].get('n_single_right', 0)}, "
-            f"told {_f(w['not_separable'].get('told_right'), '.2f')}",
+            single(sep_w, w["not_separable"]),
         ),
         Claim(
             "gap-lab-single",
@@ -321,9 +327,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"Lab benchmark, one big effect separable from its contact, without probes: stated as the one cause within "
             f"{within} in >= {t['single_right_no_probes']:.0%}",
             at_least(sep_wo["single_right"], "single_right_no_probes"),
-            f"{share(sep_wo, 'single_right')}; told the cause {_f(sep_wo.get('told_right'), '.2f')}; not separable: "
-            f"{_f(wo['not_separable'].get('single_right'), '.2f')} on {wo['not_separable'].get('n_single_right', 0)}, "
-            f"told {_f(wo['not_separable'].get('told_right'), '.2f')}",
+            single(sep_wo, wo["not_separable"]),
         ),
         Claim(
             "gap-lab-wrong",

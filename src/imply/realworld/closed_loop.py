@@ -99,6 +99,7 @@ def run_closed_loop(
         frame = pd.read_csv(logs / f"{cid}.csv")
         nxt = pd.read_csv(folder / "next_pushes.csv")
         own_probes = _probes_file(logs / f"{cid}.csv")
+        logged_probes = pd.read_csv(own_probes) if own_probes.is_file() else None
         probe_rec = folder / "next_probes.csv"
         rec = pd.read_csv(probe_rec) if probes_allowed and probe_rec.is_file() else pd.DataFrame()
         rng = np.random.default_rng([design.seed, number[cid]])
@@ -117,7 +118,7 @@ def run_closed_loop(
             appended = pd.concat([frame, new[frame.columns]], ignore_index=True)
             path = out / "logs" / f"{cid}-{arm}.csv"
             write_csv(path, appended)
-            probe_rows = pd.read_csv(own_probes) if own_probes.is_file() else None
+            probe_rows = logged_probes
             ran = 0
             if arm == "next" and len(rec):
                 more = extra_probes(case, design, scene, rec, seed=ARMS[arm], nthread=nthread)

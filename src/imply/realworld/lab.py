@@ -352,19 +352,13 @@ def write_lab_set(
         frame, label = make_log(case, sim, design, scene)
         write_csv(logs / f"{case['id']}.csv", frame)
         write_csv(logs / f"{case['id']}.track.csv", log_track(case, sim, label, design))
-        layout = lab_probe_layout(case, design)
         if case["probes"]:
-            rows = probe_rows(
+            rows = recorded_probes(
+                case,
+                design,
                 sim["all"]["probes"],
-                layout,
-                object_names(design.n_objects),
-                design=design.probes,
-                replicates=design.replicates,
-                sd=nm.sd,
-                stop_time_sd=nm.stop_time_sd,
-                pusher_speed_sd=nm.pusher_speed_sd,
-                with_stop_time=case["stop_time"],
-                rng=np.random.default_rng([case["noise_seed"], 3]),
+                lab_probe_layout(case, design),
+                np.random.default_rng([case["noise_seed"], 3]),
             )
             write_csv(logs / f"{case['id']}.probes.csv", rows)
         label["probes"] = case["probes"]
@@ -415,16 +409,25 @@ def extra_probes(
     p = pushes_in_world(case, np.maximum(layout.obj, 0), layout.speed, layout.direction, scene, case["effects"])
     p = probe_pushes(layout, p, design.probes)
     res = simulate_engine(p, scene, design.stepping, engine=case.get("engine", "mujoco"), nthread=nthread)
+    observed = probe_observables(layout, res, p, scene.stroke)
+    return recorded_probes(case, design, observed, layout, np.random.default_rng([case["noise_seed"], seed, 3]))
+
+
+def recorded_probes(
+    case: dict, design: LabBenchmarkConfig, observed: dict[str, list], layout: ProbeLayout, rng: np.random.Generator
+) -> pd.DataFrame:
+    """The probe rows a lab records of ``case``'s probes (``observed`` noise-free, laid out by ``layout``), with the
+    log's noise and replicates (:func:`imply.realworld.probes.probe_rows`)."""
     nm = design.noise
     return probe_rows(
-        probe_observables(layout, res, p, scene.stroke),
+        observed,
         layout,
-        names,
+        object_names(design.n_objects),
         design=design.probes,
         replicates=design.replicates,
         sd=nm.sd,
         stop_time_sd=nm.stop_time_sd,
         pusher_speed_sd=nm.pusher_speed_sd,
         with_stop_time=case["stop_time"],
-        rng=np.random.default_rng([case["noise_seed"], seed, 3]),
+        rng=rng,
     )

@@ -41,17 +41,10 @@ def observable_set(label: Mapping, variant: str) -> str:
     return "stop_time" if label.get("stop_time") else "displacement"
 
 
-def separable_logs(
-    labels: Mapping[str, dict], variant: str, *, alias_cos: float, min_size_sd: float, crossing_sd: float
-) -> dict[str, bool]:
-    """Each one-effect log's marking (:func:`imply.realworld.separability.mark_log`) under the observable set the
-    variant reads it with: whether its effect is separable from its contact."""
-    out = {}
-    for cid, lab in labels.items():
-        if lab["group"] in CONTACT_SINGLE:
-            mark = mark_log(lab, alias_cos=alias_cos, min_size_sd=min_size_sd, crossing_sd=crossing_sd)
-            out[cid] = bool(mark["sets"][observable_set(lab, variant)]["separable"])
-    return out
+def separable_logs(labels: Mapping[str, dict], marks: Mapping[str, dict], variant: str) -> dict[str, bool]:
+    """Each one-effect log's marking (``marks``: :func:`imply.realworld.separability.mark_log` by log) under the
+    observable set the variant reads it with: whether its effect is separable from its contact."""
+    return {cid: bool(m["sets"][observable_set(labels[cid], variant)]["separable"]) for cid, m in marks.items()}
 
 
 def score_lab(
@@ -75,8 +68,14 @@ def score_lab(
             {c: labels[c] for c in ids}, {c: found[c] for c in ids}, targets=targets, min_size_sd=min_size_sd
         )
 
+    # every one-effect log marked once, under every observable set; each variant reads its own
+    marked = {
+        cid: mark_log(lab, alias_cos=alias_cos, min_size_sd=min_size_sd, crossing_sd=crossing_sd)
+        for cid, lab in labels.items()
+        if lab["group"] in CONTACT_SINGLE
+    }
     for name, found in summaries.items():
-        marks = separable_logs(labels, name, alias_cos=alias_cos, min_size_sd=min_size_sd, crossing_sd=crossing_sd)
+        marks = separable_logs(labels, marked, name)
         out[name] = {
             "all": score(sorted(labels), found),
             "probe_logs": score(with_probes, found),
