@@ -65,6 +65,8 @@ def probes_of(log, *, friction=None, friction_sd=0.06, strokes=(), added=None) -
         free_stroke_pusher_speed=strokes[:, 1],
         friction=np.full(n, np.nan) if friction is None else np.asarray(friction, float),
         friction_sd=np.full(n, friction_sd),
+        friction_speed=np.full(n, np.nan),
+        friction_direction=np.full(n, np.nan),
         added_obj=added[:, 0].astype(int),
         added_speed=added[:, 1],
         added_displacement=added[:, 2],

@@ -12,7 +12,7 @@ HEADER = "probe,object_id,speed,direction,pusher_speed,displacement,stop_time,ad
 GOOD = [
     "free_stroke,,0.3,,0.28,,,,,",
     "free_stroke,,0.9,,0.75,,,,,",
-    "friction,a,,,,,,,0.31,0.04",
+    "friction,a,0.1,2.5,,,,,0.31,0.04",
     "friction,b,,,,,,,0.2,",
     "added_mass,a,0.3,0.5,0.25,0.02,0.15,0.25,,",
     "added_mass,b,0.9,,,0.1,,0.4,,",
@@ -32,6 +32,9 @@ def test_a_good_file_is_read_into_arrays(tmp_path):
     assert np.allclose(p.friction, [0.31, 0.2]) and np.allclose(p.friction_sd, [0.04, DEFAULT_FRICTION_SD])
     assert p.added_obj.tolist() == [0, 1] and np.allclose(p.added_mass, [0.25, 0.4])
     assert np.isnan(p.added_stop_time[1]) and p.added_direction[0] == 0.5
+    # a pull test's drag: its own speed (slower than the table's pushes) and direction, where the row says them
+    assert p.friction_speed[0] == 0.1 and p.friction_direction[0] == 2.5
+    assert np.isnan(p.friction_speed[1]) and np.isnan(p.friction_direction[1])
 
 
 @pytest.mark.parametrize(
@@ -46,6 +49,7 @@ def test_a_good_file_is_read_into_arrays(tmp_path):
         ("free_stroke,,0.5,,1.4,,,,,", r"column pusher_speed: 1.4 m/s is more than twice the commanded speed"),
         ("added_mass,a,0.5,,,0.05,,-0.1,,", r"column added_mass: -0.1 must be positive"),
         ("friction,a,,,,,,,0.3,", r"row 7 \(line 8\), column object_id: 'a' has a friction measurement in an earlier"),
+        ("friction,a,-0.1,,,,,,0.3,", r"row 7 \(line 8\), column speed: -0.1 must be positive"),
     ],
 )
 def test_bad_rows_are_refused_naming_row_and_column(tmp_path, row, match):

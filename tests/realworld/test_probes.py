@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from imply.diagnose.candidates import Model, get
+from imply.diagnose.probe_fit import pull_test_log_reading
 from imply.realworld.bullet import simulate_bullet
 from imply.realworld.effects import apply_effect
 from imply.realworld.probes import ProbeDesign, probe_layout, probe_observables, probe_pushes
@@ -98,3 +100,44 @@ def test_a_recommended_probe_runs_in_the_log_s_world_as_its_own_probes_do(scene)
     assert set(loaded["object_id"]) == {"obj00"} and np.allclose(loaded["added_mass"].astype(float), 0.1)
     free = rows.loc[rows["probe"] == "free_stroke", "pusher_speed"].astype(float)
     assert np.all((free < 0.8) & (free > 0.5)), free
+
+
+@pytest.mark.parametrize(
+    ("effect", "candidate", "theta"),
+    [
+        (("tilt", 0.03, 1.0), "tilt", [0.03 * np.cos(1.0), 0.03 * np.sin(1.0)]),
+        (("viscous", 1.0), "viscous", [1.0]),
+        (("anisotropic", 0.3, 0.5), "anisotropic", [0.3 * np.cos(1.0), 0.3 * np.sin(1.0)]),
+    ],
+    ids=["tilt", "viscous", "anisotropic"],
+)
+def test_the_diagnostic_reads_a_pull_test_as_the_world_runs_it(scene, effect, candidate, theta):
+    """What the fits predict a pull test reads under an effect (imply.diagnose.probe_fit, a force balance) against
+    the world's own pull test stepped in MuJoCo: the change the effect makes to each object's reading."""
+    design = ProbeDesign()
+    directions = np.array([0.3, 2.0, 4.0])
+    layout = probe_layout(MASSES, SPEEDS, directions, design)
+    obj = np.maximum(layout.obj, 0)
+    readings = []
+    for e in (None, effect):
+        p = WorldPushes.nominal(layout.speed, MASSES[obj], FRICTIONS[obj], layout.direction, scene)
+        if e:
+            apply_effect(p, *e)
+        p = probe_pushes(layout, p, design)
+        readings.append(np.array(probe_observables(layout, simulate_world(p, scene), p, scene.stroke)["reading"]))
+    pull = layout.kind == "friction"
+    world = (readings[1] - readings[0])[pull]
+    model = Model(tuple(get([candidate])))
+    lm, lu = np.log(MASSES)[None, :], np.log(FRICTIONS)[None, :]
+    speed = np.full(3, design.pull_speed)
+    predicted = np.exp(pull_test_log_reading(model, np.array([theta]), lm, lu, speed, directions))[0] - FRICTIONS
+    assert np.abs(world).max() > 0.02  # the effect moves the reading by a third of a stated uncertainty or more
+    # the force balance is ideal; the world's box, dragged through its own (pyramidal, soft) friction cone with
+    # gravity partly across the drag, reads within a quarter of the test's stated uncertainty of it, and far closer
+    # than reading the effect as no change at all
+    error = np.abs(predicted - world)
+    assert error.max() <= design.friction_sd / 4, (predicted, world)
+    assert np.sqrt(np.mean(error**2)) < 0.5 * np.sqrt(np.mean(world**2)), (predicted, world)
+    # without the drag's direction and speed, the reading cannot say what the effect does to it
+    blind = pull_test_log_reading(model, np.array([theta]), lm, lu, np.full(3, np.nan), np.full(3, np.nan))[0]
+    assert np.allclose(np.exp(blind), FRICTIONS, rtol=1e-3)  # the slope's cos on the normal force alone

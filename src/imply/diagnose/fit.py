@@ -396,7 +396,7 @@ class Problem(Predicting, FreeLaunch):
         of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N)."""
         pr = self.probes
         k = lms.shape[0]
-        parts = [lus[:, pr.friction_obj] - pr.log_friction]
+        parts = [pr.friction_prediction(model, thetas if model.dim else np.zeros((k, 0)), lms, lus) - pr.log_friction]
         if pr.n_added:
             a = pr.n_added
             th = np.repeat(thetas, a, axis=0) if model.dim else np.zeros(0)

@@ -6,8 +6,11 @@ weighed into the log as a fixed friction), and a push of each object with a know
 its fitted mass, inside the table's range) at the log's lowest and highest speed. Each
 contender (as in :mod:`imply.diagnose.next_pushes`) predicts what each probe would read, by
 the same physics its fit uses (:mod:`imply.diagnose.probe_fit`): the free stroke through
-the rig's servo at the pusher's speed under that contender, the friction reading as the
-object's fitted friction, the loaded push as a push at the loaded mass. A probe's
+the rig's servo at the pusher's speed under that contender, the friction reading as a pull
+test reads it under that contender's effects (:func:`imply.diagnose.probe_fit.pull_test_log_reading`:
+a drag at :data:`PULL_SPEED` along the object's first push of the log, so that a tilt or a
+viscous force moves the reading and a change of the table's friction does not), the loaded
+push as a push at the loaded mass. A probe's
 separation of two contenders is the squared difference of their predictions over its noise
 (a friction reading's default stated uncertainty, the log's displacement noise and model
 floor, a free stroke's noise or, where the log does not say, 0.02 in log).
@@ -27,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.probe_fit import Servo, free_stroke_log_speed
+from imply.diagnose.probe_fit import Servo, free_stroke_log_speed, pull_test_log_reading
 from imply.diagnose.probes import DEFAULT_FRICTION_SD
 from imply.diagnose.records import Record
 from imply.io import write_csv
@@ -35,6 +38,7 @@ from imply.io import write_csv
 ASSUMED_STROKE_SD = 0.02  # log units: a free stroke's noise where the log does not say (as next_pushes assumes)
 LOAD_SHARE = 0.5  # a loaded push's load, as a share of the box's fitted mass (kept inside the table's mass range)
 MIN_LOAD = 0.05  # kg: a smaller load is not worth a push
+PULL_SPEED = 0.1  # m/s: a recommended pull test's drag speed (slow and steady, as a friction test drags)
 # what each kind of probe reads, as the file's column names it
 READS = {"free_stroke": "pusher_speed", "friction": "friction", "added_mass": "displacement"}
 
@@ -45,7 +49,7 @@ class NextProbe(Record):
 
     probe: str  # free_stroke | friction | added_mass
     object_id: str | None
-    speed: float | None  # m/s (free strokes and loaded pushes)
+    speed: float | None  # m/s (free strokes and loaded pushes; a friction test's drag)
     added_mass: float | None  # kg (loaded pushes)
     expected: dict[
         str, float
@@ -76,8 +80,23 @@ def _candidates(problem: Problem, speeds: np.ndarray, fits: list[JointFit]):
         measured |= np.isfinite(problem.log.probes.friction)
     if problem.fixed_lu is None:
         free = np.flatnonzero(~measured)
-        rows += [("friction", int(i), np.nan, np.nan) for i in free]
-        preds.append(np.stack([f.objects.lu[free] for f in fits], 1))
+        rows += [("friction", int(i), PULL_SPEED, np.nan) for i in free]
+        # along each object's first push (the log's order), as a lab would set up its test
+        first = np.array([problem.phi[np.flatnonzero(problem.obj == i)[0]] for i in free], float)
+        if not problem.log.has_direction:
+            first = np.full(free.size, np.nan)  # a log without directions: the pull's is not known either
+        speed = np.full(free.size, PULL_SPEED)
+        preds.append(
+            np.stack(
+                [
+                    pull_test_log_reading(
+                        f.model, f.theta[None, :], f.objects.lm[None, free], f.objects.lu[None, free], speed, first
+                    )[0]
+                    for f in fits
+                ],
+                1,
+            )
+        )
         sds.append(DEFAULT_FRICTION_SD / np.exp(lead.objects.lu[free]))
     mass = np.exp(lead.objects.lm)
     hi_mass = float(problem.table.mass_range[1])
@@ -138,7 +157,7 @@ def probe_words(p: NextProbe) -> str:
     if p.probe == "free_stroke":
         return f"a free stroke of the pusher at {p.speed:.2g} m/s"
     if p.probe == "friction":
-        return f"a friction measurement of {p.object_id}"
+        return f"a friction measurement of {p.object_id} (a pull at {p.speed:.2g} m/s along its first push)"
     return f"a push of {p.object_id} at {p.speed:.2g} m/s with {p.added_mass:.3g} kg added"
 
 

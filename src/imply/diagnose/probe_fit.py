@@ -4,9 +4,19 @@ Each probe (:mod:`imply.diagnose.probes`) is predicted under the hypothesis bein
 a push is, and its residual counts in the same sum of squares:
 
 - a **friction measurement** of object i is a prior on its friction, never a value held
-  fixed: (log mu_i - log reading) / (reading's sd / reading). What a test reads on a robot
-  is not exactly what the simulator's friction parameter means; the stated uncertainty
-  says by how much it may differ;
+  fixed: (log r_i - log reading) / (reading's sd / reading), with r_i what a pull test
+  reads under the hypothesis (:func:`pull_test_log_reading`). A slow, steady drag at speed
+  u in direction phi balances every force along it, so over the box's weight m g it reads
+
+      r = mu (1 + a_c cos 2 phi + a_s sin 2 phi) cos(a) - sin(a cos(phi - psi)) + b u / (m g)
+
+  for a table sloping a toward psi (downhill; the drag is helped where it goes downhill),
+  anisotropic friction (a_c, a_s) and a viscous force b. The direction-dependent terms
+  need the row's direction and the viscous term its speed; a row without them reads
+  mu (1 + ...) as far as it can be said. Air drag at a pull test's speed is below a
+  thousandth of the weight and left out, and so are the pusher's effects (the test has its
+  own drive). What a test reads on a robot is still not exactly what the simulator's
+  friction parameter means; the stated uncertainty says by how much it may differ;
 - a **push with a known added mass** is predicted as the log's pushes are (the table, the
   hypothesis's effects and its discrepancy), at the object's own friction and its mass plus
   the load: it pins the object's mass apart from its friction, which displacements at
@@ -32,12 +42,16 @@ import numpy as np
 
 from imply.diagnose.candidates import Model, terms
 from imply.diagnose.probes import Probes
+from imply.sim.effects import EFFECTS
 
 PROBE_AUX = ("stop_time", "pusher_speed")  # what an added-mass push may measure beside its displacement
 SERVO_KEYS = ("pusher_mass", "pusher_kv", "pusher_force_limit", "stroke")  # what the table's scene says of the rig
 STROKE_SD_FLOOR = 0.002  # log units: the free strokes' noise is never taken below this (encoders' resolution)
 # log units: a free stroke's noise where nothing in the log measures it (the benchmark worlds' encoder noise)
 STROKE_SD_DEFAULT = 0.01
+GRAVITY = 9.81  # m/s^2: a pull test's reading is its force over the box's weight m g
+VISCOUS_KEY = EFFECTS["viscous"].table_key  # the viscous force's coefficient b (N s/m) among a model's terms
+MIN_READING = 1e-3  # a reading is positive: a hypothesis that would drag the box by itself reads this
 
 
 @dataclass(frozen=True)
@@ -110,7 +124,8 @@ class ProbeRows:
     """The probes of one log as fit rows.
 
     friction_obj (f,), log_friction (f,), friction_sd (f,): each measured object, its log reading and the
-    reading's sd in log units. added_obj, added_speed, added_phi, added_mass, added_log_d (a,): each loaded push;
+    reading's sd in log units; pull_speed, pull_phi (f,): its pull test's drag speed (m/s) and direction (rad), NaN
+    where the probes file does not say. added_obj, added_speed, added_phi, added_mass, added_log_d (a,): each loaded push;
     added_aux: {observable: (a,) its log, NaN where not measured} for the observables of :data:`PROBE_AUX` the fit
     uses. stroke_speed, log_stroke (s,): each free stroke's commanded speed and log measured mean speed; servo:
     their physics (None: the table's scene does not say, and the free strokes are not used).
@@ -119,6 +134,8 @@ class ProbeRows:
     friction_obj: np.ndarray
     log_friction: np.ndarray
     friction_sd: np.ndarray
+    pull_speed: np.ndarray
+    pull_phi: np.ndarray
     added_obj: np.ndarray
     added_speed: np.ndarray
     added_phi: np.ndarray
@@ -145,6 +162,8 @@ class ProbeRows:
             friction_obj=measured,
             log_friction=np.log(reading),
             friction_sd=probes.friction_sd[measured] / reading,
+            pull_speed=probes.friction_speed[measured],
+            pull_phi=probes.friction_direction[measured],
             added_obj=probes.added_obj,
             added_speed=probes.added_speed,
             added_phi=np.nan_to_num(probes.added_direction, nan=0.0),
@@ -188,6 +207,12 @@ class ProbeRows:
                 return max(float(np.sqrt((dev * dev).sum() / dof)), STROKE_SD_FLOOR)
         return STROKE_SD_DEFAULT
 
+    def friction_prediction(self, model: Model, thetas: np.ndarray, lms: np.ndarray, lus: np.ndarray) -> np.ndarray:
+        """(K, f) the log of what each friction measurement reads under the model at K settings: thetas (K, p), the
+        objects' log mass and log friction lms, lus (K, N)."""
+        obj = self.friction_obj
+        return pull_test_log_reading(model, thetas, lms[:, obj], lus[:, obj], self.pull_speed, self.pull_phi)
+
     def free_stroke_prediction(self, model: Model, thetas: np.ndarray) -> np.ndarray:
         """(K, s) the log mean speed of each free stroke under the model at each of K parameter settings."""
         return free_stroke_log_speed(self.servo, model, thetas, self.stroke_speed)
@@ -204,3 +229,32 @@ def free_stroke_log_speed(servo: Servo, model: Model, thetas: np.ndarray, speeds
         t = terms(model, np.repeat(thetas, s, axis=0), np.zeros(K * s))
         speed = speed * (1.0 + t.gain.reshape(K, s)) + t.offset.reshape(K, s)
     return np.log(servo.mean_speed(speed.ravel())).reshape(K, s)
+
+
+def pull_test_log_reading(
+    model: Model, thetas: np.ndarray, lm: np.ndarray, lu: np.ndarray, speed: np.ndarray, phi: np.ndarray
+) -> np.ndarray:
+    """(K, f) the log of what a pull test reads (its force over the box's weight) of f boxes of log mass and log
+    friction ``lm``, ``lu`` (K, f), dragged at ``speed`` (f,) m/s in direction ``phi`` (f,) rad, under ``model`` at
+    K parameter settings ``thetas`` (K, p): the steady balance along the drag (module docstring). A NaN speed leaves
+    the viscous force out, a NaN direction the tilt along the drag and the anisotropy."""
+    lu = np.asarray(lu, float)
+    K, f = lu.shape
+    if not model.dim or f == 0:
+        return lu.copy()
+    speed, phi = np.asarray(speed, float), np.asarray(phi, float)
+    has_phi = np.tile(np.isfinite(phi), K)
+    t = terms(model, np.repeat(np.asarray(thetas, float), f, axis=0), np.tile(np.nan_to_num(phi), K))
+    along, across, viscous = np.zeros(K * f), np.zeros(K * f), np.zeros(K * f)
+    for key, s in t.tables:
+        if key == "slope":
+            along = along + s
+        elif key == "slope_across":
+            across = across + s
+        elif key == VISCOUS_KEY:
+            viscous = viscous + s
+    slope = np.hypot(along, across)  # the whole slope, whatever the drag's direction: the normal force's
+    friction = np.exp(lu).ravel() * np.where(has_phi, t.friction, 1.0) * np.cos(slope)
+    drag = np.tile(np.nan_to_num(speed), K) * viscous / (np.exp(np.asarray(lm, float)).ravel() * GRAVITY)
+    reading = friction - np.sin(np.where(has_phi, along, 0.0)) + drag
+    return np.log(np.maximum(reading, MIN_READING)).reshape(K, f)

@@ -8,18 +8,23 @@ others left empty):
   > 0) and ``pusher_speed`` (its measured mean speed over the stroke, m/s, > 0, at most
   twice the command). It measures the pusher alone: a speed gain or offset, with no
   contact involved;
-- ``friction``: a friction measurement of one object (an incline or pull test).
-  ``object_id`` (an object of the log), ``friction`` (> 0) and ``friction_sd`` (its
-  stated standard uncertainty, absolute, > 0; empty: :data:`DEFAULT_FRICTION_SD`, the
-  within-lab spread of a standard friction test). A prior for the object's friction, not a
-  value to hold fixed: on a robot, what a test reads is not what the simulator's friction
-  parameter means;
+- ``friction``: a friction measurement of one object (a pull test: the force that drags
+  it slowly at a steady speed, over its weight). ``object_id`` (an object of the log),
+  ``friction`` (> 0) and ``friction_sd`` (its stated standard uncertainty, absolute, > 0;
+  empty: :data:`DEFAULT_FRICTION_SD`, the within-lab spread of a standard friction test),
+  and where known ``speed`` (the drag's speed, m/s, > 0; any speed, not only the table's)
+  and ``direction`` (the drag's direction, radians, table frame). A prior for the object's
+  friction, not a value to hold fixed: on a robot, what a test reads is not what the
+  simulator's friction parameter means. What the test reads under each hypothesis's
+  effects (a tilt along the drag, a viscous force at its speed, anisotropic friction along
+  its direction) is predicted where the row says the speed and direction
+  (:mod:`imply.diagnose.probe_fit`);
 - ``added_mass``: a push of an object of the log with a weighed load on it. ``object_id``,
   ``speed``, ``displacement`` (as a push), ``added_mass`` (kg, > 0: the load), and where
   measured ``direction``, ``stop_time`` and ``pusher_speed``.
 
 Checks, each refused with one line naming the row and column: a known kind; the cells
-that kind needs present and finite, positive where stated; a speed inside the table's
+that kind needs present and finite, positive where stated; a push's or a free stroke's speed inside the table's
 range; an object the log has; one friction measurement per object; a loaded box inside
 the table's mass range where the log weighs its objects. Columns other than those named
 are kept and ignored.
@@ -43,7 +48,11 @@ NEEDS = {
     "friction": ("object_id", "friction"),
     "added_mass": ("object_id", "speed", "displacement", "added_mass"),
 }
-MAY = {"free_stroke": (), "friction": ("friction_sd",), "added_mass": ("direction", "stop_time", "pusher_speed")}
+MAY = {
+    "free_stroke": (),
+    "friction": ("friction_sd", "speed", "direction"),
+    "added_mass": ("direction", "stop_time", "pusher_speed"),
+}
 NUMERIC = ("speed", "pusher_speed", "friction", "friction_sd", "displacement", "added_mass", "direction", "stop_time")
 
 
@@ -52,7 +61,9 @@ class Probes:
     """A log's checked probes as arrays.
 
     free_stroke_speed, free_stroke_pusher_speed: (k,) commanded and measured mean speed (m/s).
-    friction, friction_sd: (n_obj,) each object's measured friction and its uncertainty (NaN: not measured).
+    friction, friction_sd: (n_obj,) each object's measured friction and its uncertainty (NaN: not measured);
+    friction_speed, friction_direction: (n_obj,) its pull test's drag speed (m/s) and direction (rad), NaN where the
+    row does not say.
     added_obj: (a,) index into the log's objects; added_speed, added_displacement, added_mass: (a,) m/s, m, kg;
     added_direction, added_stop_time, added_pusher_speed: (a,) where measured (NaN otherwise).
     """
@@ -62,6 +73,8 @@ class Probes:
     free_stroke_pusher_speed: np.ndarray
     friction: np.ndarray
     friction_sd: np.ndarray
+    friction_speed: np.ndarray
+    friction_direction: np.ndarray
     added_obj: np.ndarray
     added_speed: np.ndarray
     added_displacement: np.ndarray
@@ -131,7 +144,8 @@ def read_probes(
                 raise row_error(path, i, col, f"{values[col][i]:g} must be positive", lines)
         v = values["speed"][i]
         if (
-            speed_range is not None
+            kind != "friction"  # a pull test drags at its own speed, slower than any push
+            and speed_range is not None
             and not np.isnan(v)
             and not speed_range[0] * (1 - 1e-9) <= v <= speed_range[1] * (1 + 1e-9)
         ):
@@ -157,6 +171,7 @@ def read_probes(
             )
     n_obj = len(objects)
     friction, friction_sd = np.full(n_obj, np.nan), np.full(n_obj, np.nan)
+    friction_speed, friction_direction = np.full(n_obj, np.nan), np.full(n_obj, np.nan)
     for i in np.flatnonzero(kinds == "friction"):
         k = index[ids[i]]
         if np.isfinite(friction[k]):
@@ -170,6 +185,7 @@ def read_probes(
             )
         friction[k] = values["friction"][i]
         friction_sd[k] = values["friction_sd"][i] if np.isfinite(values["friction_sd"][i]) else DEFAULT_FRICTION_SD
+        friction_speed[k], friction_direction[k] = values["speed"][i], values["direction"][i]
     added = np.flatnonzero(kinds == "added_mass")
     added_obj = np.array([index[ids[i]] for i in added], int)
     if mass is not None and mass_range is not None and added.size:
@@ -192,6 +208,8 @@ def read_probes(
         free_stroke_pusher_speed=values["pusher_speed"][free],
         friction=friction,
         friction_sd=friction_sd,
+        friction_speed=friction_speed,
+        friction_direction=friction_direction,
         added_obj=added_obj,
         added_speed=values["speed"][added],
         added_displacement=values["displacement"][added],

@@ -208,6 +208,9 @@ def probe_rows(
                 row["object_id"] = names[layout.obj[j]]
                 row["friction"] = max(observed["reading"][j] + rng.normal(0.0, design.friction_sd), 0.01)
                 row["friction_sd"] = design.friction_sd
+                # the drag's speed and direction: what the test reads under a tilt, a drag or anisotropy depends on them
+                row["speed"] = layout.speed[j]
+                row["direction"] = round(float(layout.direction[j]), 9)
             else:
                 row.update(
                     object_id=names[layout.obj[j]],
@@ -287,7 +290,13 @@ def simulate_model_probes(
         if layout.kind[j] == "free_stroke":
             row.update(speed=layout.speed[j], pusher_speed=float(np.exp(observed["log_p"][j])))
         else:
-            row.update(object_id=names[layout.obj[j]], friction=observed["reading"][j], friction_sd=design.friction_sd)
+            row.update(
+                object_id=names[layout.obj[j]],
+                friction=observed["reading"][j],
+                friction_sd=design.friction_sd,
+                speed=layout.speed[j],
+                direction=0.0,
+            )
         rows.append(row)
     if added.size:
         d, t, p, good = simulate_added(
