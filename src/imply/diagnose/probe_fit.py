@@ -12,10 +12,10 @@ a push is, and its residual counts in the same sum of squares:
 
   for a table sloping a toward psi (downhill; the drag is helped where it goes downhill),
   anisotropic friction (a_c, a_s) and a viscous force b. The direction-dependent terms
-  need the row's direction and the viscous term its speed; a row without them reads
-  mu (1 + ...) as far as it can be said. Air drag at a pull test's speed is below a
-  thousandth of the weight and left out, and so are the pusher's effects (the test has its
-  own drive). What a test reads on a robot is still not exactly what the simulator's
+  need the row's direction and the viscous term its speed: a row without a direction reads
+  mu cos(a), one without a speed no viscous force. Air drag at a pull test's speed is a few
+  thousandths of the weight at most, well inside any stated uncertainty, and is left out, as
+  are the pusher's effects (the test has its own drive). What a test reads on a robot is still not exactly what the simulator's
   friction parameter means; the stated uncertainty says by how much it may differ;
 - a **push with a known added mass** is predicted as the log's pushes are (the table, the
   hypothesis's effects and its discrepancy), at the object's own friction and its mass plus
