@@ -119,6 +119,37 @@ def test_a_friction_reading_is_a_prior_of_its_stated_weight(analytic_table):
     assert off.probes is None
 
 
+def test_a_friction_test_is_read_along_its_drag(analytic_table):
+    """Anisotropic friction: each box's pull test, dragged along its first push, reads the friction along that
+    direction. Told the drag's direction, the fit reads the tests as the pushes do; read as the friction itself,
+    tight tests pull every box's friction off and miss by many of their sds."""
+    aniso = (0.2, 0.0)
+    log = make_log(seed=4, aniso=aniso, sd=0.02)
+    friction = np.random.default_rng(4).permutation(np.geomspace(0.15, 0.45, 6))  # make_log's objects
+    first = np.array([log.direction[np.flatnonzero(log.obj == i)[0]] for i in range(6)])
+    reading = friction * (1 + aniso[0] * np.cos(2 * first) + aniso[1] * np.sin(2 * first))
+    table = replace(analytic_table, meta={"scene": SCENE})
+    model = Model((candidates.CANDIDATES["anisotropic"],))
+
+    def fit(direction):
+        probes = replace(
+            probes_of(log, friction=reading, friction_sd=0.005 * reading),
+            friction_speed=np.full(6, 0.1),
+            friction_direction=direction,
+        )
+        prob = Problem.of(replace(log, probes=probes), table, None, grid=OPTS.grid).with_noise(0.02, None)
+        f = prob.fit(model, np.zeros(2), prob.initial_fit())
+        rows = prob.probe_residuals(model, f.theta[None, :], f.objects.lm[None, :], f.objects.lu[None, :])[0]
+        return f, float(np.sum(rows**2))
+
+    told, told_ss = fit(first)
+    blind, blind_ss = fit(np.full(6, np.nan))
+    assert np.allclose(told.theta, aniso, atol=0.02)
+    assert np.abs(np.exp(told.objects.lu) / friction - 1).max() < 0.02
+    assert told_ss < 6 * 4  # six tests, each within a couple of its sds
+    assert blind_ss > 10 * max(told_ss, 1.0)
+
+
 def test_free_strokes_measure_a_speed_gain_that_friction_aliases(analytic_table):
     """With weighed masses a speed gain and friction are nearly one direction in the closed-form table; free
     strokes measure the gain with no box."""
