@@ -24,10 +24,10 @@ others left empty):
   measured ``direction``, ``stop_time`` and ``pusher_speed``.
 
 Checks, each refused with one line naming the row and column: a known kind; the cells
-that kind needs present and finite, positive where stated; a push's or a free stroke's speed inside the table's
-range; an object the log has; one friction measurement per object; a loaded box inside
-the table's mass range where the log weighs its objects. Columns other than those named
-are kept and ignored.
+that kind needs present and finite, positive where stated; a push's or a free stroke's
+speed inside the table's range; an object the log has; one friction measurement per
+object; a loaded box inside the table's mass range where the log weighs its objects.
+Columns other than those named are kept and ignored.
 """
 
 from __future__ import annotations

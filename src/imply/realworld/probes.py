@@ -295,7 +295,7 @@ def simulate_model_probes(
                 friction=observed["reading"][j],
                 friction_sd=design.friction_sd,
                 speed=layout.speed[j],
-                direction=0.0,
+                direction=float(layout.direction[j]),
             )
         rows.append(row)
     if added.size:
