@@ -17,6 +17,7 @@ from imply.diagnose.fit import Problem
 from imply.diagnose.observables import Observables
 from imply.diagnose.probe_fit import Servo
 from imply.diagnose.probes import Probes
+from imply.diagnose.shrinkage import heldout, shrinkage
 from imply.sim.scene import SceneConfig, build_model
 
 SCENE = {"pusher_mass": 0.2, "pusher_kv": 80.0, "pusher_force_limit": 100.0, "stroke": 0.01}
@@ -237,6 +238,24 @@ def test_a_free_launch_leaves_the_slide_to_read(analytic_table):
     # a friction off by 20% is not a launch: the slide shows it
     off = freed.residuals(Model(), np.zeros((1, 0)), fit.objects.lm[None, :], fit.objects.lu[None, :] + np.log(1.2))
     assert np.sum(off**2) > 5 * fit.sse
+
+
+def test_freed_launches_count_in_the_lack_of_fit(analytic_table):
+    """Each freed launch is a parameter fitted on its condition's rows: the held-out lack of fit of the table, read
+    with the launch freed on logs whose only departure is the launch, is a chi-square on what is left."""
+    per_dof = []
+    for seed in (3, 5, 7):
+        log = launched_log(0.1, seed=seed)
+        prob = Problem.of(log, analytic_table, StopTimeTables(), grid=OPTS.grid).with_noise(0.01, 0.01)
+        held = prob.fit(Model(), np.zeros(0), prob.initial_fit())
+        lm, lu = held.objects.lm[prob.c_obj], held.objects.lu[prob.c_obj]
+        rd, rt = prob.row_residuals(prob.predict(Model(), np.zeros(0), lm, lu))
+        freed = prob.with_free_launch(held.objects)
+        fit = freed.fit(Model(), np.zeros(0), held.objects)
+        s = shrinkage(freed, fit, resid_d=rd, resid_t=rt, held=heldout(freed, fit, 0))
+        per_dof.append(s.lack_of_fit.heldout_chi2 / s.lack_of_fit.dof)
+        assert 0.95 < s.both_share_closed <= 1.0  # the launches' gap closed down to the noise, not past it
+    assert 0.7 < np.mean(per_dof) < 1.4, per_dof
 
 
 def test_without_stop_times_nothing_is_freed(analytic_table):

@@ -138,7 +138,9 @@ def shrinkage(
     )
     nw = int((ro_w > 0).sum())
     # whitened by noise and model error together: an adequate model leaves unit variance
-    floor_w = float(np.sqrt(max(nw - k * N * (1 + len(problem.aux)), 0) / nw)) if nw else None
+    # a freed launch is one more parameter per condition, fitted on the same rows (imply.diagnose.launch)
+    nuisance = problem.n_nuisance
+    floor_w = float(np.sqrt(max(nw - k * N * (1 + len(problem.aux)) - nuisance, 0) / nw)) if nw else None
     both_share = share_closed(rms(rw0, ro_w), rms(rw1, ro_w), floor_w)
     stop_share = None
     stop_rows = problem.aux_rows("stop_time")
@@ -151,7 +153,7 @@ def shrinkage(
     # adequate model leaves a chi-square; overdispersion also widens the effects' intervals
     keep_w = ro_w > 0
     lof_ss = float(np.sum((rw1[keep_w]) ** 2))
-    lof_dof = max(nw - k * N - final.model.dim, 1)
+    lof_dof = max(nw - k * N - nuisance - final.model.dim, 1)
 
     def observable(r0: np.ndarray, r1: np.ndarray, w: np.ndarray) -> ObservableFit:
         kk = w > 0
@@ -173,7 +175,7 @@ def shrinkage(
         **{k: f for k, f in aux_fits.items() if k not in TRACK_OBSERVABLES},
         track={k: f for k, f in aux_fits.items() if k in TRACK_OBSERVABLES} or None,
     )
-    dispersion = max(final.sse / max(nw - k * N - final.model.dim, 1), 1.0)
+    dispersion = max(final.sse / lof_dof, 1.0)
     unexplained = float(np.sqrt(max(rms1**2 - floor**2, 0.0))) if floor is not None else rms1
     anch0 = np.sqrt(np.bincount(problem.obj, (problem.w_d * rd0) ** 2, minlength=N) / np.maximum(problem.counts, 1))
     anch1 = np.sqrt(
