@@ -8,7 +8,7 @@ contender (as in :mod:`imply.diagnose.next_pushes`) predicts what each probe wou
 the same physics its fit uses (:mod:`imply.diagnose.probe_fit`): the free stroke through
 the rig's servo at the pusher's speed under that contender, the friction reading as a pull
 test reads it under that contender's effects (:func:`imply.diagnose.probe_fit.pull_test_log_reading`:
-a drag at :data:`PULL_SPEED` along the object's first push of the log, so that a tilt or a
+a drag at :data:`imply.diagnose.probes.DEFAULT_PULL_SPEED` along the object's first push of the log, so that a tilt or a
 viscous force moves the reading and a change of the table's friction does not), the loaded
 push as a push at the loaded mass. A probe's
 separation of two contenders is the squared difference of their predictions over its noise
@@ -31,14 +31,13 @@ import pandas as pd
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.probe_fit import Servo, free_stroke_log_speed, pull_test_log_reading
-from imply.diagnose.probes import DEFAULT_FRICTION_SD
+from imply.diagnose.probes import DEFAULT_FRICTION_SD, DEFAULT_PULL_SPEED
 from imply.diagnose.records import Record
 from imply.io import write_csv
 
 ASSUMED_STROKE_SD = 0.02  # log units: a free stroke's noise where the log does not say (as next_pushes assumes)
 LOAD_SHARE = 0.5  # a loaded push's load, as a share of the box's fitted mass (kept inside the table's mass range)
 MIN_LOAD = 0.05  # kg: a smaller load is not worth a push
-PULL_SPEED = 0.1  # m/s: a recommended pull test's drag speed (slow and steady, as a friction test drags)
 # what each kind of probe reads, as the file's column names it
 READS = {"free_stroke": "pusher_speed", "friction": "friction", "added_mass": "displacement"}
 
@@ -80,12 +79,12 @@ def _candidates(problem: Problem, speeds: np.ndarray, fits: list[JointFit]):
         measured |= np.isfinite(problem.log.probes.friction)
     if problem.fixed_lu is None:
         free = np.flatnonzero(~measured)
-        rows += [("friction", int(i), PULL_SPEED, np.nan) for i in free]
+        rows += [("friction", int(i), DEFAULT_PULL_SPEED, np.nan) for i in free]
         # along each object's first push (the log's order), as a lab would set up its test
         first = np.array([problem.phi[np.flatnonzero(problem.obj == i)[0]] for i in free], float)
         if not problem.log.has_direction:
             first = np.full(free.size, np.nan)  # a log without directions: the pull's is not known either
-        speed = np.full(free.size, PULL_SPEED)
+        speed = np.full(free.size, DEFAULT_PULL_SPEED)
         preds.append(
             np.stack(
                 [

@@ -42,6 +42,9 @@ from imply.input_files import read_table_lines, row_error
 
 KINDS = ("free_stroke", "friction", "added_mass")
 DEFAULT_FRICTION_SD = 0.06  # absolute: about the within-lab spread of a standard friction test (ASTM D2534)
+# m/s: a recommended pull test's drag, slow and steady, as a friction test drags (the benchmark worlds keep their own:
+# they never import the diagnostic)
+DEFAULT_PULL_SPEED = 0.1
 # the cells each kind needs, and those it may have
 NEEDS = {
     "free_stroke": ("speed", "pusher_speed"),

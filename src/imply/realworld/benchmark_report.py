@@ -283,6 +283,12 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"told {_f(not_separable.get('told_right'), '.2f')}"
         )
 
+    def both(key: str, check) -> tuple[bool, str]:
+        """Whether metric ``key`` holds its target (of the same key) with and without probes (``check``: at_least
+        or at_most), and the detail of both."""
+        holds = check(w["all"][key], key) and check(wo["all"][key], key)
+        return holds, f"with probes {share(w['all'], key)}; without {share(wo['all'], key)}"
+
     sep_w, sep_wo = w["probe_logs_separable"], wo["separable"]
     loop = r.get("closed_loop") or {}
     nxt, rnd = loop.get("next") or {}, loop.get("random") or {}
@@ -292,9 +298,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             "gap",
             f"Lab benchmark, null logs (contacts and engines not the table's): no effect beyond the contact stated in "
             f">= {t['null_no_library']:.0%}, with and without probes",
-            at_least(w["all"]["null_no_library"], "null_no_library")
-            and at_least(wo["all"]["null_no_library"], "null_no_library"),
-            f"with probes {share(w['all'], 'null_no_library')}; without {share(wo['all'], 'null_no_library')}",
+            *both("null_no_library", at_least),
         ),
         Claim(
             "gap-lab-pusher",
@@ -334,8 +338,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             "gap",
             f"Lab benchmark, effects outside the library: a library mechanism stated as the one cause in "
             f"<= {t['wrong_single']:.0%}, with and without probes",
-            at_most(w["all"]["wrong_single"], "wrong_single") and at_most(wo["all"]["wrong_single"], "wrong_single"),
-            f"with probes {share(w['all'], 'wrong_single')}; without {share(wo['all'], 'wrong_single')}",
+            *both("wrong_single", at_most),
         ),
         Claim(
             "gap-lab-contact",

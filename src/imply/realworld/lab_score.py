@@ -86,15 +86,18 @@ def score_lab(
     return out
 
 
-def _cell(r: dict, key: str, engine: str | None) -> str:
-    k = key if engine is None else f"{key}_{engine}"
-    n = r.get(f"n_{k}")
-    x = r.get(k)
+def _value(x, n: int | None, *, mean: bool = False) -> str:
+    """A table cell: a mean to one decimal, a share with its count where there is one; a dash for none."""
     if x is None or x != x:
         return "–"
-    if key == "contenders_mean":
+    if mean:
         return f"{x:.1f}"
     return f"{x:.2f} ({round(x * n)}/{n})" if n is not None else f"{x:.2f}"
+
+
+def _cell(r: dict, key: str, engine: str | None) -> str:
+    k = key if engine is None else f"{key}_{engine}"
+    return _value(r.get(k), r.get(f"n_{k}"), mean=key == "contenders_mean")
 
 
 def lab_score_markdown(result: Mapping, set_name: str) -> str:
@@ -161,16 +164,8 @@ def _closed_loop_lines(loop: Mapping, target: float | None) -> list[str]:
         "|---|---|---|",
     ]
     for key, n_key, words in rows:
-        cells = []
-        for arm in ("next", "random"):
-            r = loop.get(arm, {})
-            x, n = r.get(key), r.get(n_key) if n_key else None
-            if x is None or x != x:
-                cells.append("–")
-            elif n is None:
-                cells.append(f"{x:.1f}")
-            else:
-                cells.append(f"{x:.2f} ({round(x * n)}/{n})")
+        arms = [loop.get(arm, {}) for arm in ("next", "random")]
+        cells = [_value(r.get(key), r.get(n_key) if n_key else None, mean=n_key is None) for r in arms]
         lines.append(f"| {words} | " + " | ".join(cells) + " |")
     return lines + [""]
 
