@@ -77,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--closed-loop", action="store_true", help="run and score the closed loop (other contact only)")
     ap.add_argument("--table", type=Path, default=ROOT / "results/table/table.npz")
     ap.add_argument("--effect-tables", type=Path, default=ROOT / "results/gap/effect_tables")
+    ap.add_argument("--effects", help="comma-separated candidate effects (default: the config's, or the whole library)")
     args = ap.parse_args(argv)
 
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
@@ -140,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
             str(run / f"shard{k}"),
         ]
         + (["--ignore-measured"] if args.ignore_measured else [])
+        + (["--effects", args.effects] if args.effects else [])
         for k, part in enumerate((files[::2], files[1::2]))
     ]
     if not run_shards(cmds):

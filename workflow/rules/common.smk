@@ -12,6 +12,7 @@ from imply.kernels import environment as kernel_environment
 from imply.models.weights import encoder_weight_files
 from imply.realworld.cases import BenchmarkConfig, ContactBenchmarkConfig, case_ids
 from imply.realworld.lab import LabBenchmarkConfig
+from imply.sim.effects import EFFECTS, MODEL
 
 min_version("8.0")
 
@@ -156,6 +157,12 @@ def evaluation_options(wildcards, input):
 
 
 # -- the gap benchmark ----------------------------------------------------------------
+
+
+def gap_library_levels():
+    """The tabulated library effects and their levels (imply.sim.effects), so that a change of the library rebuilds
+    the effect tables."""
+    return as_json({e.name: list(e.levels) for e in EFFECTS.values() if e.kind == MODEL})
 
 
 def gap_effects_option():

@@ -18,6 +18,7 @@ rule gap_tables:
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(config["gap"]["diagnose"]),
         effects=gap_effects_option(),
+        library=gap_library_levels(),
     # one thread: a job asking for both cores waits for the training chain to leave both idle
     threads: 1
     resources:
