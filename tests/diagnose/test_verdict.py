@@ -19,7 +19,7 @@ from imply.diagnose.estimates import AcceptedEffect, EffectEstimate
 from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
 from imply.diagnose.next_pushes import PairSeparation, PushDesign
 from imply.diagnose.render import clauses, verdict_text
-from imply.diagnose.verdict import Adequacy, Identification, adequacy, explanations, judge, unmeasured_contact
+from imply.diagnose.verdict import Adequacy, Identification, adequacy, explanations, judge
 
 
 def _estimate(name: str, magnitude: float, azimuth_deg: float | None = None) -> EffectEstimate:
@@ -322,27 +322,9 @@ def test_the_contact_is_kept_apart_from_the_effects():
     assert split.identification == Identification.NO_LIBRARY_CAUSE and split.effects == []
 
 
-def test_the_pushers_contact_is_stated_only_where_the_pusher_is_measured():
-    """The pusher-box contact's margin and the pusher's own servo change the launch alike: without the pusher's
-    speed or free strokes, a change of its margin stays a contender's description of the contact, never a cause."""
-    table = [_h(["pusher_margin", "viscous"], 0.7), _h(["viscous"], 0.28, disc=True), _h(["pusher_margin"], 0.02)]
-    measured = judge(table, share=0.9, min_share=0.8, contender_ratio=0.05)
-    assert measured.effects == ["viscous", "pusher_margin"]
-    blind = judge(
-        table, share=0.9, min_share=0.8, contender_ratio=0.05, unmeasured=unmeasured_contact(pusher_measured=False)
-    )
-    assert blind.identification == Identification.ONE_CAUSE and blind.effects == ["viscous"]
-    assert "pusher_margin" in blind.named
-    assert unmeasured_contact(pusher_measured=True) == ()
-
-
 def test_the_contact_change_is_said_as_an_mjcf_edit():
     assert clauses([_estimate("table_timeconst", 1.0986)]) == [
         "the table contact is softer: solref time constant 0.02 -> 0.06 s in the MJCF"
-    ]
-    assert clauses([_estimate("pusher_margin", -0.0016)]) == [
-        "the pusher's contact holds the box less far ahead: a pusher-box contact pair with margin 0.002 -> 0.0004 m "
-        "in the MJCF"
     ]
 
 

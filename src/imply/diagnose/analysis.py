@@ -50,7 +50,7 @@ from imply.diagnose.records import Record, json_field
 from imply.diagnose.render import OBSERVABLE_WORDS, verdict_text
 from imply.diagnose.screening import folds, screened
 from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
-from imply.diagnose.verdict import Verdict, judge, unmeasured_contact
+from imply.diagnose.verdict import Verdict, judge
 from imply.options import Config, option
 
 
@@ -353,11 +353,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     shrink = shrinkage(problem, final, resid_d=resid_d, resid_t=resid_t, held=held)
     share = shrink.judged if shrink.judged is not None else shrink.gap_share_closed
     verdict = judge(
-        hyps.table,
-        share=share,
-        min_share=opts.min_share,
-        contender_ratio=opts.contender_ratio,
-        unmeasured=unmeasured_contact(pusher_measured=problem.measures_pusher),
+        hyps.table, share=share, min_share=opts.min_share, contender_ratio=opts.contender_ratio
     )  # 6. adequacy and identification
     cov = np.linalg.pinv(posterior_precision(final, hyps.dispersion)) if final.model.dim else np.zeros((0, 0))
     effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)

@@ -31,12 +31,9 @@ import numpy as np
 
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.sim.effects import EFFECTS, TABLE_SOLREF, Effect
-from imply.sim.scene import SceneConfig
 from imply.sim.track import FRACTIONS
 
 SPEED_GAIN, SPEED_OFFSET, FRICTION2, TABLE, TILT = "speed_gain", "speed_offset", "friction2", "table", "tilt"
-# the scene's contact margin on the box, which the pusher-box contact shares unless a pair gives it its own
-SCENE_MARGIN = SceneConfig().contact_margin
 DISCREPANCY = "discrepancy"  # not a library effect: a smooth, low-dimensional model discrepancy
 
 
@@ -237,16 +234,6 @@ def _library() -> list[Candidate]:
                 f"{TABLE_SOLREF[1]:.3g} -> {TABLE_SOLREF[1] * np.exp(m):.3g} in the MJCF"
             ),
         ),
-        _one(
-            "pusher_margin",
-            "the pusher-box contact's margin (m beside the box geom's)",
-            "m",
-            "a different reach of the pusher's contact",
-            lambda m, az: (
-                f"the pusher's contact holds the box less far ahead: a pusher-box contact pair with margin "
-                f"{SCENE_MARGIN:.3g} -> {max(0.0, SCENE_MARGIN + m):.2g} m in the MJCF"
-            ),
-        ),
         Candidate(
             "tilt",
             "table tilt: a slope toward an azimuth (along and across every push)",
@@ -311,9 +298,7 @@ def _library() -> list[Candidate]:
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in _library()}
 # the library's effects that are the box-table contact itself (an MJCF change, not a mechanism beside the contact)
-TABLE_CONTACT = ("table_timeconst", "table_dampratio")  # the box-table contact's
-PUSHER_CONTACT = ("pusher_margin",)  # the pusher-box contact's
-CONTACT = (*TABLE_CONTACT, *PUSHER_CONTACT)
+CONTACT = ("table_timeconst", "table_dampratio")
 ALIASES = {"tilt_x": "tilt", "tilt_y": "tilt"}
 
 

@@ -308,12 +308,6 @@ class Problem(Predicting, FreeLaunch):
         return np.sqrt(self.noise_t_rows**2 + self.model_err_t**2)
 
     @property
-    def measures_pusher(self) -> bool:
-        """Whether the fits read the pusher itself: its measured speed during the pushes, or free strokes."""
-        strokes = self.probes is not None and self.probes.servo is not None and self.probes.stroke_speed.size > 0
-        return "pusher_speed" in self.aux or strokes
-
-    @property
     def n_rows(self) -> int:
         """Pushes (rows) that count in the fit (not flagged)."""
         return int((self.w_d > 0).sum())

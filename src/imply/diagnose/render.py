@@ -61,8 +61,6 @@ SEPARATE_BY = {
     "pusher_softness": "record the pusher's contact force or the box's speed during the stroke",
     "table_timeconst": "record the box's track over time (the table's contact shapes the launch, not the slide)",
     "table_dampratio": "record the box's track over time (the table's contact shapes the launch, not the slide)",
-    "pusher_margin": "record where the box sits against the pusher at the end of the stroke (the margin moves where the "
-    "box is released, not how fast)",
     "tilt": "push in more directions",
     "anisotropic": "push in more directions",
     "torsional": "record the box's rotation",

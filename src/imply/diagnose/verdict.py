@@ -33,9 +33,7 @@ discrepancy or a change of the contact's MJCF parameters (the library's ``CONTAC
 effects), and explanations are grouped by their effects beyond it, so that an effect
 with or without a change of the contact is one explanation. A change of the contact is
 stated beside the causes where the leading hypothesis holds it and hypotheses of at least
-half the weight do, and the log can tell it from what it does not measure: a change of the
-pusher-box contact (its margin) only where the pusher's speed or free strokes measure the
-pusher, whose own servo and carriage would otherwise look the same. An effect of a contender that is not stated is *not separable* from the
+half the weight do. An effect of a contender that is not stated is *not separable* from the
 contact where another contender describes the contact without it, and *not ruled out*
 otherwise.
 
@@ -52,11 +50,10 @@ Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` a
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from imply.diagnose.candidates import CONTACT, PUSHER_CONTACT
+from imply.diagnose.candidates import CONTACT
 from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
 from imply.diagnose.records import Record
 
@@ -189,13 +186,6 @@ def contact_change(table: list[Hypothesis], leading: Hypothesis) -> list[str]:
     ]
 
 
-def unmeasured_contact(*, pusher_measured: bool) -> tuple[str, ...]:
-    """The changes of the contact a log cannot state: the pusher-box contact's (:data:`PUSHER_CONTACT`) where neither
-    the pusher's speed during the pushes nor free strokes measure the pusher, whose own servo and carriage would change
-    the launch as the contact's margin does."""
-    return () if pusher_measured else PUSHER_CONTACT
-
-
 def adequacy(share: float | None, *, no_gap: bool, min_share: float) -> Adequacy:
     """Adequacy from the share of the held-out gap the leading hypothesis closes (None: no gap to close)."""
     if no_gap or share is None:
@@ -207,17 +197,9 @@ def adequacy(share: float | None, *, no_gap: bool, min_share: float) -> Adequacy
     return Adequacy.PARTLY_EXPLAINED
 
 
-def judge(
-    table: list[Hypothesis],
-    *,
-    share: float | None,
-    min_share: float,
-    contender_ratio: float,
-    unmeasured: Collection[str] = (),
-) -> Verdict:
+def judge(table: list[Hypothesis], *, share: float | None, min_share: float, contender_ratio: float) -> Verdict:
     """The verdict on the weighed hypotheses ``table`` (heaviest first), the leading one closing ``share`` of the
-    held-out gap. ``unmeasured``: changes of the contact the log cannot tell from something it does not measure
-    (:func:`unmeasured_contact`); they stay in the contenders, never among the causes."""
+    held-out gap."""
     leading = max(table, key=lambda h: h.weight)
     groups = explanations(table)
     contenders = [g for g in groups if g.weight >= contender_ratio * groups[0].weight]
@@ -240,7 +222,7 @@ def judge(
     else:
         ident = Identification.NO_LIBRARY_CAUSE
     causes = [e for e in contenders[0].effects if e in core and e not in bound]
-    causes += [e for e in contact_change(table, leading) if e not in bound and e not in unmeasured]
+    causes += [e for e in contact_change(table, leading) if e not in bound]
     if not explained or ident == Identification.OUTSIDE_LIBRARY:  # no cause is stated for a gap left open
         causes = []
     with_disc = [set(c.effects) for c in contenders if c.contact_weight > 0]

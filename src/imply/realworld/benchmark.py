@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.candidates import CONTACT, TABLE_CONTACT
+from imply.diagnose.candidates import CONTACT
 from imply.diagnose.estimates import AcceptedEffect
 from imply.diagnose.observables import Observables
 from imply.diagnose.verdict import Identification
@@ -479,8 +479,7 @@ def score_contact_cases(
             "causes": "+".join(causes) or "none",
             "effect_causes": "+".join(c for c in causes if c not in CONTACT) or "none",
             "contact_kinds": "+".join(kinds) or "engine",
-            # the box-table contact's change: what a variant whose table contact is off asks to be named
-            "contact_named": any(set(c) & set(TABLE_CONTACT) for c in named_classes(s)),
+            "contact_named": any(set(c) & set(CONTACT) for c in named_classes(s)),
             "contenders": " | ".join("+".join(c.effects) or "none" for c in v.contenders),
             "n_contenders": len(v.contenders),
             "sentence": s.sentence,

@@ -119,19 +119,6 @@ def _table_dampratio(spec: mujoco.MjSpec, x: float) -> None:
     g.solref = [ref[0], ref[1] * np.exp(x)]
 
 
-def _pusher_margin(spec: mujoco.MjSpec, x: float) -> None:
-    # the pusher-box contact's margin: the box geom's margin (kept for the box-table contact, where it stops corner
-    # contacts flickering) also holds the box ahead of the pusher's face, so the box travels further than under a
-    # rigid pusher; an explicit pair gives the pusher-box contact a margin x (m) beside the box's, never below 0
-    box, pusher = spec.geom("box"), spec.geom("pusher")
-    spec.add_exclude(bodyname1="pusher", bodyname2="box")
-    pair = spec.add_pair(geomname1="pusher", geomname2="box")
-    pair.margin = max(0.0, float(box.margin) + x)
-    pair.condim = 1  # the scene's pusher slides on the box without friction
-    pair.friction = [0.0, 0.0, 0.0, 0.0, 0.0]
-    pair.solref, pair.solimp = pusher.solref, pusher.solimp  # the pusher has the higher priority: its solver settings
-
-
 def _slope(spec: mujoco.MjSpec, s: float) -> None:
     # a table sloping down by angle s along +x (the push axis): rotate gravity
     g = float(np.linalg.norm(np.array(spec.option.gravity, float)))
@@ -163,7 +150,6 @@ SPEC_EDITS: dict[str, Callable[[mujoco.MjSpec, float], None]] = {
     "pusher_softness": _pusher_softness,
     "table_timeconst": _table_timeconst,
     "table_dampratio": _table_dampratio,
-    "pusher_margin": _pusher_margin,
     "slope": _slope,
     "air_drag": _air_drag,
     "height": _height,
@@ -185,10 +171,6 @@ EFFECTS: dict[str, Effect] = {
         # ratio below 0.4 makes boxes bounce and fail the settling check
         Effect("table_timeconst", MODEL, (-1.6, 1.6), (-1.6, -0.8, -0.3, 0.3, 0.8, 1.6)),
         Effect("table_dampratio", MODEL, (-0.9, 0.5), (-0.9, -0.45, 0.5)),
-        # the pusher-box contact's margin, in m beside the box's (0.002 in the scene): a real contact holds the box no
-        # further ahead than its face, so the margin lies between the scene's and none (a rigid contact); a negative
-        # margin lets the pusher sink into the box before it pushes, which no contact does
-        Effect("pusher_margin", MODEL, (-0.002, 0.0), (-0.002, -0.001, -0.0004)),
         Effect("tilt_x", MODEL, (-0.03, 0.03), (-0.03, -0.015, -0.005, 0.005, 0.015, 0.03), table_param="slope"),
         Effect("tilt_y", MODEL, (-0.03, 0.03), (-0.03, -0.015, -0.005, 0.005, 0.015, 0.03), table_param="slope"),
         Effect("air_drag", MODEL, (0.0, 400.0), (50.0, 150.0, 400.0)),
