@@ -30,7 +30,6 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
-from scipy import stats
 
 from imply.diagnose.candidates import Model
 from imply.diagnose.effect_tables import EffectTables
@@ -39,6 +38,7 @@ from imply.diagnose.observables import Observables
 from imply.diagnose.prediction import ObjectFit, Predicting, Prediction
 from imply.diagnose.probe_fit import ProbeRows
 from imply.diagnose.pushlog import PushLog
+from imply.diagnose.tails import chi2_ppf
 from imply.table import PushTable
 
 # ObjectFit and Prediction live with the predictions (imply.diagnose.prediction); the fits hand them out
@@ -71,7 +71,7 @@ class JointFit:
     def pulled_past_bounds(self, level: float = 0.95) -> dict[str, float]:
         """Library effects at their bound that the pushes pull beyond it: {name: the one-step profiled drop of the
         sum of squares beyond the bound}, where that drop is above the chi-square quantile at ``level`` (1 df)."""
-        crit = float(stats.chi2.ppf(level, 1))
+        crit = chi2_ppf(level, 1)
         b, S = self.b.sum(0), self.S.sum(0)
         out = {}
         for c, sl in zip(self.model.candidates, self.model.slices(), strict=True):

@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from imply.diagnose.fit import ObjectFit, Problem
 from imply.diagnose.records import Record, json_field
+from imply.diagnose.tails import chi2_sf, t_ppf
 
 # the factors residuals are banded by, in the order the report shows them
 FACTORS = ("speed", "displacement", "direction", "fitted_mass", "fitted_friction")
@@ -75,7 +75,7 @@ def _band_stats(
     means = per_obj[cnt > 0] / cnt[cnt > 0]
     k = means.size
     mean = float(means.mean())
-    half = float(stats.t.ppf(0.975, k - 1) * means.std(ddof=1) / np.sqrt(k)) if k >= 2 else float("nan")
+    half = float(t_ppf(0.975, k - 1) * means.std(ddof=1) / np.sqrt(k)) if k >= 2 else float("nan")
     lo, hi = mean - half, mean + half
     return Band(
         band=label,
@@ -136,7 +136,7 @@ def localise(problem: Problem, fit: ObjectFit, resid: np.ndarray, *, alpha: floa
     dof = np.maximum(cnt - problem.k_free, 1)
     objects = []
     for i, name in enumerate(problem.log.objects):
-        p = float(stats.chi2.sf(wsse[i], dof[i]))
+        p = chi2_sf(float(wsse[i]), float(dof[i]))
         objects.append(
             ObjectResidual(
                 object_id=name,

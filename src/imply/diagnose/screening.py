@@ -19,10 +19,10 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from imply.diagnose.candidates import Candidate
 from imply.diagnose.fit import JointFit, ObjectFit, Problem
+from imply.diagnose.tails import chi2_ppf
 
 log = logging.getLogger("imply.diagnose")
 
@@ -103,7 +103,7 @@ def screened(
     for jf in singles:
         c = jf.model.candidates[-1]
         lr = max(base.sse - jf.sse, 0.0)
-        crit = float(stats.chi2.ppf(1 - alpha / max(len(singles), 1), c.dim))
+        crit = chi2_ppf(1 - alpha / max(len(singles), 1), c.dim)
         gain = float(cv0 - jf.heldout_sse_quadratic(fold_of).sum())
         explained = lr / n
         reasons = []

@@ -14,12 +14,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from imply.diagnose.fit import JointFit, Problem
 from imply.diagnose.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.screening import folds
+from imply.diagnose.tails import chi2_sf
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ def shrinkage(
     lof = LackOfFit(
         heldout_chi2=lof_ss,
         dof=lof_dof,
-        p_value=float(stats.chi2.sf(lof_ss, lof_dof)),
+        p_value=chi2_sf(float(lof_ss), float(lof_dof)),
         in_sample_chi2=final.sse,
         baseline_chi2=float(np.sum(rw0[keep_w] ** 2)),
         displacement=observable(rd0 / problem.sd_d, held.resid_d / problem.sd_d, problem.w_d),
