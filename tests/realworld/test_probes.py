@@ -132,7 +132,7 @@ def test_the_diagnostic_reads_a_pull_test_as_the_world_runs_it(scene, effect, ca
     speed = np.full(3, design.pull_speed)
     predicted = np.exp(pull_test_log_reading(model, np.array([theta]), lm, lu, speed, directions))[0] - FRICTIONS
     assert np.abs(world).max() > 0.02  # the effect moves the reading by a third of a stated uncertainty or more
-    # the force balance is ideal; the world's box, dragged through its own (pyramidal, soft) friction cone with
+    # the force balance is ideal; the world's box, dragged through its own soft contact's friction cone with
     # gravity partly across the drag, reads within a quarter of the test's stated uncertainty of it, and far closer
     # than reading the effect as no change at all
     error = np.abs(predicted - world)

@@ -15,8 +15,9 @@ a push is, and its residual counts in the same sum of squares:
   need the row's direction and the viscous term its speed: a row without a direction reads
   mu cos(a), one without a speed no viscous force. Air drag at a pull test's speed is a few
   thousandths of the weight at most, well inside any stated uncertainty, and is left out, as
-  are the pusher's effects (the test has its own drive). What a test reads on a robot is still not exactly what the simulator's
-  friction parameter means; the stated uncertainty says by how much it may differ;
+  are the pusher's effects (the test has its own drive). What a test reads on a robot is
+  still not exactly what the simulator's friction parameter means; the stated uncertainty
+  says by how much it may differ;
 - a **push with a known added mass** is predicted as the log's pushes are (the table, the
   hypothesis's effects and its discrepancy), at the object's own friction and its mass plus
   the load: it pins the object's mass apart from its friction, which displacements at
@@ -43,13 +44,13 @@ import numpy as np
 from imply.diagnose.candidates import Model, terms
 from imply.diagnose.probes import Probes
 from imply.sim.effects import EFFECTS
+from imply.sim.scene import GRAVITY
 
 PROBE_AUX = ("stop_time", "pusher_speed")  # what an added-mass push may measure beside its displacement
 SERVO_KEYS = ("pusher_mass", "pusher_kv", "pusher_force_limit", "stroke")  # what the table's scene says of the rig
 STROKE_SD_FLOOR = 0.002  # log units: the free strokes' noise is never taken below this (encoders' resolution)
 # log units: a free stroke's noise where nothing in the log measures it (the benchmark worlds' encoder noise)
 STROKE_SD_DEFAULT = 0.01
-GRAVITY = 9.81  # m/s^2: a pull test's reading is its force over the box's weight m g
 VISCOUS_KEY = EFFECTS["viscous"].table_key  # the viscous force's coefficient b (N s/m) among a model's terms
 MIN_READING = 1e-3  # a reading is positive: a hypothesis that would drag the box by itself reads this
 

@@ -59,7 +59,7 @@ from tqdm.auto import tqdm
 from imply.options import Config, option
 from imply.realworld.stepped import SteppedPush, check_steps, run_push
 from imply.realworld.world import WorldPushes, WorldResult, check_track_times
-from imply.sim.scene import SceneConfig
+from imply.sim.scene import GRAVITY, SceneConfig
 
 # the parameters this engine implements (any value); every other one must be nominal
 SUPPORTED = frozenset(
@@ -84,7 +84,6 @@ SUPPORTED = frozenset(
         "free",
     }
 )
-GRAVITY = 9.81  # m/s^2, MuJoCo's default, unless the scene's extra options name a gravity
 
 
 @dataclass(frozen=True, kw_only=True)

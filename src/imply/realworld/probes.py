@@ -39,10 +39,9 @@ import pandas as pd
 from imply.options import Config, option
 from imply.realworld.world import PARAMETERS, WorldPushes, WorldResult, WorldStepping, run_model
 from imply.sim.push_file import simulate_push_table
-from imply.sim.scene import SceneConfig, build_xml
+from imply.sim.scene import GRAVITY, SceneConfig, build_xml
 from imply.sim.track import pusher_speed
 
-GRAVITY = 9.81  # m/s^2: the pull test's reading is its force over m g, as a lab computes it
 PROBE_KINDS = ("free_stroke", "friction", "added_mass")
 PROBE_COLUMNS = [
     "probe",

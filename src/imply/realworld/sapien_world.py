@@ -48,11 +48,11 @@ from typing import ClassVar
 import numpy as np
 
 from imply.options import Config, option
-from imply.realworld.bullet import GRAVITY, check_supported, collect_pushes
 from imply.realworld.bullet import SUPPORTED as BULLET_SUPPORTED
+from imply.realworld.bullet import check_supported, collect_pushes
 from imply.realworld.stepped import SteppedPush, check_steps, run_push
 from imply.realworld.world import WorldPushes, WorldResult, check_track_times
-from imply.sim.scene import SceneConfig
+from imply.sim.scene import GRAVITY, SceneConfig
 
 # the parameters this engine implements (any value); every other one must be nominal
 # (Bullet's, less the torsional and rolling friction PhysX has no coefficients for)

@@ -33,6 +33,10 @@ import numpy as np
 
 from imply.options import Config, option
 
+# m/s^2: MuJoCo's default gravity, the scene's unless its extra options name another; a pull test's reading is its
+# force over the box's weight m times this
+GRAVITY = 9.81
+
 
 @dataclass(frozen=True, kw_only=True)
 class SceneConfig(Config):
