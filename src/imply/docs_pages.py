@@ -668,13 +668,14 @@ def result_file(root: Path, rel: str) -> tuple[Path, dict | None] | None:
 def status_page(root: Path = ROOT) -> str:
     """The reproduction status: ``results/paper/reproduction.md`` as the last run wrote it, else the snapshot's, or
     why there is none."""
+    from imply.paper.snapshot import claims_sentence
+
     found = result_file(root, "results/paper/reproduction.md")
     report = found[0] if found else root / "results" / "paper" / "reproduction.md"
     numbers = report.with_name("numbers.json")
     out = ["# Reproduction status", ""]
     if found is not None and found[1] is not None:
         stamp = found[1]
-        c = stamp["claims"]
         body = re.sub(r"^# .*\n", "", report.read_text(), count=1)
         body = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", body, flags=re.M)
         return "\n".join(
@@ -682,7 +683,7 @@ def status_page(root: Path = ROOT) -> str:
                 *out,
                 snapshot_note(stamp, "status.md"),
                 "",
-                f"In that run {c['hold']} of {c['checked']} claims hold.",
+                f"In that run {claims_sentence(stamp)}.",
                 "",
                 body,
             ]
@@ -859,6 +860,28 @@ def _snapshot_stage_times(stamp: dict, page: str) -> str:
     )
 
 
+def ph_development_time(ctx: Context, page: str, arg: str) -> str:
+    """``{{ development_time }}``: how long the gap_development target took, in this checkout's last run of it or
+    in the snapshot's run."""
+    from imply.paper.snapshot import development_times
+
+    times = development_times(ctx.root)
+    where = "In this checkout's last run of it"
+    if times is None:
+        snap = _snapshot(ctx.root)
+        times = None if snap is None else snap[1].get("development")
+        where = f"In the snapshot's run (commit {(snap[1].get('commit') or 'unknown')[:7]})" if times else where
+    if not times:
+        return (
+            "Its time appears here once it has run (every rule's benchmark file in `results/benchmarks/`) or a "
+            "snapshot includes it."
+        )
+    return (
+        f"{where}, its {times['jobs']} jobs took {times['wall_seconds'] / 60:.0f} min from the first to the last "
+        f"({times['cpu_seconds'] / 60:.0f} CPU-min), after the default run."
+    )
+
+
 def ph_snapshot(ctx: Context, page: str, arg: str) -> str:
     """``{{ snapshot }}``: one sentence on the last run shown: this checkout's, or the committed snapshot's (its
     claims that hold, its wall time, its commit and machine)."""
@@ -929,6 +952,7 @@ PLACEHOLDERS: dict[str, Callable[[Context, str, str], str]] = {
     "config": ph_config,
     "figure": ph_figure,
     "stage_times": ph_stage_times,
+    "development_time": ph_development_time,
     "snapshot": ph_snapshot,
     "standins": ph_standins,
 }

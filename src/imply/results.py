@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -193,10 +193,55 @@ class Values(Mapping[str, Any]):
 
 @dataclass(frozen=True)
 class Claim:
-    """A qualitative claim of the paper, checked on the reproduced results."""
+    """A qualitative claim, checked on the reproduced results: the paper's own (its stage is one of
+    :data:`PAPER_CLAIM_STAGES`) or a target of this project's (the gap benchmarks', the evaluate checks, the pixel
+    model's). A claim on a share of logs or objects carries its ``count`` of ``n``, so that a report can say what
+    a threshold on that many can tell (:func:`binomial_interval`)."""
 
     id: str
     section: str
     statement: str
     holds: bool
     detail: str = ""
+    count: int | None = None
+    n: int | None = None
+
+
+# the stages whose claims are the paper's; the other stages' claims are this project's own targets
+PAPER_CLAIM_STAGES = ("section4", "clips", "section5")
+CLAIM_KINDS = {"paper": "the paper's claims", "project": "this project's targets"}
+
+
+def claim_kind(stage: str) -> str:
+    """``paper`` for a claim of the paper's stages, ``project`` for one of this project's targets."""
+    return "paper" if stage in PAPER_CLAIM_STAGES else "project"
+
+
+def claim_tally(claims: Iterable[tuple[str, Claim | Mapping]]) -> dict[str, dict[str, int]]:
+    """``{kind: {"checked": n, "hold": k}}`` over (stage, claim) pairs, for both kinds of :data:`CLAIM_KINDS` (a
+    claim as a :class:`Claim` or as its JSON mapping)."""
+    out = {kind: {"checked": 0, "hold": 0} for kind in CLAIM_KINDS}
+    for stage, c in claims:
+        holds = c.holds if isinstance(c, Claim) else bool(c.get("holds"))
+        row = out[claim_kind(stage)]
+        row["checked"] += 1
+        row["hold"] += int(holds)
+    return out
+
+
+def tally(share: float | None, n: int | None) -> dict[str, int]:
+    """``{"count", "n"}`` of a share of ``n`` logs (keyword arguments of :class:`Claim`); empty where the share is
+    missing or not finite."""
+    if share is None or n is None or not math.isfinite(float(share)) or int(n) <= 0:
+        return {}
+    return {"count": int(round(float(share) * int(n))), "n": int(n)}
+
+
+def binomial_interval(count: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """The exact (Clopper-Pearson) ``level`` interval of a share observed as ``count`` of ``n``."""
+    from scipy.stats import beta
+
+    tail = (1.0 - level) / 2.0
+    lo = 0.0 if count <= 0 else float(beta.ppf(tail, count, n - count + 1))
+    hi = 1.0 if count >= n else float(beta.ppf(1.0 - tail, count + 1, n - count))
+    return lo, hi

@@ -59,7 +59,10 @@ def test_merge_and_report(tmp_path):
         claims=[Claim("c1", "4", "oracle small", True, "0.005")],
     )
     write_part(
-        b, stage="gap", numbers={"gapFalseAlarm": float("nan")}, claims=[Claim("c2", "gap", "x fails", False, "d")]
+        b,
+        stage="gap",
+        numbers={"gapFalseAlarm": float("nan")},
+        claims=[Claim("c2", "gap", "x fails", False, "d", count=9, n=12)],
     )
     merged = merge_parts([b, a])
     assert merged.stages == ["gap", "section4"]
@@ -73,9 +76,15 @@ def test_merge_and_report(tmp_path):
     assert status["OrSelf"] == "matches" and status["vjCTrack"] == "not produced"
     md = reproduction_md(reg, merged, frame)
     assert "oracle small" in md and "FAILS" in md and "gapFalseAlarm" in md
-    assert "hold: 1; fail: 1" in md
+    # the paper's claims and this project's targets counted apart, each over its own denominator
+    assert "The paper's claims checked: 1; hold: 1; fail: 0." in md
+    assert "This project's own targets" in md and "checked: 1; hold: 0; fail: 1." in md
+    assert md.index("### The paper's claims") < md.index("oracle small") < md.index("### This project's targets")
+    assert md.index("### This project's targets") < md.index("x fails")
+    # a claim on a share of logs says its count and its exact 95% interval (9 of 12: 0.43 to 0.95)
+    assert "(d; 9 of 12; 95% interval 0.43-0.95)" in md
     page = reproduction_html(reg, merged, frame)  # the same report, as the page the Snakemake report shows
-    assert "hold: 1; fail: 1" in page and "<span class='fails'>FAILS</span> [gap / c2] x fails" in page
+    assert "checked: 1; hold: 0; fail: 1." in page and "<span class='fails'>FAILS</span> [gap / c2] x fails" in page
     assert (
         "<td>OrSelf</td>" in page and page.count("<tr>") == md.count("\n| ") - 2
     )  # every data row; md also has 2 header rows

@@ -29,6 +29,8 @@ def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedP
 
 
 LAB_TARGETS = ("results/gap/lab/separability.json", "results/gap/lab/sealed/score.json")
+# the lab's development set is marked under the gap_development target only
+LAB_DEVELOPMENT = "results/gap/lab/development/separability.json"
 
 
 @pytest.mark.slow
@@ -36,9 +38,10 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     """The gap stage's part and the lab benchmark, in one run (they share the table and the effect tables)."""
     copy_workflow(tmp_path)
     target = "results/paper/parts/gap.json"
-    run = _snakemake_tiny(tmp_path, repo_root, target, *LAB_TARGETS)
+    run = _snakemake_tiny(tmp_path, repo_root, target, *LAB_TARGETS, LAB_DEVELOPMENT)
     assert run.returncode == 0, run.stderr[-3000:]
     check_lab(tmp_path)
+    check_development_target(tmp_path, repo_root)
     part = json.loads((tmp_path / target).read_text())
     assert part["stage"] == "gap"
     assert {
@@ -150,13 +153,35 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md
 
 
+def check_development_target(tmp_path, repo_root):
+    """``gap_development`` builds the development sets of the three benchmarks (drawn with their own seeds) and
+    scores them as the sealed sets are, without remaking anything the default run built."""
+    run = _snakemake_tiny(tmp_path, repo_root, "gap_development", "-n", "--quiet", "rules")
+    assert run.returncode == 0, run.stderr[-3000:]
+    planned = run.stdout + run.stderr
+    for rule in (
+        "gap_dev_generate",
+        "gap_dev_contact_generate",
+        "gap_dev_diagnose",
+        "gap_dev_contact_closed_loop",
+        "gap_dev_benchmark",
+        "gap_lab_score",
+    ):
+        assert rule in planned, planned
+    for rule in ("gap_generate ", "gap_diagnose ", "gap_tables", "gap_lab_separability_development"):
+        assert rule not in planned, planned
+
+
 def check_lab(tmp_path):
     """The lab benchmark's two sets on every engine, with probes, each effect log marked, and the development set
     diagnosed with and without its probes and scored."""
     target, score = LAB_TARGETS
     result = json.loads((tmp_path / target).read_text())["result"]
-    assert set(result["sets"]) == {"development", "sealed"}
-    sealed, dev = result["sets"]["sealed"], result["sets"]["development"]
+    assert set(result["sets"]) == {"sealed"}
+    sealed = result["sets"]["sealed"]
+    dev_result = json.loads((tmp_path / LAB_DEVELOPMENT).read_text())["result"]
+    assert set(dev_result["sets"]) == {"development"}
+    dev = dev_result["sets"]["development"]
     # the engine never used to choose is in the sealed set only
     assert {m["engine"] for m in sealed["logs"]} == {"mujoco", "bullet", "sapien"}
     assert {m["engine"] for m in dev["logs"]} == {"mujoco", "bullet"}

@@ -183,23 +183,36 @@ def gap_lab_set_json(wildcards):
     return as_json(LabBenchmarkConfig.set_subset(config["gap"]["lab_benchmark"], wildcards.set))
 
 
-def gap_shard_logs(wildcards):
-    k = int(wildcards.shard)
-    return [f"results/gap/logs/{c}.csv" for i, c in enumerate(GAP_CASES) if i % len(GAP_SHARDS) == k]
+def gap_set_json(section, set_name):
+    """Config ``gap.<section>`` (the main or the contact benchmark) as one set's rules need it: the sealed set's
+    seed, or the development set's in its place; the other set's seed left out, so that choosing on a new
+    development set does not remake the sealed one."""
+    bench = {k: v for k, v in config["gap"][section].items() if k != "development_seed"}
+    if set_name == "development":
+        bench["seed"] = config["gap"][section]["development_seed"]
+    return as_json(bench)
 
 
-def gap_contact_shard_logs(wildcards):
-    k = int(wildcards.shard)
-    return [f"results/gap/contact/logs/{c}.csv" for i, c in enumerate(GAP_CONTACT_CASES) if i % len(GAP_SHARDS) == k]
+def shard_logs(folder, cases):
+    """A getter of the logs of shard ``{shard}`` of ``cases`` in ``folder`` (every len(GAP_SHARDS)-th case)."""
+
+    def logs(wildcards):
+        k = int(wildcards.shard)
+        return [f"{folder}/{c}.csv" for i, c in enumerate(cases) if i % len(GAP_SHARDS) == k]
+
+    return logs
 
 
-def gap_shard_tracks(wildcards):
-    """The tracks of a shard's logs (beside them, where `imply gap diagnose-many` finds them)."""
-    return [log.removesuffix(".csv") + ".track.csv" for log in gap_shard_logs(wildcards)]
+def shard_tracks(folder, cases):
+    """A getter of the tracks of shard ``{shard}``'s logs (beside them, where `imply gap diagnose-many` finds them)."""
+    logs = shard_logs(folder, cases)
+    return lambda wildcards: [log.removesuffix(".csv") + ".track.csv" for log in logs(wildcards)]
 
 
-def gap_contact_shard_tracks(wildcards):
-    return [log.removesuffix(".csv") + ".track.csv" for log in gap_contact_shard_logs(wildcards)]
+gap_shard_logs = shard_logs("results/gap/logs", GAP_CASES)
+gap_shard_tracks = shard_tracks("results/gap/logs", GAP_CASES)
+gap_contact_shard_logs = shard_logs("results/gap/contact/logs", GAP_CONTACT_CASES)
+gap_contact_shard_tracks = shard_tracks("results/gap/contact/logs", GAP_CONTACT_CASES)
 
 
 # the diagnosis with every observable the benchmark's logs carry, beside the default one

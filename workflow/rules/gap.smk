@@ -44,7 +44,7 @@ rule gap_generate:
         sealed="results/gap/sealed/labels.json",
         accuracy="results/gap/world_accuracy.json",
     params:
-        bench=as_json(config["gap"]["benchmark"]),
+        bench=gap_set_json("benchmark", "sealed"),
         folder=lambda wildcards, output: folder_of(output.logs),
     # one thread: a job asking for both cores waits for the training chain to leave both idle
     threads: 1
@@ -98,7 +98,7 @@ rule gap_contact_generate:
         sealed="results/gap/contact/sealed/labels.json",
         accuracy="results/gap/contact/world_accuracy.json",
     params:
-        bench=as_json(config["gap"]["contact_benchmark"]),
+        bench=gap_set_json("contact_benchmark", "sealed"),
         folder=lambda wildcards, output: folder_of(output.logs),
     # one thread: a job asking for both cores waits for the training chain to leave both idle
     threads: 1
@@ -152,7 +152,7 @@ rule gap_contact_closed_loop:
     output:
         directory("results/gap/contact/closed_loop/shard{shard}"),
     params:
-        bench=as_json(config["gap"]["contact_benchmark"]),
+        bench=gap_set_json("contact_benchmark", "sealed"),
         grid=as_json(config["gap"]["effect_grid"]),
         options=as_json(config["gap"]["diagnose"]),
         effects=gap_effects_option(),
@@ -232,8 +232,8 @@ rule gap_benchmark:
             subcategory="Benchmark",
         ),
     params:
-        bench=as_json(config["gap"]["benchmark"]),
-        contact=as_json(config["gap"]["contact_benchmark"]),
+        bench=gap_set_json("benchmark", "sealed"),
+        contact=gap_set_json("contact_benchmark", "sealed"),
     resources:
         mem_mb=2000,
         runtime=10,
@@ -279,14 +279,13 @@ rule gap_lab_generate:
         " --logs {output.logs} --labels {output.labels} --timing {output.timing} --threads {threads} > {log} 2>&1"
 
 
+# The sealed set's marking (the development set's is part of the gap_development target: development.smk).
 rule gap_lab_separability:
     conda:
         IMPLY_ENV
     input:
-        development="results/gap/lab/development/labels.json",
-        sealed="results/gap/lab/sealed/labels.json",
-        development_timing="results/gap/lab/development/timing.json",
-        sealed_timing="results/gap/lab/sealed/timing.json",
+        labels="results/gap/lab/sealed/labels.json",
+        timing="results/gap/lab/sealed/timing.json",
     output:
         result="results/gap/lab/separability.json",
         markdown=report(
@@ -297,6 +296,7 @@ rule gap_lab_separability:
         ),
     params:
         lab=as_json(config["gap"]["lab_benchmark"]),
+        set="sealed",
     resources:
         mem_mb=2000,
         runtime=10,
@@ -305,9 +305,8 @@ rule gap_lab_separability:
     benchmark:
         "results/benchmarks/gap_lab_separability/all.tsv"
     shell:
-        "imply gap separability --lab-json {params.lab} --labels development={input.development}"
-        " sealed={input.sealed} --timing development={input.development_timing} sealed={input.sealed_timing}"
-        " -o {output.result} --markdown {output.markdown} > {log} 2>&1"
+        "imply gap separability --lab-json {params.lab} --labels {params.set}={input.labels}"
+        " --timing {params.set}={input.timing} -o {output.result} --markdown {output.markdown} > {log} 2>&1"
 
 
 # One lab set diagnosed with its calibration probes and without them (the logs without probes read alike either

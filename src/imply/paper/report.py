@@ -25,7 +25,7 @@ import pandas as pd
 
 from imply.io import write_csv, write_text
 from imply.paper.macros import Merged
-from imply.results import Entry, Registry
+from imply.results import Claim, Entry, Registry, binomial_interval, claim_kind, claim_tally
 
 STATUSES = ("matches", "close", "differs", "not produced")
 
@@ -68,16 +68,45 @@ def reproduction_frame(registry: Registry, merged: Merged) -> pd.DataFrame:
     )
 
 
-def _summary(merged: Merged, frame: pd.DataFrame) -> tuple[str, str]:
-    """The report's two summary sentences: the paper's numbers by status, and the claims."""
+def _summary(merged: Merged, frame: pd.DataFrame) -> tuple[str, str, str]:
+    """The report's summary sentences: the paper's numbers by status, the paper's claims, and this project's own
+    targets (each over its own denominator, so that a target of ours that fails is not read as the paper
+    failing)."""
     counts = frame["status"].value_counts()
-    n_hold = sum(1 for _, c in merged.claims if c.holds)
     produced = int((frame["status"] != "not produced").sum())
     numbers = f"Paper numbers: {len(frame)}; produced: {produced}; " + "; ".join(
         f"{s}: {int(counts.get(s, 0))}" for s in STATUSES
     )
-    claims = f"Claims checked: {len(merged.claims)}; hold: {n_hold}; fail: {len(merged.claims) - n_hold}."
-    return numbers + ".", claims
+    tallies = claim_tally(merged.claims)
+    paper, ours = tallies["paper"], tallies["project"]
+    return (
+        numbers + ".",
+        f"The paper's claims checked: {paper['checked']}; hold: {paper['hold']}; "
+        f"fail: {paper['checked'] - paper['hold']}.",
+        f"This project's own targets (the gap benchmarks, the evaluate checks, the pixel model) checked: "
+        f"{ours['checked']}; hold: {ours['hold']}; fail: {ours['checked'] - ours['hold']}.",
+    )
+
+
+def claim_count(c: Claim) -> str:
+    """``k of n, 95% interval [lo, hi]`` of a claim on a share of logs or objects (empty for other claims)."""
+    if c.n is None or c.count is None:
+        return ""
+    lo, hi = binomial_interval(c.count, c.n)
+    return f"{c.count} of {c.n}; 95% interval {lo:.2f}-{hi:.2f}"
+
+
+def _claim_groups(merged: Merged) -> list[tuple[str, list[tuple[str, Claim]]]]:
+    """(title, its claims) for the paper's claims, then this project's targets."""
+    return [
+        (title, [(stage, c) for stage, c in merged.claims if claim_kind(stage) == kind])
+        for kind, title in (("paper", "The paper's claims"), ("project", "This project's targets"))
+    ]
+
+
+def _claim_detail(c: Claim) -> str:
+    count = claim_count(c)
+    return f"{c.detail}; {count}" if count and c.detail else (count or c.detail)
 
 
 BEYOND = "beyond"  # the registry's section of the numbers of what the paper could not show
@@ -102,7 +131,7 @@ def _beyond(registry: Registry, merged: Merged) -> list:
 
 
 def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
-    numbers_line, claims_line = _summary(merged, frame)
+    numbers_line, paper_line, project_line = _summary(merged, frame)
     out = [
         "# Reproduction report",
         "",
@@ -113,19 +142,27 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
         "## Summary",
         "",
         f"- {numbers_line}",
-        f"- {claims_line}",
+        f"- {paper_line}",
+        f"- {project_line}",
         "",
         "A number *matches* when it equals the paper's at the paper's printed precision, is *close* "
-        "within 10% (or 5 units of the last printed digit), and *differs* otherwise.",
+        "within 10% (or 5 units of the last printed digit), and *differs* otherwise. A claim on a share of logs "
+        "or objects gives its count and the exact 95% binomial interval of the share: what a threshold on that "
+        "many can and cannot tell.",
         "",
         "## Claims",
         "",
     ]
     if not merged.claims:
         out.append("No claims reported yet.")
-    for stage, c in merged.claims:
-        mark = "holds" if c.holds else "FAILS"
-        out.append(f"- **{mark}** [{stage} / {c.id}] {c.statement} ({c.detail})")
+    for title, claims in _claim_groups(merged):
+        if not claims:
+            continue
+        out += [f"### {title}", ""]
+        for stage, c in claims:
+            mark = "holds" if c.holds else "FAILS"
+            out.append(f"- **{mark}** [{stage} / {c.id}] {c.statement} ({_claim_detail(c)})")
+        out.append("")
     out += ["", "## Numbers", ""]
     if merged.read_by:
         out += ["Read by (the instrument that read the rollouts behind a stage's numbers):", ""]
@@ -161,21 +198,26 @@ _HTML_STYLE = (
 def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -> str:
     """The reproduction report as one HTML page (what `snakemake --report` shows inline): the
     same summary, claims and numbers as :func:`reproduction_md`."""
-    numbers_line, claims_line = _summary(merged, frame)
+    lines = _summary(merged, frame)
     out = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Reproduction report</title>"
         f"<style>{_HTML_STYLE}</style></head><body>",
         "<h1>Reproduction report</h1>",
-        f"<p>{html.escape(numbers_line)}<br>{html.escape(claims_line)}</p>",
-        "<h2>Claims</h2><ul>",
+        "<p>" + "<br>".join(html.escape(line) for line in lines) + "</p>",
+        "<h2>Claims</h2>",
     ]
-    for stage, c in merged.claims:
-        mark = "<span class='holds'>holds</span>" if c.holds else "<span class='fails'>FAILS</span>"
-        out.append(
-            f"<li>{mark} [{html.escape(stage)} / {html.escape(c.id)}] {html.escape(c.statement)}"
-            f" <i>({html.escape(c.detail)})</i></li>"
-        )
-    out += ["</ul>", "<h2>Numbers</h2>"]
+    for title, claims in _claim_groups(merged):
+        if not claims:
+            continue
+        out += [f"<h3>{html.escape(title)}</h3>", "<ul>"]
+        for stage, c in claims:
+            mark = "<span class='holds'>holds</span>" if c.holds else "<span class='fails'>FAILS</span>"
+            out.append(
+                f"<li>{mark} [{html.escape(stage)} / {html.escape(c.id)}] {html.escape(c.statement)}"
+                f" <i>({html.escape(_claim_detail(c))})</i></li>"
+            )
+        out.append("</ul>")
+    out += ["<h2>Numbers</h2>"]
     out.append(frame[["name", "section", "paper", "reproduced", "status"]].to_html(index=False, na_rep=""))
     extra = _unprinted(registry, merged)
     if extra:

@@ -16,7 +16,7 @@ from typing import Any
 
 from imply.io import write_text
 from imply.realworld.lab_score import ENGINES
-from imply.results import Claim, Values
+from imply.results import Claim, Values, tally
 
 RESULT = "imply.realworld.benchmark.score_cases"
 LAB_RESULT = "imply.realworld.lab_score.score_lab"
@@ -45,6 +45,24 @@ CONTACT_TARGETS = {
     "contact-single": ("single_right", "n_single_right", "observed_single_right", False),
     "contact-wrong": ("wrong_single", "n_wrong_single", "wrong_single", True),
 }
+
+
+# the metrics of the targets above that are a share of logs (the others are medians)
+SHARE_METRICS = {
+    "false_alarm",
+    "top1_big",
+    "both_named_big",
+    "none_recall_outside",
+    "null_no_library",
+    "single_right",
+    "wrong_single",
+}
+
+
+def _tally(r: dict, target: tuple[str, str, str, bool]) -> dict[str, int]:
+    """The count of logs behind a target's share (keyword arguments of a claim); empty for a median."""
+    metric, n, _, _ = target
+    return tally(r[metric], r[n]) if metric in SHARE_METRICS else {}
 
 
 def _meets(r: dict, targets: dict, target: tuple[str, str, str, bool]) -> bool:
@@ -87,6 +105,7 @@ def claims_of(r: dict) -> list[Claim]:
                 _meets(r, targets, MAIN_TARGETS["null"]),
                 f"{_f(r['false_alarm'], '.3f')} on {r['n_null']} null logs ({_f(r['false_alarm_heavy'], '.2f')} on "
                 f"{r['n_null_heavy']} heavy-tailed)",
+                **_tally(r, MAIN_TARGETS["null"]),
             ),
             Claim(
                 "gap-top1",
@@ -94,6 +113,7 @@ def claims_of(r: dict) -> list[Claim]:
                 f"Top-1 accuracy >= {targets['top1']} for one-effect logs whose effect is at least {sd:g}x the noise",
                 _meets(r, targets, MAIN_TARGETS["top1"]),
                 f"{_f(r['top1_big'], '.3f')} on {r['n_big']} logs",
+                **_tally(r, MAIN_TARGETS["top1"]),
             ),
             Claim(
                 "gap-both",
@@ -103,6 +123,7 @@ def claims_of(r: dict) -> list[Claim]:
                 _meets(r, targets, MAIN_TARGETS["both"]),
                 f"{_f(r['both_named_big'], '.3f')} on {r['n_double_big']} logs ({_f(r['both_named_all'], '.2f')} on all "
                 f"{r['n_double']})",
+                **_tally(r, MAIN_TARGETS["both"]),
             ),
             Claim(
                 "gap-outside",
@@ -112,6 +133,7 @@ def claims_of(r: dict) -> list[Claim]:
                 _meets(r, targets, MAIN_TARGETS["outside"]),
                 f"{_f(r['none_recall_outside'], '.3f')} on {r['n_outside']} logs "
                 f"({_f(r['none_recall_outside_big'], '.2f')} on the {r['n_outside_big']} at least {sd:g}x the noise)",
+                **_tally(r, MAIN_TARGETS["outside"]),
             ),
             Claim(
                 "gap-magnitude",
@@ -158,6 +180,7 @@ def observed_claims(r: dict) -> list[Claim]:
             prefix + statement,
             _meets(o, t, MAIN_TARGETS[cid]),
             f"{_f(o[MAIN_TARGETS[cid][0]])} on {o[MAIN_TARGETS[cid][1]]} logs",
+            **_tally(o, MAIN_TARGETS[cid]),
         )
         for cid, statement in statements.items()
     ]
@@ -182,6 +205,7 @@ def observed_claims(r: dict) -> list[Claim]:
             prefix + statement,
             _meets(c, ct, CONTACT_TARGETS[cid]),
             f"{_f(c[CONTACT_TARGETS[cid][0]])} on {c[CONTACT_TARGETS[cid][1]]} logs{told.get(cid, '')}",
+            **_tally(c, CONTACT_TARGETS[cid]),
         )
         for cid, statement in statements.items()
     ]
@@ -208,6 +232,7 @@ def contact_claims(c: dict | None) -> list[Claim]:
             f"Null logs of another contact model: no library effect stated as a cause in >= {t['null_no_library']:.0%}",
             _meets(c, t, CONTACT_TARGETS["contact-null"]),
             f"{_f(c['null_no_library'])} on {c['n_null_no_library']} logs ({split('null_no_library')})",
+            **_tally(c, CONTACT_TARGETS["contact-null"]),
         ),
         Claim(
             "gap-contact-named",
@@ -220,6 +245,7 @@ def contact_claims(c: dict | None) -> list[Claim]:
             f"{_f(c['one_cause'], '.2f')}, of which the true effect within {t['magnitude_within']:.0%} in "
             f"{_f(c['one_cause_right'], '.2f')} ({c['n_one_cause_right']} logs); told the cause, its own "
             f"hypothesis within {t['magnitude_within']:.0%} in {_f(c.get('told_right'), '.2f')}",
+            **tally(c["among_named"], c["n_among_named"]),
         ),
         Claim(
             "gap-contact-contenders",
@@ -236,6 +262,7 @@ def contact_claims(c: dict | None) -> list[Claim]:
             _meets(c, t, CONTACT_TARGETS["contact-wrong"]),
             f"{_f(c['wrong_single'])} on {c['n_wrong_single']} logs "
             f"({split('wrong_single')}); stated as a cause at all {_f(c['wrong_mechanism'], '.2f')}",
+            **_tally(c, CONTACT_TARGETS["contact-wrong"]),
         ),
         Claim(
             "gap-contact-loop",
@@ -247,6 +274,7 @@ def contact_claims(c: dict | None) -> list[Claim]:
             f"own design: {_f(rnd.get('one_cause_right'))}; told the cause, its own hypothesis within "
             f"{t['magnitude_within']:.0%} in {_f(nxt.get('told_right'), '.2f')} (random pushes "
             f"{_f(rnd.get('told_right'), '.2f')})",
+            **tally(nxt.get("one_cause_right"), nxt.get("n_single")),
         ),
     ]
 
@@ -307,6 +335,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"<= {t['pusher_unmeasured']:.0%}",
             at_most(wo["all"]["null_pusher_stated"], "pusher_unmeasured"),
             share(wo["all"], "null_pusher_stated"),
+            **tally(wo["all"]["null_pusher_stated"], wo["all"].get("n_null_pusher_stated")),
         ),
         Claim(
             "gap-lab-named",
@@ -324,6 +353,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"within {within} in >= {t['single_right']:.0%}",
             at_least(sep_w["single_right"], "single_right"),
             single(sep_w, w["not_separable"]),
+            **tally(sep_w["single_right"], sep_w.get("n_single_right")),
         ),
         Claim(
             "gap-lab-single",
@@ -332,6 +362,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"{within} in >= {t['single_right_no_probes']:.0%}",
             at_least(sep_wo["single_right"], "single_right_no_probes"),
             single(sep_wo, wo["not_separable"]),
+            **tally(sep_wo["single_right"], sep_wo.get("n_single_right")),
         ),
         Claim(
             "gap-lab-wrong",
@@ -346,6 +377,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"Lab benchmark, MuJoCo variants whose table contact is off: the contact named in >= {t['contact_named']:.0%}",
             at_least(w["all"]["contact_named"], "contact_named"),
             share(w["all"], "contact_named", engine=False),
+            **tally(w["all"]["contact_named"], w["all"].get("n_contact_named")),
         ),
         Claim(
             "gap-lab-loop",
@@ -356,6 +388,7 @@ def lab_claims(r: Mapping | None) -> list[Claim]:
             f"{_f(nxt.get('one_cause_right'), '.2f')} on {nxt.get('n_single', 0)} logs; as many random pushes of the "
             f"log's design: {_f(rnd.get('one_cause_right'), '.2f')}; told the cause {_f(nxt.get('told_right'), '.2f')} "
             f"(random {_f(rnd.get('told_right'), '.2f')}); probes run per log {_f(nxt.get('probes_added_mean'), '.2f')}",
+            **tally(nxt.get("one_cause_right"), nxt.get("n_single")),
         ),
     ]
 

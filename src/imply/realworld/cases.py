@@ -130,7 +130,10 @@ class BenchmarkConfig(Config):
 
     config_key: ClassVar[str] = "gap.benchmark"
 
-    seed: int = option(7373, doc="seed of the logs' draws (the development set: 1001)", required=True)
+    seed: int = option(7373, doc="seed of the sealed set's draws", required=True)
+    development_seed: int = option(
+        1001, doc="seed of the development set's draws (the same design; built by the gap_development target)"
+    )
     logs: dict[str, int] = option(
         {"null_gaussian": 20, "null_heavy": 20, "single": 98, "single_unidentifiable": 12, "double": 40, "outside": 48},
         doc="logs per group (a group left out has none)",
@@ -229,7 +232,10 @@ class ContactBenchmarkConfig(BenchmarkConfig):
 
     config_key: ClassVar[str] = "gap.contact_benchmark"
 
-    seed: int = option(9797, doc="seed of the logs' draws (the development set: 7117)", required=True)
+    seed: int = option(9797, doc="seed of the sealed set's draws", required=True)
+    development_seed: int = option(
+        7117, doc="seed of the development set's draws (the same design; built by the gap_development target)"
+    )
     logs: dict[str, int] = option(
         {
             "null_contact": 16,
