@@ -40,7 +40,11 @@ def test_the_snapshot_holds_every_file_the_docs_show(stamp):
 
 def test_the_stamp_names_its_run(stamp):
     assert len(stamp["commit"]) == 40 and stamp["machine"]["cpu"] and stamp["machine"]["instruction_set"]
-    assert stamp["wall_seconds"] > 0 and 0 < stamp["claims"]["hold"] <= stamp["claims"]["checked"]
+    assert stamp["wall_seconds"] > 0
+    # the paper's claims and this project's targets, each counted over its own denominator
+    c = stamp["claims"]
+    for tally in [c["paper"], c["project"]] if "paper" in c else [c]:
+        assert 0 < tally["hold"] <= tally["checked"]
     assert stamp["commit"][:7] in label(stamp)
 
 

@@ -46,6 +46,7 @@ import logging
 import math
 import os
 import pickle
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -62,6 +63,29 @@ from imply.models.rollout import rollout
 from imply.models.sequences import Sequences
 
 log = logging.getLogger("imply.models.train")
+
+
+class PhaseClock:
+    """Wall seconds spent in each named phase of a loop (``with clock("forward"): ...``), summed over the run."""
+
+    def __init__(self, names: tuple[str, ...]):
+        self.seconds = dict.fromkeys(names, 0.0)
+        self._phase: str | None = None
+
+    def __call__(self, name: str) -> PhaseClock:
+        self._phase = name
+        return self
+
+    def __enter__(self) -> None:
+        self._start = time.perf_counter()
+
+    def __exit__(self, *exc) -> None:
+        self.seconds[self._phase] += time.perf_counter() - self._start
+
+    def summary(self) -> str:
+        """Each phase's seconds and share of the total, one line."""
+        total = sum(self.seconds.values()) or 1.0
+        return ", ".join(f"{k} {v:.1f} s ({v / total:.0%})" for k, v in self.seconds.items())
 
 
 def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
@@ -216,6 +240,8 @@ def train(
     )
     q0 = layout.n_calib_steps
     model.train()
+    # where the run's time goes, logged at the end (never stored: the outputs stay the same bytes on every run)
+    phases = PhaseClock(("data", "forward", "backward", "optimiser", "validation", "checkpoint"))
     for epoch in range(start_epoch, config.epochs):
         order = np.random.default_rng([data_seed, epoch]).permutation(n)
         sums = np.zeros(2)
@@ -225,34 +251,41 @@ def train(
             for group in opt.param_groups:
                 group["lr"] = lr_at(step, total, config)
             idx = np.sort(order[b * config.batch_size : (b + 1) * config.batch_size])
-            frames, actions, states = (x.to(device) for x in seqs.batch(idx))
-            tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, q0=q0, cfg=config)
-            loss = tf + config.rollout_weight * ar
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            if config.grad_clip > 0:
-                torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-            opt.step()
+            with phases("data"):
+                frames, actions, states = (x.to(device) for x in seqs.batch(idx))
+            with phases("forward"):
+                tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, q0=q0, cfg=config)
+                loss = tf + config.rollout_weight * ar
+            with phases("backward"):
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+            with phases("optimiser"):
+                if config.grad_clip > 0:
+                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
+                opt.step()
             sums += [tf.item(), ar.item()]
             bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}", refresh=False)
         entry = {"epoch": epoch + 1, "teacher_forcing": sums[0] / per_epoch, "rollout": sums[1] / per_epoch}
         due = epoch == 0 or (epoch + 1) % config.validate_every == 0 or epoch + 1 == config.epochs
         if validate is not None and due:
             model.eval()
-            entry.update(validate(model))
+            with phases("validation"):
+                entry.update(validate(model))
             model.train()
         history.append(entry)
         log.info("epoch %d: %s", epoch + 1, ", ".join(f"{k} {v:.4f}" for k, v in entry.items() if k != "epoch"))
-        _save(
-            checkpoint,
-            {
-                "digest": digest,
-                "epoch": epoch + 1,
-                "model": model.state_dict(),
-                "optimizer": opt.state_dict(),
-                "history": history,
-            },
-        )
+        with phases("checkpoint"):
+            _save(
+                checkpoint,
+                {
+                    "digest": digest,
+                    "epoch": epoch + 1,
+                    "model": model.state_dict(),
+                    "optimizer": opt.state_dict(),
+                    "history": history,
+                },
+            )
+        log.info("time so far: %s", phases.summary())
         if stop_after_epoch is not None and epoch + 1 >= stop_after_epoch and epoch + 1 < config.epochs:
             return None
     payload = {
