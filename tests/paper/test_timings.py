@@ -54,3 +54,22 @@ def test_a_run_resumed_after_a_pause_counts_each_sitting_s_span(tmp_path):
     assert [len(s) for s in sittings(jobs)] == [2, 1]
     assert span_seconds(jobs) == 100 + 200
     assert "in 2 sittings" in "\n".join(markdown(jobs))
+
+
+def test_the_critical_path_follows_the_jobs_each_waited_on():
+    from imply.paper.timings import Job, critical_path
+
+    def job(rule, start, end):
+        return Job(rule=rule, wildcards="all", seconds=end - start, cpu_seconds=end - start, max_rss_mb=1.0, end=end)
+
+    # table -> clips -> train (long) -> merge; a side job beside train ends before it and is off the path
+    jobs = [
+        job("table", 0, 100),
+        job("clips", 101, 300),
+        job("side", 101, 500),
+        job("train", 302, 1200),
+        job("gap", 501, 900),
+        job("merge", 1201, 1210),
+    ]
+    assert [j.rule for j in critical_path(jobs)] == ["table", "clips", "train", "merge"]
+    assert critical_path([]) == []

@@ -133,6 +133,25 @@ def alone(jobs: list[Job], cores: int = 2) -> tuple[float, dict[str, float]]:
     return idle, dict(sorted(by_job.items(), key=lambda kv: -kv[1]))
 
 
+CHAIN_SLACK = 5.0  # s: a job that started within this of another's end is taken to have waited on it
+
+
+def critical_path(jobs: list[Job], slack: float = CHAIN_SLACK) -> list[Job]:
+    """The chain of jobs that set the run's wall time, first to last, read from the times alone: from the job that
+    ended last, each step back goes to the job that ended last before this one started (within ``slack``): the
+    input it waited on, or the job whose end freed the core it ran on. Shortening a job off this chain does not
+    shorten the run."""
+    if not jobs:
+        return []
+    chain = [max(jobs, key=lambda j: j.end)]
+    while True:
+        start = chain[-1].start
+        before = [j for j in jobs if j.end <= start + slack and j not in chain and j.start < start]
+        if not before:
+            return chain[::-1]
+        chain.append(max(before, key=lambda j: j.end))
+
+
 def markdown(jobs: list[Job]) -> list[str]:
     """The report's section: the run's span, the time per rule, and the jobs that ran alone while a core idled."""
     if not jobs:
@@ -169,6 +188,17 @@ def markdown(jobs: list[Job]) -> list[str]:
         "|---|---|",
     ]
     lines += [f"| {name} | {sec:.1f} |" for name, sec in list(solo.items())[:8]]
+    path = critical_path(jobs)
+    lines += [
+        "",
+        f"The critical path, read from the jobs' times (each job after the one it waited on): {len(path)} jobs, "
+        f"{sum(j.seconds for j in path) / 60:.1f} min of the run's {span / 60:.1f}:",
+        "",
+        "| job | started at (min) | s |",
+        "|---|---|---|",
+    ]
+    t0 = min(j.start for j in jobs)
+    lines += [f"| {j.name} | {(j.start - t0) / 60:.1f} | {j.seconds:.1f} |" for j in path]
     return lines + [""]
 
 
