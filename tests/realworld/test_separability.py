@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from imply.realworld.lab import JACOBIAN_STEP
@@ -81,3 +83,35 @@ def test_what_the_per_object_fit_absorbs_is_no_signature():
     null = mark_log(label, alias_cos=0.95, min_size_sd=2.0, crossing_sd=0.02)
     assert null["null_gap_sd"] < 1e-6
     assert summarise([null])["mujoco"]["null_logs"] == 1
+
+
+def _mark(label: dict) -> dict:
+    return mark_log(label, alias_cos=0.95, min_size_sd=2.0, crossing_sd=0.02)
+
+
+def test_a_log_that_weighs_its_boxes_is_marked_without_its_log_mass_run():
+    """Its fit frees no mass direction: neither the log-mass run nor a push that run alone lost is read, so its label
+    leaves the run out (imply.realworld.lab.marked_runs)."""
+    curve = np.array([0.0, 0.05, 0.2, 0.0, 0.05, 0.2])
+    other = np.array([0.1, -0.1, 0.1, -0.1, 0.1, -0.1])
+    weighed = _label(0.5 * other, 3.0 * curve, measured_mass=True)
+    lost, without = copy.deepcopy(weighed), copy.deepcopy(weighed)
+    lost["noise_free"]["log_mass"]["ok"][0] = False
+    del without["noise_free"]["log_mass"]
+    assert _mark(weighed) == _mark(lost) == _mark(without)
+    # unweighed, the mass direction is fitted: the same lost push no longer counts
+    unweighed = _label(0.5 * other, 3.0 * curve)
+    lost = copy.deepcopy(unweighed)
+    lost["noise_free"]["log_mass"]["ok"][0] = False
+    assert _mark(lost) != _mark(unweighed)
+
+
+def test_a_null_log_is_marked_without_its_probes():
+    """A null log's gap is its displacements': its label may hold no probe in any run."""
+    label = _label(np.zeros(6), 2.0 * np.array([0.0, 0.05, 0.2, 0.0, 0.05, 0.2]))
+    label["effects"] = []
+    del label["noise_free"]["contact"]
+    bare = copy.deepcopy(label)
+    for run in bare["noise_free"].values():
+        del run["probes"]
+    assert _mark(label) == _mark(bare) and _mark(bare)["null_gap_sd"] > 1.0

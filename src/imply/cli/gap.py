@@ -1,9 +1,10 @@
-"""``imply gap tables|generate|lab-generate|diagnose-many|closed-loop|separability|lab-score|benchmark``: the benchmarks.
+"""``imply gap tables|generate|lab-generate|merge-labels|diagnose-many|closed-loop|separability|lab-score|benchmark``.
 
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
 sealed in a separate file, ``lab-generate`` writes one set of the lab benchmark's logs (pushes with
-calibration probes, on several engines), ``separability`` marks its effect logs separable or not from
+calibration probes, on several engines) (each of the two can write one shard of the logs, ``--shard K --shards
+N``, and ``merge-labels`` joins the shards' labels), ``separability`` marks its effect logs separable or not from
 their contact and ``lab-score`` scores one set's diagnoses with and without its probes, ``diagnose-many`` runs ``imply diagnose`` on many logs in
 one process, ``closed-loop`` runs the recommended next pushes of the logs with several
 explanations in contention in their worlds and diagnoses again, ``benchmark`` scores the diagnoses against the sealed labels (a result
@@ -80,9 +81,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="config gap.contact_benchmark: worlds with a contact model of their own, and another engine's",
     )
     gen.add_argument("--logs", required=True, help="folder for the push logs (<log id>.csv)")
-    gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels")
-    gen.add_argument("--accuracy", required=True, help="JSON file for the world's measured numerical error")
+    gen.add_argument("--sealed", required=True, help="JSON file for the sealed labels (with --shards: the shard's)")
+    gen.add_argument(
+        "--accuracy",
+        help="JSON file for the world's measured numerical error (required unless sharded; with --shards, give it "
+        "to one shard: it is measured on a sample of every log's pushes, the same in any shard)",
+    )
     gen.add_argument("--threads", type=int_range(0), default=0, help="simulation threads (0: all CPUs)")
+    add_shard_options(gen)
     gen.set_defaults(func=cmd_generate)
 
     cl = gsub.add_parser(
@@ -119,15 +125,29 @@ def register(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)",
     )
-    lab.add_argument("--labels", required=True, help="JSON file for the logs' labels")
-    lab.add_argument("--timing", required=True, help="JSON file for each world's time per push")
+    lab.add_argument("--labels", required=True, help="JSON file for the logs' labels (with --shards: the shard's)")
+    lab.add_argument(
+        "--timing", required=True, help="JSON file for each world's time per push (with --shards: the shard's)"
+    )
     lab.add_argument(
         "--threads",
         type=int_range(0),
         default=0,
         help="MuJoCo's simulation threads (0: all CPUs; the other engines use one)",
     )
+    add_shard_options(lab)
     lab.set_defaults(func=cmd_lab_generate)
+
+    ml = gsub.add_parser(
+        "merge-labels",
+        help="join the labels (and the lab's timings) that the shards of 'imply gap generate' or 'imply gap "
+        "lab-generate' wrote into what one unsharded run writes",
+    )
+    ml.add_argument("parts", nargs="+", help="the shards' labels files")
+    ml.add_argument("-o", "--output", required=True, help="JSON file for the joined labels")
+    ml.add_argument("--timing", nargs="+", default=[], help="the shards' timing files (lab-generate)")
+    ml.add_argument("--timing-output", help="JSON file for the joined timing (with --timing)")
+    ml.set_defaults(func=cmd_merge_labels)
 
     sep = gsub.add_parser(
         "separability",
@@ -189,6 +209,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply gap closed-loop'")
     b.set_defaults(func=cmd_benchmark)
+
+
+def add_shard_options(parser: argparse.ArgumentParser) -> None:
+    """``--shard K --shards N``: write only the logs whose index in the set is K modulo N (imply.realworld.shards)."""
+    parser.add_argument(
+        "--shards",
+        type=int_range(1),
+        default=1,
+        help="split the logs into this many shards and write one (join the labels with 'imply gap merge-labels')",
+    )
+    parser.add_argument(
+        "--shard",
+        type=int_range(0),
+        default=0,
+        help="which shard to write (0 .. shards-1): logs whose index is K mod N",
+    )
+
+
+def _check_shard(args: argparse.Namespace) -> None:
+    if args.shard >= args.shards:
+        raise UserError(f"--shard {args.shard}: need 0 <= shard < --shards {args.shards}")
 
 
 def _benchmark_config(args: argparse.Namespace):
@@ -291,6 +332,9 @@ def cmd_generate(args: argparse.Namespace) -> int:
     from imply.realworld.cases import write_benchmark_logs
     from imply.sim import SceneConfig
 
+    _check_shard(args)
+    if args.accuracy is None and args.shards == 1:
+        raise UserError("--accuracy is required (unless sharded: then one shard measures it)")
     config = _generate_config(args)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
@@ -299,20 +343,22 @@ def cmd_generate(args: argparse.Namespace) -> int:
         scene,
         logs=Path(args.logs),
         sealed=Path(args.sealed),
-        accuracy=Path(args.accuracy),
+        accuracy=None if args.accuracy is None else Path(args.accuracy),
         table_error=table.meta.get("numerical_error"),
         nthread=args.threads,
         progress=True,
+        shard=args.shard,
+        shards=args.shards,
     )
-    e = error["against_finer"]["log_d"]
     log.info(
-        "wrote %d logs -> %s (labels sealed in %s); world error max %.4f RMS %.4f in log d",
-        config.n_logs,
+        "wrote the logs%s -> %s (labels sealed in %s)",
+        f" of shard {args.shard} of {args.shards}" if args.shards > 1 else "",
         args.logs,
         args.sealed,
-        e["max_abs"],
-        e["rms"],
     )
+    if error is not None:
+        e = error["against_finer"]["log_d"]
+        log.info("world error max %.4f RMS %.4f in log d -> %s", e["max_abs"], e["rms"], args.accuracy)
     return 0
 
 
@@ -326,6 +372,7 @@ def cmd_lab_generate(args: argparse.Namespace) -> int:
     from imply.realworld.lab import LabBenchmarkConfig, write_lab_set
     from imply.sim import SceneConfig
 
+    _check_shard(args)
     with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
         design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
     table = load_table(args.table)
@@ -338,10 +385,41 @@ def cmd_lab_generate(args: argparse.Namespace) -> int:
         timing=Path(args.timing),
         nthread=args.threads,
         progress=True,
+        shard=args.shard,
+        shards=args.shards,
     )
     for engine, t in timing.items():
         log.info("%s: %d pushes, %.4f s per push", engine, t["pushes"], t["seconds_per_push"])
-    log.info("wrote the %s set's %d logs -> %s (labels in %s)", args.set, design.n_logs, args.logs, args.labels)
+    log.info(
+        "wrote the %s set's logs%s -> %s (labels in %s)",
+        args.set,
+        f" of shard {args.shard} of {args.shards}" if args.shards > 1 else "",
+        args.logs,
+        args.labels,
+    )
+    return 0
+
+
+def cmd_merge_labels(args: argparse.Namespace) -> int:
+    from imply.io import write_json
+    from imply.realworld.shards import merge_labels, merge_timing
+
+    if bool(args.timing) != (args.timing_output is not None):
+        raise UserError("--timing and --timing-output go together")
+
+    def read(path: str) -> dict:
+        try:
+            with open(path) as fh:
+                return json.load(fh)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise UserError(f"{path}: {exc}") from exc
+
+    with user_errors(ValueError, message="merge-labels: {error}"):
+        labels = merge_labels([read(p) for p in args.parts])
+    write_json(args.output, labels)
+    if args.timing:
+        write_json(args.timing_output, merge_timing([read(p) for p in args.timing]))
+    log.info("joined %d labels from %d parts -> %s", len(labels), len(args.parts), args.output)
     return 0
 
 

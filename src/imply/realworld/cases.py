@@ -38,7 +38,6 @@ from typing import ClassVar
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from imply.io import write_csv, write_json
 from imply.options import Config, option
@@ -49,10 +48,12 @@ from imply.realworld.contact import (
     draw_contact,
     engine_effects,
     no_contact_model,
+    simulate_distinct,
     simulate_engine,
     world_engine,
 )
 from imply.realworld.effects import EFFECTS, IDENTIFIABLE, LIBRARY, OUTSIDE, apply_effect, draw_magnitude
+from imply.realworld.shards import shard_cases
 from imply.realworld.world import WorldPushes, WorldStepping
 from imply.sim.scene import SceneConfig
 from imply.sim.track import filmed, pusher_speed, track_frame_times
@@ -477,7 +478,8 @@ def simulate_cases(
     progress: bool = False,
 ) -> dict[str, dict]:
     """Noise-free observables of every case (``"all"``), of each effect alone in two-effect cases (by name),
-    and in the contact benchmark's effect cases of the world without the effect (``"contact"``)."""
+    and in the contact benchmark's effect cases of the world without the effect (``"contact"``); each distinct
+    push simulated once (:func:`imply.realworld.contact.simulate_distinct`)."""
     runs: list[tuple[str, str, str, WorldPushes]] = []  # (case id, what, engine, pushes)
     for case in cases:
         engine = case.get("engine", "mujoco")
@@ -488,32 +490,32 @@ def simulate_cases(
         if case["effects"] and "engine" in case:
             runs.append((case["id"], "contact", engine, _world_pushes(case, design, scene, [])))
     out: dict[str, dict] = {}
+    times = track_frame_times(design.noise.track_rate)
     for engine in dict.fromkeys(r[2] for r in runs):
         mine = [r for r in runs if r[2] == engine]
         allp = WorldPushes.concat([r[3] for r in mine])
         bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
-        disp, stop, stroke, ok = np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n), np.zeros(allp.n, bool)
-        times = track_frame_times(design.noise.track_rate)
-        track = np.zeros((allp.n, times.size, 3), np.float32)
-        starts = range(0, allp.n, chunk)
-        for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
-            idx = np.arange(a, min(a + chunk, allp.n))
-            res = simulate_engine(
-                allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread, track_times=times
-            )
-            disp[idx], stop[idx], stroke[idx], ok[idx] = res.displacement, res.stop_time, res.stroke_time, res.ok
-            track[idx] = res.track
-        ok &= np.isfinite(stroke) & (stroke > 0)
+        res, _ = simulate_distinct(
+            allp,
+            scene,
+            design.stepping,
+            engine=engine,
+            nthread=nthread,
+            track_times=times,
+            chunk=chunk,
+            progress=progress,
+        )
+        ok = res.ok & np.isfinite(res.stroke_time) & (res.stroke_time > 0)
         for k, (cid, what, _, _) in enumerate(mine):
             sl = slice(bounds[k], bounds[k + 1])
             out.setdefault(cid, {})[what] = {
-                "displacement": disp[sl],
-                "stop_time": stop[sl],
+                "displacement": res.displacement[sl],
+                "stop_time": res.stop_time[sl],
                 "ok": ok[sl],
-                "pusher_speed": pusher_speed(scene.stroke, stroke[sl]),
+                "pusher_speed": pusher_speed(scene.stroke, res.stroke_time[sl]),
             }
             if what == "all":  # the camera films the log's own pushes
-                out[cid][what]["track"] = track[sl]
+                out[cid][what]["track"] = res.track[sl]
     return {case["id"]: out[case["id"]] for case in cases}
 
 
@@ -686,19 +688,27 @@ def write_benchmark_logs(
     *,
     logs: Path,
     sealed: Path,
-    accuracy: Path,
+    accuracy: Path | None,
     table_error: dict | None = None,
     nthread: int = 0,
     progress: bool = True,
-) -> dict:
+    shard: int = 0,
+    shards: int = 1,
+) -> dict | None:
     """Simulate every log into ``logs/<id>.csv``, seal the labels in ``sealed``, and measure the world's
-    own numerical error into ``accuracy`` (beside the table's, ``table_error``). Returns that error."""
-    cases = draw_cases(design)
+    own numerical error into ``accuracy`` (beside the table's, ``table_error``). Returns that error.
+
+    With ``shards`` > 1, only the logs of shard ``shard`` (:func:`imply.realworld.shards.shard_cases`) and their
+    labels; the world's error, measured on a sample of every log's pushes (the same whichever shard measures it),
+    only where ``accuracy`` is given (None: not measured, None returned)."""
+    drawn = draw_cases(design)
+    cases = shard_cases(drawn, shard, shards)
     log.info(
-        "simulating %d logs (%d objects x %d speeds each) in the world",
+        "simulating %d logs (%d objects x %d speeds each) in the world%s",
         len(cases),
         design.n_objects,
         len(design.speeds),
+        f" (shard {shard} of {shards})" if shards > 1 else "",
     )
     sims = simulate_cases(cases, design, scene, nthread=nthread, progress=progress)
     labels = {}
@@ -707,17 +717,19 @@ def write_benchmark_logs(
         write_csv(logs / f"{case['id']}.csv", frame)
         write_csv(logs / f"{case['id']}.track.csv", log_track(case, sims[case["id"]], label, design))
         labels[case["id"]] = label
-    check = design.accuracy
-    log.info("measuring the world's numerical error on %d of its pushes", check.pushes + check.nominal)
-    # the MuJoCo world's error (another engine's logs are that engine's; its convergence is its module's)
-    world_cases = [c for c in cases if c.get("engine", "mujoco") == "mujoco"] or cases
-    sample, nominal = accuracy_sample(world_cases, design, scene, check.pushes, check.nominal)
-    error = measure_error(
-        sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread, progress=progress
-    )
-    error["table_numerical_error"] = table_error
-    error["stepping"] = design.stepping.to_dict()
-    write_json(accuracy, error)
+    error = None
+    if accuracy is not None:
+        check = design.accuracy
+        log.info("measuring the world's numerical error on %d of its pushes", check.pushes + check.nominal)
+        # the MuJoCo world's error (another engine's logs are that engine's; its convergence is its module's)
+        world_cases = [c for c in drawn if c.get("engine", "mujoco") == "mujoco"] or drawn
+        sample, nominal = accuracy_sample(world_cases, design, scene, check.pushes, check.nominal)
+        error = measure_error(
+            sample, nominal, scene, design.stepping, factor=check.factor, nthread=nthread, progress=progress
+        )
+        error["table_numerical_error"] = table_error
+        error["stepping"] = design.stepping.to_dict()
+        write_json(accuracy, error)
     write_json(sealed, labels)
     return error
 

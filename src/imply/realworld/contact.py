@@ -19,7 +19,10 @@ world's contact parameters (:data:`imply.realworld.world.PARAMETERS`) by kind:
 
 :func:`draw_contact` draws a random combination of kinds and magnitudes from the ranges of
 a :class:`ContactDraw`. A world can also be another physics engine's
-(:data:`ENGINES`); :func:`simulate_engine` dispatches a batch of pushes to it.
+(:data:`ENGINES`); :func:`simulate_engine` dispatches a batch of pushes to it, and
+:func:`simulate_distinct` simulates each distinct push of a batch once (the benchmarks'
+generation: a four-direction design pushes each box alike in its four directions wherever
+no tilt or direction-dependent friction turns them).
 """
 
 from __future__ import annotations
@@ -28,10 +31,17 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from imply.options import Config, option
 from imply.realworld.effects import EFFECTS
-from imply.realworld.world import WorldPushes, WorldResult, WorldStepping, simulate_world
+from imply.realworld.world import (
+    DIRECTIONAL_PARAMETERS,
+    WorldPushes,
+    WorldResult,
+    WorldStepping,
+    simulate_world,
+)
 from imply.sim.scene import SceneConfig
 
 # the kinds of contact model and the world parameters each one sets
@@ -195,3 +205,80 @@ def simulate_engine(
 
         return simulate_sapien(pushes, scene, progress=progress, track_times=track_times)
     raise ValueError(f"unknown engine {engine!r} (known: {', '.join(ENGINES)})")
+
+
+def distinct_pushes(pushes: WorldPushes) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct pushes of ``pushes``: ``first`` (k,) the index of each one's first occurrence, increasing, and
+    ``inverse`` (n,) which of them every push is (``first[inverse[i]]`` is simulated alike to push i).
+
+    Two pushes are alike when every input of their simulation is equal bit for bit; the table direction is an
+    input only where a parameter of :data:`imply.realworld.world.DIRECTIONAL_PARAMETERS` is set (every world
+    pushes along its own +x), so a four-direction design's pushes, and every push of a nominal world, are alike
+    in all directions."""
+    n = pushes.n
+    directional = np.zeros(n, bool)
+    for name in DIRECTIONAL_PARAMETERS:
+        if name in pushes.params:
+            directional |= np.asarray(pushes.params[name]) != 0
+    inputs = [pushes.speed, pushes.mass, pushes.friction, np.where(directional, pushes.direction, 0.0)]
+    inputs += [np.broadcast_to(pushes.params[k], (n,)) for k in sorted(pushes.params)]
+    rows = np.ascontiguousarray(np.column_stack(inputs), dtype=np.float64)
+    seen: dict[bytes, int] = {}
+    first: list[int] = []
+    inverse = np.empty(n, np.int64)
+    for i in range(n):
+        k = seen.setdefault(rows[i].tobytes(), len(first))
+        if k == len(first):
+            first.append(i)
+        inverse[i] = k
+    return np.asarray(first, np.int64), inverse
+
+
+def simulate_distinct(
+    pushes: WorldPushes,
+    scene: SceneConfig,
+    stepping: WorldStepping | None = None,
+    *,
+    engine: str = "mujoco",
+    nthread: int = 0,
+    track_times=None,
+    chunk: int = 2400,
+    progress: bool = False,
+) -> tuple[WorldResult, int]:
+    """:func:`simulate_engine` on each distinct push of ``pushes`` (:func:`distinct_pushes`) once, ``chunk`` of them
+    per batch, and its result for every push (a push's result depends on its own inputs alone: MuJoCo steps each
+    world of a batch on its own, the stepped engines build a fresh scene per push). Returns the result of every
+    push, (n,) fields (the track (n, T, 3) float32; a field the engine did not record NaN), and how many pushes
+    were simulated."""
+    first, inverse = distinct_pushes(pushes)
+    k = first.size
+    n_times = 0 if track_times is None else np.asarray(track_times).size
+    fields = ("displacement", "lateral", "stop_time", "stroke_time", "drive_force")
+    out = {f: np.full(k, np.nan) for f in fields}
+    ok = np.zeros(k, bool)
+    steps = np.zeros(k, np.int64)
+    track = np.full((k, n_times, 3), np.nan, np.float32)
+    starts = range(0, k, chunk)
+    for a in tqdm(starts, desc=f"{engine} world pushes", unit="batch", disable=not progress):
+        idx = np.arange(a, min(a + chunk, k))
+        res = simulate_engine(
+            pushes.subset(first[idx]), scene, stepping, engine=engine, nthread=nthread, track_times=track_times
+        )
+        for f in fields:
+            if getattr(res, f) is not None:
+                out[f][idx] = getattr(res, f)
+        ok[idx] = res.ok
+        steps[idx] = res.steps
+        if res.track is not None and n_times:
+            track[idx] = res.track
+    result = WorldResult(
+        out["displacement"][inverse],
+        out["lateral"][inverse],
+        out["stop_time"][inverse],
+        ok[inverse],
+        steps[inverse],
+        out["stroke_time"][inverse],
+        track[inverse] if track_times is not None else None,
+        out["drive_force"][inverse],
+    )
+    return result, int(k)

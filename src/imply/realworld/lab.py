@@ -13,12 +13,15 @@ made on; the **sealed** set (``seed``, ``logs``) adds the SAPIEN world, which no
 was made on, beside fresh MuJoCo-variant and Bullet logs, and is scored once per design.
 
 Every log's label holds, beside the contact benchmark's, the noise-free observables of
-its pushes and probes in five worlds: ``all`` (the log's world), ``contact`` (the same
-world without the effect; effect logs), and the nominal MuJoCo world (the table's
-physics, converged) at the objects' true masses and frictions (``table``) and at each
-one raised by a factor exp(``JACOBIAN_STEP``) (``log_mass``, ``log_friction``): what
-:mod:`imply.realworld.separability` needs to mark each effect log separable or not from
-its contact.
+its pushes (and probes) in the worlds :mod:`imply.realworld.separability` reads to mark
+each effect log separable or not from its contact (:func:`marked_runs`): ``all`` (the
+log's world), ``contact`` (the same world without the effect; effect logs), and the
+nominal MuJoCo world (the table's physics, converged) at the objects' true masses and
+frictions (``table``) and at each one raised by a factor exp(``JACOBIAN_STEP``) in the
+directions the per-object fit frees (``log_friction``, and ``log_mass`` where the log
+does not weigh its objects). The probes are simulated in every run of an effect log (the
+marking reads them there), and in a null log's own world only where its log carries them.
+Each distinct push is simulated once (:func:`imply.realworld.contact.simulate_distinct`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,6 @@ from typing import ClassVar
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from imply.io import write_csv, write_json
 from imply.options import option
@@ -45,7 +47,7 @@ from imply.realworld.cases import (
     push_layout,
     pushes_in_world,
 )
-from imply.realworld.contact import simulate_engine
+from imply.realworld.contact import simulate_distinct, simulate_engine
 from imply.realworld.probes import (
     PROBE_COLUMNS,
     ProbeDesign,
@@ -56,6 +58,7 @@ from imply.realworld.probes import (
     probe_rows,
 )
 from imply.realworld.sapien_world import SapienStepping
+from imply.realworld.shards import shard_cases
 from imply.realworld.world import WorldPushes, WorldResult
 from imply.sim.scene import SceneConfig
 from imply.sim.track import crossing_times, pusher_speed, track_frame_times
@@ -67,7 +70,7 @@ LAB_GROUPS = tuple(
 )
 SETS = ("development", "sealed")
 JACOBIAN_STEP = 0.05  # log units: the per-object fit's directions, by finite differences in the nominal world
-# the runs of every log: its world, its world without the effect, the nominal world and its two derivatives
+# the runs a log may have: its world, its world without the effect, the nominal world and its two derivatives
 RUNS = ("all", "contact", "table", "log_mass", "log_friction")
 LAB_TARGETS = (
     "null_no_library",
@@ -223,29 +226,56 @@ def _probe_pushes(
     return probe_pushes(layout, p, design.probes)
 
 
+def fitted_runs(measured_mass: bool) -> tuple[str, ...]:
+    """The nominal world's finite-difference runs of a log: the directions the per-object fit frees, each object's
+    log friction, and its log mass unless the log weighs its objects (``measured_mass``)."""
+    return ("log_friction",) if measured_mass else ("log_mass", "log_friction")
+
+
+def marked_runs(has_effect: bool, measured_mass: bool) -> tuple[str, ...]:
+    """The runs (of :data:`RUNS`) of a log that :func:`imply.realworld.separability.mark_log` reads, and so the
+    runs its label holds: its world, its world without the effect (``has_effect``), the nominal world and the
+    directions of the per-object fit (:func:`fitted_runs`). The marking reads the probes of an effect log's runs
+    only (a null log's gap is its displacements')."""
+    return ("all", *(("contact",) if has_effect else ()), "table", *fitted_runs(measured_mass))
+
+
+def run_probes(case: dict) -> dict[str, bool]:
+    """Every run of ``case`` (:func:`marked_runs`) and whether its probes are simulated in it: in every run of an
+    effect log (the marking reads them), and in a null log's own world only where its log carries probes (its
+    probes file is written from them)."""
+    effect = bool(case["effects"])
+    return {
+        what: effect or (what == "all" and bool(case["probes"]))
+        for what in marked_runs(effect, bool(case["measured_mass"]))
+    }
+
+
 def _runs(case: dict, design: LabBenchmarkConfig, scene: SceneConfig) -> list[tuple[str, str, WorldPushes, int]]:
-    """(what, engine, pushes and probes as one batch, how many of them are pushes) of every run of ``case``."""
+    """(what, engine, pushes and probes as one batch, how many of them are pushes) of every run of ``case``, its
+    probes in the batch where :func:`run_probes` says."""
     obj, v = push_layout(case, design)
     phi = np.asarray(case["direction"], float)
     m0, mu0 = np.asarray(case["mass"], float), np.asarray(case["friction"], float)
     engine = case.get("engine", "mujoco")
     step = np.exp(JACOBIAN_STEP)
+    # what: (engine, effects, nominal world, masses, frictions)
+    worlds = {
+        "all": (engine, case["effects"], False, m0, mu0),
+        "contact": (engine, [], False, m0, mu0),
+        "table": ("mujoco", [], True, m0, mu0),
+        "log_mass": ("mujoco", [], True, m0 * step, mu0),
+        "log_friction": ("mujoco", [], True, m0, mu0 * step),
+    }
     out = []
-    worlds = [("all", engine, case["effects"], False, m0, mu0)]
-    if case["effects"]:
-        worlds.append(("contact", engine, [], False, m0, mu0))
-    worlds += [
-        ("table", "mujoco", [], True, m0, mu0),
-        ("log_mass", "mujoco", [], True, m0 * step, mu0),
-        ("log_friction", "mujoco", [], True, m0, mu0 * step),
-    ]
-    for what, eng, effects, nominal, m, mu in worlds:
+    for what, with_probes in run_probes(case).items():
+        eng, effects, nominal, m, mu = worlds[what]
         world = {**case, "mass": list(m), "friction": list(mu)}
         if nominal:
             world.pop("contact", None)
         pushes = pushes_in_world(world, obj, v, phi, scene, effects)
-        probes = _probe_pushes(case, design, scene, world, effects)
-        out.append((what, eng, WorldPushes.concat([pushes, probes]), pushes.n))
+        batch = [pushes, _probe_pushes(case, design, scene, world, effects)] if with_probes else [pushes]
+        out.append((what, eng, WorldPushes.concat(batch), pushes.n))
     return out
 
 
@@ -258,11 +288,12 @@ def simulate_lab_cases(
     chunk: int = 2400,
     progress: bool = False,
 ) -> tuple[dict[str, dict], dict[str, dict]]:
-    """Noise-free observables of every run (:data:`RUNS`) of every case, and each engine's time per push.
+    """Noise-free observables of every run of every case (:func:`marked_runs`), each distinct push simulated once
+    (:func:`imply.realworld.contact.simulate_distinct`), and each engine's time per simulated push.
 
     Returns ``{case id: {run: {displacement, stop_time, ok, pusher_speed, track (the log's world only),
-    log_c (n, Q) log crossing times, probes: probe observables}}}`` and ``{engine: {pushes, seconds,
-    seconds_per_push}}``."""
+    log_c (n, Q) log crossing times, probes: probe observables (where simulated: :func:`run_probes`)}}}`` and
+    ``{engine: {pushes (simulated), seconds, seconds_per_push}}``."""
     runs = [(case["id"], *r) for case in cases for r in _runs(case, design, scene)]
     times = track_frame_times(design.noise.track_rate)
     out: dict[str, dict] = {}
@@ -272,54 +303,58 @@ def simulate_lab_cases(
         mine = [r for r in runs if r[2] == engine]
         allp = WorldPushes.concat([r[3] for r in mine])
         bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
-        fields = ("displacement", "stop_time", "stroke_time", "drive_force")
-        res = {f: np.zeros(allp.n) for f in fields}
-        ok = np.zeros(allp.n, bool)
-        track = np.zeros((allp.n, times.size, 3), np.float32)
         # the engines that step one push at a time are timed per push; MuJoCo's batches on the threads given
         t0 = time.perf_counter()
-        for a in tqdm(range(0, allp.n, chunk), desc=f"{engine} world pushes", unit="batch", disable=not progress):
-            idx = np.arange(a, min(a + chunk, allp.n))
-            r = simulate_engine(
-                allp.subset(idx), scene, design.stepping, engine=engine, nthread=nthread, track_times=times
-            )
-            for f in fields:
-                res[f][idx] = getattr(r, f)
-            ok[idx] = r.ok
-            track[idx] = r.track
+        res, simulated = simulate_distinct(
+            allp,
+            scene,
+            design.stepping,
+            engine=engine,
+            nthread=nthread,
+            track_times=times,
+            chunk=chunk,
+            progress=progress,
+        )
         seconds = time.perf_counter() - t0
-        timing[engine] = {"pushes": int(allp.n), "seconds": seconds, "seconds_per_push": seconds / max(allp.n, 1)}
+        timing[engine] = {"pushes": simulated, "seconds": seconds, "seconds_per_push": seconds / max(simulated, 1)}
         for k, (cid, what, _, batch, n_push) in enumerate(mine):
             sl = slice(bounds[k], bounds[k] + n_push)
             psl = slice(bounds[k] + n_push, bounds[k + 1])
-            okp = ok[sl] & np.isfinite(res["stroke_time"][sl]) & (res["stroke_time"][sl] > 0)
-            cross = crossing_times(times, track[sl, :, 0], res["displacement"][sl])
+            okp = res.ok[sl] & np.isfinite(res.stroke_time[sl]) & (res.stroke_time[sl] > 0)
+            cross = crossing_times(times, res.track[sl, :, 0], res.displacement[sl])
             entry = {
-                "displacement": res["displacement"][sl],
-                "stop_time": res["stop_time"][sl],
+                "displacement": res.displacement[sl],
+                "stop_time": res.stop_time[sl],
                 "ok": okp,
-                "pusher_speed": pusher_speed(scene.stroke, res["stroke_time"][sl]),
+                "pusher_speed": pusher_speed(scene.stroke, res.stroke_time[sl]),
                 "log_c": np.log(np.where(cross > 0, cross, np.nan)),
             }
             if what == "all":
-                entry["track"] = track[sl]
-            probe_res = WorldResult(
-                res["displacement"][psl],
-                np.zeros(psl.stop - psl.start),
-                res["stop_time"][psl],
-                ok[psl],
-                np.zeros(psl.stop - psl.start, np.int64),
-                res["stroke_time"][psl],
-                drive_force=res["drive_force"][psl],
-            )
-            probes = batch.subset(np.arange(n_push, batch.n))
-            entry["probes"] = probe_observables(layouts[cid], probe_res, probes, scene.stroke)
+                entry["track"] = res.track[sl]
+            if batch.n > n_push:
+                n_probe = batch.n - n_push
+                probe_res = WorldResult(
+                    res.displacement[psl],
+                    np.zeros(n_probe),
+                    res.stop_time[psl],
+                    res.ok[psl],
+                    np.zeros(n_probe, np.int64),
+                    res.stroke_time[psl],
+                    drive_force=res.drive_force[psl],
+                )
+                probes = batch.subset(np.arange(n_push, batch.n))
+                entry["probes"] = probe_observables(layouts[cid], probe_res, probes, scene.stroke)
             out.setdefault(cid, {})[what] = entry
     return {case["id"]: out[case["id"]] for case in cases}, timing
 
 
 def _jsonable(entry: dict) -> dict:
-    return {"log_c": np.asarray(entry["log_c"]).tolist(), "probes": entry["probes"]}
+    """A run's observables the lab's label adds to the contact benchmark's: log crossing times, and the probes'
+    where simulated."""
+    out = {"log_c": np.asarray(entry["log_c"]).tolist()}
+    if "probes" in entry:
+        out["probes"] = entry["probes"]
+    return out
 
 
 def write_lab_set(
@@ -331,17 +366,23 @@ def write_lab_set(
     timing: Path,
     nthread: int = 0,
     progress: bool = True,
+    shard: int = 0,
+    shards: int = 1,
 ) -> dict:
     """Simulate every log of one set into ``logs/<id>.csv`` (with ``<id>.track.csv``, and ``<id>.probes.csv`` for
-    logs with probes), its labels into ``labels`` and each engine's time per push into ``timing``. Returns the
-    timing."""
-    cases = draw_lab_cases(design)
+    logs with probes), its labels into ``labels`` and each engine's time per simulated push into ``timing``.
+    Returns the timing. With ``shards`` > 1, only the logs of shard ``shard``
+    (:func:`imply.realworld.shards.shard_cases`), their labels and the time they took
+    (:func:`imply.realworld.shards.merge_labels` and :func:`~imply.realworld.shards.merge_timing` join the
+    shards')."""
+    cases = shard_cases(draw_lab_cases(design), shard, shards)
     log.info(
-        "simulating %d logs (%d objects x %d speeds each, with probes) on %s",
+        "simulating %d logs (%d objects x %d speeds each, with probes) on %s%s",
         len(cases),
         design.n_objects,
         len(design.speeds),
         ", ".join(dict.fromkeys(c.get("engine", "mujoco") for c in cases)),
+        f" (shard {shard} of {shards})" if shards > 1 else "",
     )
     sims, times = simulate_lab_cases(cases, design, scene, nthread=nthread, progress=progress)
     out = {}

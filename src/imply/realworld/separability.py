@@ -15,6 +15,9 @@ fit. For each effect log, with the noise-free observables its label holds
   observables move with each object's log mass and log friction (finite differences; the
   mass's only where the log does not weigh its objects).
 
+A push (a probe) counts where every run read (:func:`imply.realworld.lab.marked_runs`)
+simulated it cleanly.
+
 The effect is **separable** from its contact under an observable set when the cosine of
 the two projected signatures is below ``alias_cos`` in absolute value (as the
 diagnostic's aliasing marks two effects one class), and **big** when its projected
@@ -40,7 +43,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from imply.io import write_text
-from imply.realworld.lab import JACOBIAN_STEP
+from imply.realworld.lab import JACOBIAN_STEP, fitted_runs, marked_runs
 
 # what each observable set holds: d displacement, t stop time, p the pusher's measured speed, c the track's crossing
 # times, probes: free strokes, friction measurements and added-mass pushes
@@ -98,12 +101,15 @@ def _pieces(
     return np.concatenate(values), np.concatenate(owners)
 
 
-def _kept(label: Mapping, runs: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Pushes and probes every run of ``runs`` simulated cleanly (finite crossing times included)."""
+def _kept(label: Mapping, runs: tuple[str, ...], probes: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Pushes, and with ``probes`` probes (else none), every run of ``runs`` simulated cleanly (finite crossing times
+    included)."""
     nf = label["noise_free"]
     keep = np.all([np.asarray(nf[r]["ok"], bool) for r in runs], axis=0)
     keep &= np.all([np.isfinite(np.asarray(nf[r]["log_c"], float)).all(axis=1) for r in runs], axis=0)
-    keep_probe = np.all([np.asarray(nf[r]["probes"]["ok"], bool) for r in runs], axis=0)
+    keep_probe = (
+        np.all([np.asarray(nf[r]["probes"]["ok"], bool) for r in runs], axis=0) if probes else np.zeros(0, bool)
+    )
     return keep, keep_probe
 
 
@@ -112,8 +118,7 @@ def _fit_directions(label: Mapping, keep, keep_probe, parts, crossing_sd) -> np.
     nf = label["noise_free"]
     base, owner = _pieces(nf["table"], label, keep, keep_probe, parts, crossing_sd)
     cols = []
-    fitted = ("log_friction",) if label.get("measured_mass") else ("log_mass", "log_friction")
-    for what in fitted:
+    for what in fitted_runs(bool(label.get("measured_mass"))):
         moved, _ = _pieces(nf[what], label, keep, keep_probe, parts, crossing_sd)
         slope = (moved - base) / JACOBIAN_STEP
         for i in range(len(label["objects"])):
@@ -130,12 +135,9 @@ def mark_log(label: Mapping, *, alias_cos: float, min_size_sd: float, crossing_s
     """One log's marking: for an effect log, per observable set, the cosine, whether separable, the effect's and
     the contact's projected sizes (noise sds, norm); for a null log, its contact's null gap."""
     effects = label["effects"]
-    runs = (
-        ("all", "contact", "table", "log_mass", "log_friction")
-        if effects
-        else ("all", "table", "log_mass", "log_friction")
-    )
-    keep, keep_probe = _kept(label, runs)
+    # the runs it reads, and only theirs decide which pushes count: a push the fit's unused log-mass run lost is kept
+    runs = marked_runs(bool(effects), bool(label.get("measured_mass")))
+    keep, keep_probe = _kept(label, runs, probes=bool(effects))
     reps = math.sqrt(label.get("replicates", 1))
     out = {
         "id": label["id"],

@@ -145,6 +145,10 @@ PARAMETERS: dict[str, float | None] = {
     "pusher_friction": 0.0,  # friction coefficient of the pusher's face on the box
     "pusher_impedance": 0.0,  # lowered from the pusher contact's solimp dmin and dmax (0: MuJoCo's 0.9, 0.95)
 }
+# the parameters through which a push's table direction enters its simulation: every world (MuJoCo's here, and the
+# stepped engines' of imply.realworld.stepped) pushes along its own +x, and turns only gravity (a tilt) and the
+# friction laws that depend on where on the table the box slides (anisotropy, a gradient) by the direction
+DIRECTIONAL_PARAMETERS = ("tilt", "aniso", "gradient")
 
 
 @dataclass(frozen=True)
