@@ -9,7 +9,8 @@ file: every byte the same but the seconds each diagnosis took.
 
 Run: python benchmarks/gap_diagnose_speed.py [--baseline REV] [--logs 8] [--contact] [--observed] [--repeats 2]
      [--baseline-lacks use_probes,free_launch]  (a baseline of an earlier design: its own options only)
-Needs the gap stage's logs and effect tables (snakemake --cores 2 results/gap/reports/shard0).
+     [--log-dir /tmp/main-dev/logs]  (another folder of logs, a development set's, say)
+Needs the gap stage's logs (or --log-dir) and effect tables (snakemake --cores 2 results/gap/reports/shard0).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 import yaml
 from baseline_tree import ROOT, ab_rounds, baseline_tree, print_medians, timed_imply
 
-BASELINE = "bc9cf74"  # before the diagnoses shared their table reads
+BASELINE = "219b579"  # before the fits read each table once per point set and merged their steps' reads
 OBSERVED = {"use_pusher_speed": True, "use_track": True}
 
 
@@ -79,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--observed", action="store_true", help="with the pusher's measured speed and the box's track")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument(
+        "--log-dir",
+        type=Path,
+        help="the logs' folder (default: the gap stage's, or with --contact its other-contact set)",
+    )
+    ap.add_argument(
         "--baseline-lacks",
         default="",
         metavar="KEY,...",
@@ -87,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
-    folder = ROOT / ("results/gap/contact/logs" if args.contact else "results/gap/logs")
+    folder = args.log_dir or ROOT / ("results/gap/contact/logs" if args.contact else "results/gap/logs")
     every = sorted(p for p in folder.glob("*.csv") if not p.name.endswith(".track.csv"))
     if not every:
         raise SystemExit(f"no logs in {folder}: run the gap stage first")

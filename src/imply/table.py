@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
+from scipy.interpolate import NdBSpline, RegularGridInterpolator
 
 from imply.io import write_npz
 from imply.options import Axis, Config, option
@@ -52,6 +52,24 @@ def spline_of(interp: RegularGridInterpolator):
     inside the grid: the spline extrapolates where the interpolator would raise."""
     spline = getattr(interp, "_spline", None)
     return spline if callable(spline) else interp
+
+
+def spline_columns(*parts: tuple[Any, list[int]]):
+    """One spline reading, side by side, the value columns ``cols`` of each ``(spline, cols)`` of ``parts``
+    (splines from :func:`spline_of` on the same knots): the same values as concatenating each ``spline(pts)[...,
+    cols]``. Scipy's tensor-product spline sums every column at each point, and most of its time goes to each point's
+    basis: a caller that needs a few columns of several tables on one grid (the diagnostic's effect tables hold every
+    observable at every level) reads them in one pass."""
+    if all(isinstance(spline, NdBSpline) for spline, _ in parts):
+        first = parts[0][0]
+        if all(all(np.array_equal(a, b) for a, b in zip(spline.t, first.t, strict=True)) for spline, _ in parts):
+            coefficients = [
+                spline.c.reshape(*spline.c.shape[: len(spline.t)], -1)[..., list(cols)] for spline, cols in parts
+            ]
+            c = np.ascontiguousarray(np.concatenate(coefficients, axis=-1))
+            return NdBSpline(first.t, c, first.k, extrapolate=first.extrapolate)
+    index = [np.asarray(cols, int) for _, cols in parts]
+    return lambda pts: np.concatenate([spline(pts)[..., i] for (spline, _), i in zip(parts, index, strict=True)], -1)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -179,6 +197,11 @@ class PushTable:
         self.check_range(v, m, mu)
         pts = np.stack([v.ravel(), np.log(m).ravel(), np.log(mu).ravel()], axis=-1)
         return self._spline(pts).reshape(v.shape)
+
+    def log_displacement_at(self, pts: np.ndarray) -> np.ndarray:
+        """Interpolated log d (n,) at points ``pts`` (n, 3) of (v, log m, log mu) that the caller keeps inside the
+        table's range (unchecked: the spline extrapolates outside it); :meth:`log_displacement`'s values."""
+        return self._spline(pts)
 
     def fine_axes(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Log-mass and log-friction axes of an n x n search grid over the table's range."""

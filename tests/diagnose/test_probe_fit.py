@@ -200,6 +200,10 @@ class StopTimeTables:
     def aux_log(self, v, m, mu):
         return analytic_log_t(np.asarray(v), np.asarray(m), np.asarray(mu))[:, None]
 
+    def aux_log_at(self, pts, cols):
+        v, log_m, log_mu = np.asarray(pts).T
+        return analytic_log_t(v, np.exp(log_m), np.exp(log_mu))[:, None]
+
     def aux_interpolation_indicator(self, v, m, mu):
         return np.zeros((np.asarray(v).size, 1))
 

@@ -116,7 +116,7 @@ class Candidate:
 
     def project(self, theta: np.ndarray) -> np.ndarray:
         """The nearest admissible parameters: inside the box, and the disk for two components."""
-        t = np.clip(np.asarray(theta, float), self.lo, self.hi)
+        t = np.minimum(np.maximum(np.asarray(theta, float), self.lo), self.hi)  # np.clip's values, without its checks
         if self.radius is not None:
             r = np.hypot(*t)
             if r > self.radius:
@@ -345,6 +345,16 @@ class Model:
     @cached_property
     def dim(self) -> int:
         return sum(c.dim for c in self.candidates)
+
+    @cached_property
+    def moves_speed(self) -> bool:
+        """Whether the model changes the speed a push runs at (a speed gain or offset)."""
+        return any(c.kind in (SPEED_GAIN, SPEED_OFFSET) for c in self.candidates)
+
+    @cached_property
+    def moves_friction(self) -> bool:
+        """Whether the model changes the friction a push sees (an anisotropy)."""
+        return any(c.kind == FRICTION2 for c in self.candidates)
 
     @property
     def names(self) -> list[str]:

@@ -61,7 +61,7 @@ from imply.sim.effects import MODEL, Effect, effect_spec
 from imply.sim.pushes import run_pushes
 from imply.sim.scene import SceneConfig, build_model
 from imply.sim.track import STOP_HORIZON, STOP_SPEED, crossing_times, pusher_speed, stop_frame_times, stop_times
-from imply.table import PushTable, config_digest, spline_of
+from imply.table import PushTable, config_digest, spline_columns, spline_of
 
 log = logging.getLogger("imply.diagnose")
 
@@ -288,6 +288,56 @@ class EffectTables:
     def _aux_spline(self) -> Callable[[np.ndarray], np.ndarray]:
         return spline_of(self._aux_interp)
 
+    @cached_property
+    def _column_splines(self) -> dict[tuple, Callable[[np.ndarray], np.ndarray]]:
+        """The splines :meth:`aux_log_at` and :meth:`read_levels` read, restricted to the columns asked for, built
+        once per request and shared by every problem on these tables (a few hundred over a benchmark's logs)."""
+        return {}
+
+    @cached_property
+    def _bounds(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """(3,) lower and upper bounds of (v, log m, log mu) of the effect tables' axes (``"effects"``) and the
+        observables' baseline axes (``"aux"``): where :func:`_points` clips."""
+        out = {}
+        for name, axes in (("effects", self.axes), ("aux", self.aux_axes)):
+            if axes is not None:
+                v, m, mu = axes
+                lo = np.array([v[0], np.log(m[0]), np.log(mu[0])])
+                hi = np.array([v[-1], np.log(m[-1]), np.log(mu[-1])])
+                out[name] = (lo, hi)
+        return out
+
+    def aux_log_at(self, pts: np.ndarray, cols: tuple[int, ...]) -> np.ndarray:
+        """(n, len(cols)) the observables ``cols`` (indices into :attr:`aux`) of the baseline at points ``pts``
+        (n, 3) of (v, log m, log mu), clipped to the axes: :meth:`aux_log`'s values, read for those columns alone."""
+        spline = self._column_splines.get(("aux", cols))
+        if spline is None:
+            spline = self._column_splines[("aux", cols)] = spline_columns((self._aux_spline, list(cols)))
+        lo, hi = self._bounds["aux"]
+        return spline(np.minimum(np.maximum(pts, lo), hi))
+
+    def effect_points(self, pts: np.ndarray) -> np.ndarray:
+        """Points (n, 3) of (v, log m, log mu) clipped to the effect tables' axes, for :meth:`read_levels`."""
+        lo, hi = self._bounds["effects"]
+        return np.minimum(np.maximum(pts, lo), hi)
+
+    def read_levels(self, reads: tuple[tuple[str, tuple[int, ...]], ...], pts: np.ndarray, cols: tuple[int, ...]):
+        """(n, sum over reads of (1 + K) l) the tabulated values of each ``(key, levels)`` of ``reads`` (l level
+        indices, ascending) at points ``pts`` (n, 3) inside :attr:`axes`: log d at those levels, then each observable
+        of ``cols`` (K indices into :attr:`aux`) at them, side by side in one pass (the tables share their grid). The
+        same values as :meth:`level_values`' columns: a prediction reads the levels its points' levels fall between,
+        not every tabulated one."""
+        spline = self._column_splines.get((reads, cols))
+        if spline is None:
+            parts = []
+            for key, levels in reads:
+                L = self.levels[key].size
+                parts.append(
+                    (self._interp[key], [L * part + level for part in (0, *(1 + a for a in cols)) for level in levels])
+                )
+            spline = self._column_splines[(reads, cols)] = spline_columns(*parts)
+        return spline(pts)
+
     def delta_both(self, key: str, v, m, mu, s) -> tuple[np.ndarray, np.ndarray]:
         """Delta log d (...) and Delta of every observable of :attr:`aux` (..., K) at points (v, m, mu)
         with per-point level s (clipped to the tabulated range; linear between the two bracketing levels)."""
@@ -308,22 +358,34 @@ class EffectTables:
     def mix_levels(self, key: str, vals: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Delta log d (n,) and Delta of every observable (n, K) at per-point levels ``s`` (n,) (clipped to the
         tabulated range; linear between the two bracketing levels) from :meth:`level_values`' ``vals``."""
+        lower, weight = self.brackets(key, s)
+        return mix_between(vals, lower, weight, self.levels[key].size)
+
+    def brackets(self, key: str, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each point's bracketing levels of ``key`` at its level ``s`` (n,), clipped to the tabulated range: the lower
+        level's index (n,) and the upper level's weight (n,)."""
         levels = self.levels[key]
-        s = np.clip(s, levels[0], levels[-1])
-        j = np.clip(np.searchsorted(levels, s, side="right") - 1, 0, levels.size - 2)
-        w = (s - levels[j]) / (levels[j + 1] - levels[j])
-        L = levels.size
-        rows = np.arange(s.size)[:, None]
-        k_aux = vals.shape[1] // L - 1
-        # column 0 is log d, column 1 + a the observable a: each read at the two bracketing levels
-        cols = np.arange(1 + k_aux)[None, :] * L + j[:, None]
-        both = (1.0 - w[:, None]) * vals[rows, cols] + w[:, None] * vals[rows, cols + 1]
-        return both[:, 0], both[:, 1:]
+        s = np.minimum(np.maximum(s, levels[0]), levels[-1])
+        j = np.minimum(np.maximum(np.searchsorted(levels, s, side="right") - 1, 0), levels.size - 2)
+        return j, (s - levels[j]) / (levels[j + 1] - levels[j])
 
     def delta(self, key: str, v, m, mu, s, which: str = "d") -> np.ndarray:
         """Delta log d (``which='d'``) or of the observable ``which`` of :attr:`aux`, see :meth:`delta_both`."""
         d, t = self.delta_both(key, v, m, mu, s)
         return d if which == "d" else t[..., self.aux_index(which)]
+
+
+def mix_between(
+    vals: np.ndarray, lower: np.ndarray, weight: np.ndarray, n_levels: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Delta log d (n,) and Delta of each observable (n, K), linear between two levels, from ``vals`` (n, (1 + K)
+    n_levels) (log d at ``n_levels`` levels, then each observable at them): the points' lower levels' positions
+    ``lower`` (n,) among those (the upper ones next) and the upper levels' weights ``weight`` (n,)."""
+    n = lower.size
+    by_level = vals.reshape(n, -1, n_levels)
+    rows = np.arange(n)
+    both = (1.0 - weight[:, None]) * by_level[rows, :, lower] + weight[:, None] * by_level[rows, :, lower + 1]
+    return both[:, 0], both[:, 1:]
 
 
 CHECK_PUSHES = 24  # off-grid pushes per key for its table's accuracy

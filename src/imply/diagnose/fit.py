@@ -27,7 +27,7 @@ object's contribution to the profiled sum of squares is kept as a quadratic in t
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cache, cached_property
 
 import numpy as np
 
@@ -194,6 +194,11 @@ class Problem(Predicting, FreeLaunch):
         """(K,) where each observable of :attr:`aux` sits in the effect tables' observables."""
         return np.array([self.etables.aux_index(a) for a in self.aux], int) if self.aux else np.zeros(0, int)
 
+    @cached_property
+    def aux_col_tuple(self) -> tuple[int, ...]:
+        """:attr:`aux_cols` as a tuple: the key under which the tables keep their splines of these columns alone."""
+        return tuple(int(a) for a in self.aux_cols)
+
     def aux_rows(self, name: str) -> np.ndarray:
         """Indices of the aux rows of observable ``name`` (empty if unused)."""
         return np.flatnonzero(self.t_kind == self.aux.index(name)) if name in self.aux else np.zeros(0, int)
@@ -348,13 +353,54 @@ class Problem(Predicting, FreeLaunch):
         lms, lus = np.atleast_2d(lms), np.atleast_2d(lus)
         k = lms.shape[0]
         C = self.n_cond
-        cond = np.tile(np.arange(C), k)
-        lm_c = lms[:, self.c_obj].ravel()
-        lu_c = lus[:, self.c_obj].ravel()
-        th = np.repeat(np.atleast_2d(thetas), C, axis=0) if model.dim else np.zeros(0)
-        pred = self.predict(model, th, lm_c, lu_c, cond, blocks=k)
-        pd = pred.log_d.reshape(k, C)
-        pt = None if pred.log_t is None else pred.log_t.reshape(k, C, len(self.aux))
+        speed, phi, obj, load = self._predicted_pushes
+        n = speed.size
+        th = np.repeat(np.atleast_2d(thetas), n, axis=0) if model.dim else np.zeros(0)
+        pred = self.predict_at(
+            model,
+            th,
+            np.tile(speed, k),
+            np.tile(phi, k),
+            lms[:, obj].ravel(),
+            lus[:, obj].ravel(),
+            load=None if load is None else np.tile(load, k),
+            blocks=k,
+        )
+        pd = pred.log_d.reshape(k, n)
+        pt = None if pred.log_t is None else pred.log_t.reshape(k, n, len(self.aux))
+        added = (pd[:, C:], None if pt is None else pt[:, C:]) if n > C else None
+        return self._whitened(model, thetas, lms, lus, pd[:, :C], None if pt is None else pt[:, :C], added=added)
+
+    @cached_property
+    def _predicted_pushes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """What :meth:`residuals` predicts in each setting, in one pass: every condition, then the probes' pushes with
+        an added mass. Their speeds, directions and objects (C + a,) and the mass each carries more (NaN for a
+        condition; None without such pushes)."""
+        pr = self.probes
+        if pr is None or not pr.n_added:
+            return self.c_v, self.c_phi, self.c_obj, None
+        return (
+            np.concatenate([self.c_v, pr.added_speed]),
+            np.concatenate([self.c_phi, pr.added_phi]),
+            np.concatenate([self.c_obj, pr.added_obj]),
+            np.concatenate([np.full(self.n_cond, np.nan), pr.added_mass]),
+        )
+
+    def _whitened(
+        self,
+        model: Model,
+        thetas: np.ndarray,
+        lms: np.ndarray,
+        lus: np.ndarray,
+        pd: np.ndarray,
+        pt: np.ndarray | None,
+        *,
+        added: tuple[np.ndarray, np.ndarray | None] | None = None,
+    ) -> np.ndarray:
+        """Whitened residuals (K, rows) of K settings (thetas (K, p), lms and lus (K, N)) from every condition's
+        predictions under them: log d ``pd`` (K, C) and the aux observables ``pt`` (K, C, len(aux)); the probes'
+        loaded pushes' predictions ``added`` (log d (K, a), the aux observables (K, a, len(aux))) where the caller
+        has them, else predicted here."""
         rd = self.w_d * (pd[:, self.cond] - self.y) / self.sd_d
         parts = [rd]
         if self.use_t:
@@ -362,7 +408,7 @@ class Problem(Predicting, FreeLaunch):
         if self.launch is not None:
             parts = [self._free_launch(np.concatenate(parts, axis=1))]
         if self.probes is not None:
-            parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus))
+            parts.append(self.probe_residuals(model, np.atleast_2d(thetas), lms, lus, added=added))
         return np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
 
     def aux_noise(self, name: str) -> float | None:
@@ -391,28 +437,42 @@ class Problem(Predicting, FreeLaunch):
             parts.append(self.probe_sd)
         return np.concatenate(parts)
 
-    def probe_residuals(self, model: Model, thetas: np.ndarray, lms: np.ndarray, lus: np.ndarray) -> np.ndarray:
+    def probe_residuals(
+        self,
+        model: Model,
+        thetas: np.ndarray,
+        lms: np.ndarray,
+        lus: np.ndarray,
+        *,
+        added: tuple[np.ndarray, np.ndarray | None] | None = None,
+    ) -> np.ndarray:
         """Whitened residuals (K, q) of the log's probes (:class:`imply.diagnose.probe_fit.ProbeRows`, in the order
-        of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N)."""
+        of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N); ``added``: the loaded pushes'
+        predictions, log d (K, a) and the aux observables (K, a, len(aux)), where the caller has them."""
         pr = self.probes
         k = lms.shape[0]
         parts = [pr.friction_prediction(model, thetas if model.dim else np.zeros((k, 0)), lms, lus) - pr.log_friction]
         if pr.n_added:
             a = pr.n_added
-            th = np.repeat(thetas, a, axis=0) if model.dim else np.zeros(0)
-            pred = self.predict_at(
-                model,
-                th,
-                np.tile(pr.added_speed, k),
-                np.tile(pr.added_phi, k),
-                lms[:, pr.added_obj].ravel(),
-                lus[:, pr.added_obj].ravel(),
-                load=np.tile(pr.added_mass, k),
-                blocks=k,
-            )
-            parts.append(pred.log_d.reshape(k, a) - pr.added_log_d)
+            if added is None:
+                th = np.repeat(thetas, a, axis=0) if model.dim else np.zeros(0)
+                pred = self.predict_at(
+                    model,
+                    th,
+                    np.tile(pr.added_speed, k),
+                    np.tile(pr.added_phi, k),
+                    lms[:, pr.added_obj].ravel(),
+                    lus[:, pr.added_obj].ravel(),
+                    load=np.tile(pr.added_mass, k),
+                    blocks=k,
+                )
+                added = (
+                    pred.log_d.reshape(k, a),
+                    None if pred.log_t is None else pred.log_t.reshape(k, a, len(self.aux)),
+                )
+            parts.append(added[0] - pr.added_log_d)
             for name, rows in pr.aux_rows():
-                got = pred.log_t.reshape(k, a, len(self.aux))[:, rows, self.aux.index(name)]
+                got = added[1][:, rows, self.aux.index(name)]
                 parts.append(got - pr.added_aux[name][rows])
         if pr.stroke_speed.size:
             pred = pr.free_stroke_prediction(model, thetas if model.dim else np.zeros((k, 0)))
@@ -444,12 +504,12 @@ class Problem(Predicting, FreeLaunch):
         lm = self.fixed_lm.copy() if self.fixed_lm is not None else np.zeros(self.n_obj)
         lu = self.fixed_lu.copy() if self.fixed_lu is not None else np.zeros(self.n_obj)
         rows = lm_axis if lm_axis is not None else [None]
-        for a in rows:
-            k = lu_axis.size if lu_axis is not None else 1
-            L = np.repeat((lm if a is None else np.full(self.n_obj, a))[None, :], k, 0)
-            U = np.repeat(lu_axis[:, None], self.n_obj, 1) if lu_axis is not None else lu[None, :]
-            th = np.repeat(theta[None, :], k, 0) if model.dim else np.zeros((k, 0))
-            sse = self.stacked_sse(self.residuals(model, th, L, U))
+        k = lu_axis.size if lu_axis is not None else 1
+        # (rows k, N): the search's settings, row by row of log m, each at every log mu
+        L = np.repeat(np.stack([lm if a is None else np.full(self.n_obj, a) for a in rows]), k, 0)
+        U = np.tile(np.repeat(lu_axis[:, None], self.n_obj, 1) if lu_axis is not None else lu[None, :], (len(rows), 1))
+        sse_all = self._grid_sse(model, theta, L, U).reshape(len(rows), k, self.n_obj)
+        for a, sse in zip(rows, sse_all, strict=True):
             j = np.argmin(sse, axis=0)
             val = sse[j, np.arange(self.n_obj)]
             take = val < best
@@ -460,6 +520,43 @@ class Problem(Predicting, FreeLaunch):
                 lu = np.where(take, lu_axis[j], lu)
         return self.refine(model, theta, ObjectFit(lm, lu, best), iters=15)
 
+    @cached_property
+    def _grid_conditions(self) -> tuple[np.ndarray, np.ndarray]:
+        """The conditions a grid search without effects tells apart, where every object sits at the same free
+        (log m, log mu): (R,) the first condition of each kind and (C,) each condition's kind. Two conditions are
+        one kind when their speeds and their objects' measured values agree."""
+        lm = self.fixed_lm[self.c_obj] if self.fixed_lm is not None else np.zeros(self.n_cond)
+        lu = self.fixed_lu[self.c_obj] if self.fixed_lu is not None else np.zeros(self.n_cond)
+        key = np.stack([self.c_v, lm, lu], 1)
+        _, first, kind = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        return first, kind.ravel()
+
+    def _grid_sse(self, model: Model, theta: np.ndarray, L: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """Per-object sums of squares (K, N) at K settings of a grid search (lms ``L`` and lus ``U`` (K, N), theta
+        fixed). Objects at the same (log m, log mu) in a setting predict the same for pushes at the same speed (a
+        model without effects ignores direction), so each kind of condition is predicted once per setting: the same
+        values as :meth:`residuals`' in a fraction of the reads. Settings go in chunks that bound the memory."""
+        K, C = L.shape[0], self.n_cond
+        if model.dim:
+            first, kind = np.arange(C), np.arange(C)
+        else:
+            first, kind = self._grid_conditions
+        R = first.size
+        chunk = max(1, 2_000_000 // max(self._row_obj().size + C, 1))
+        out = []
+        for start in range(0, K, chunk):
+            lms, lus = L[start : start + chunk], U[start : start + chunk]
+            k = lms.shape[0]
+            thetas = np.repeat(theta[None, :], k, 0) if model.dim else np.zeros((k, 0))
+            th = np.repeat(thetas, R, axis=0) if model.dim else np.zeros(0)
+            pred = self.predict(
+                model, th, lms[:, self.c_obj[first]].ravel(), lus[:, self.c_obj[first]].ravel(), np.tile(first, k)
+            )
+            pd = pred.log_d.reshape(k, R)[:, kind]
+            pt = None if pred.log_t is None else pred.log_t.reshape(k, R, len(self.aux))[:, kind]
+            out.append(self.stacked_sse(self._whitened(model, thetas, lms, lus, pd, pt)))
+        return np.concatenate(out)
+
     def _free_columns(self, jm: np.ndarray, ju: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.fixed_lm is not None:
             jm = np.zeros_like(jm)
@@ -467,24 +564,39 @@ class Problem(Predicting, FreeLaunch):
             ju = np.zeros_like(ju)
         return jm, ju
 
-    def refine(self, model: Model, theta, start: ObjectFit, iters: int = 8) -> ObjectFit:
-        """Levenberg-Marquardt on every object's (log m, log mu) at fixed theta."""
+    def refine(
+        self, model: Model, theta, start: ObjectFit, iters: int = 8, stencil: np.ndarray | None = None
+    ) -> ObjectFit:
+        """Levenberg-Marquardt on every object's (log m, log mu) at fixed theta (``stencil``: see
+        :meth:`refine_many`)."""
         out = self.refine_many(
             model,
             np.atleast_2d(np.asarray(theta, float)) if model.dim else np.zeros((1, 0)),
             start.lm[None, :],
             start.lu[None, :],
             iters=iters,
+            stencil=stencil,
         )
         return ObjectFit(out[0][0], out[1][0], out[2][0])
 
-    def refine_many(self, model: Model, thetas: np.ndarray, lm: np.ndarray, lu: np.ndarray, iters: int = 8):
-        """Per-object fits at K parameter settings at once: thetas (K, p), starts (K, N) or (1, N).
+    def refine_many(
+        self,
+        model: Model,
+        thetas: np.ndarray,
+        lm: np.ndarray,
+        lu: np.ndarray,
+        iters: int = 8,
+        stencil: np.ndarray | None = None,
+    ):
+        """Per-object fits at K parameter settings at once: thetas (K, p), starts (K, N) or (1, N); ``stencil``: the
+        residuals (3 K, rows) at the starts, at every log m + H and at every log mu + H, where the caller has them.
 
         Returns (lm, lu, sse), each (K, N)."""
         K = thetas.shape[0]
         lm = np.broadcast_to(lm, (K, self.n_obj)).copy()
         lu = np.broadcast_to(lu, (K, self.n_obj)).copy()
+        if iters <= 0:
+            return lm, lu, self.stacked_sse(self.residuals(model, thetas, lm, lu))
         n = K * self.n_obj
         ro = self._row_obj()
         idx = (np.arange(K)[:, None] * self.n_obj + ro[None, :]).ravel()
@@ -494,8 +606,12 @@ class Problem(Predicting, FreeLaunch):
         def binc(x):
             return np.bincount(idx, x.ravel(), minlength=n).reshape(K, self.n_obj)
 
-        for _ in range(iters):
-            r3 = self.residuals(model, th3, np.concatenate([lm, lm + _H, lm]), np.concatenate([lu, lu, lu + _H]))
+        def stencil_at(lm: np.ndarray, lu: np.ndarray) -> np.ndarray:
+            """(3 K, rows): the residuals at (lm, lu), at lm + H and at lu + H."""
+            return self.residuals(model, th3, np.concatenate([lm, lm + _H, lm]), np.concatenate([lu, lu, lu + _H]))
+
+        r3 = stencil_at(lm, lu) if stencil is None else stencil
+        for it in range(iters):
             r, rm, ru = r3[:K], r3[K : 2 * K], r3[2 * K :]
             jm, ju = self._free_columns((rm - r) / _H, (ru - r) / _H)
             sse = binc(r * r)
@@ -508,15 +624,21 @@ class Problem(Predicting, FreeLaunch):
             det = np.where(np.abs(det) > 1e-300, det, 1e-300)
             tm = np.clip(lm - (d22 * b1 - a12 * b2) / det, *self.lm_range)
             tu = np.clip(lu - (d11 * b2 - a12 * b1) / det, *self.lu_range)
-            trial = self.stacked_sse(self.residuals(model, thetas, tm, tu))
+            # the trial's own stencil comes with it, ready for the next step: each object's rows depend on its own
+            # (log m, log mu) alone, so the next step's residuals are, object by object, the trial's or the last
+            last = it == iters - 1
+            t3 = self.residuals(model, thetas, tm, tu) if last else stencil_at(tm, tu)
+            trial = self.stacked_sse(t3[:K])
             better = trial < sse
+            converged = np.all(np.where(better, sse - trial, 0.0) < 1e-10 * (1 + sse))
             lm = np.where(better, tm, lm)
             lu = np.where(better, tu, lu)
             lam = np.where(better, lam * 0.3, lam * 10.0)
-            if np.all(np.where(better, sse - trial, 0.0) < 1e-10 * (1 + sse)):
+            sse = np.where(better, trial, sse)
+            if last or converged:
                 break
-        final = self.stacked_sse(self.residuals(model, thetas, lm, lu))
-        return lm, lu, final
+            r3 = np.where(np.tile(better[:, ro], (3, 1)), t3, r3)
+        return lm, lu, sse
 
     def fit(self, model: Model, theta0, start: ObjectFit, iters: int = 25, tol: float = 1e-8) -> JointFit:
         """theta and every object's (log m, log mu) jointly (Levenberg-Marquardt, Schur complement)."""
@@ -529,7 +651,8 @@ class Problem(Predicting, FreeLaunch):
         it = 0
         fm, fu = float(self.fixed_lm is None), float(self.fixed_lu is None)
         prec = model.prior_precision()
-        blocks = self._normal(model, theta, objs, hstep)
+        rs, signs = self._stencil(model, theta, objs.lm, objs.lu, hstep)
+        blocks = self._normal(rs, signs)
         for step_no in range(1, iters + 1):
             it = step_no
             if p == 0:
@@ -556,67 +679,90 @@ class Problem(Predicting, FreeLaunch):
             du = -np.einsum("nij,nj->ni", Ainv, g_u + np.einsum("nij,j->ni", B, new_theta - theta))
             lm_new = np.clip(objs.lm + du[:, 0] * fm, *self.lm_range)
             lu_new = np.clip(objs.lu + du[:, 1] * fu, *self.lu_range)
-            trial = self.stacked_sse(self.residuals(model, new_theta[None, :], lm_new[None, :], lu_new[None, :]))[0]
+            # the trial is read with its whole stencil, in one pass: taken, its normal equations are ready
+            rs_new, signs_new = self._stencil(model, new_theta, lm_new, lu_new, hstep)
+            trial = self.stacked_sse(rs_new[:1])[0]
             objective = trial.sum() + float(prec @ new_theta**2)
             if objective < sse:
                 gain = sse - objective
                 theta, objs = new_theta, ObjectFit(lm_new, lu_new, trial)
+                rs, signs = rs_new, signs_new
                 lam = max(lam * 0.2, 1e-9)
                 if gain < tol * (1.0 + sse):
                     break
-                blocks = self._normal(model, theta, objs, hstep)
+                blocks = self._normal(rs, signs)
             else:
                 lam *= 10.0
                 if lam > 1e8:
                     break
-        objs = self.refine(model, theta, objs, iters=3)
-        A, B, C, g_u, g_t, _ = self._normal(model, theta, objs, hstep)
+        # the stencil at (theta, objects) starts the last refinement: its first three settings are the refinement's
+        objs = self.refine(model, theta, objs, iters=3, stencil=rs[:3])
+        A, B, C, g_u, g_t, _ = self._normal(*self._stencil(model, theta, objs.lm, objs.lu, hstep))
         Ainv = np.linalg.inv(A + 1e-12 * np.eye(2))
         S_i = C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)
         b_i = g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)
         return JointFit(model, theta, objs, S_i, b_i, it)
 
-    def _normal(self, model: Model, theta, objs: ObjectFit, hstep: np.ndarray):
-        """Per-object normal-equation blocks at (theta, objects): A (N,2,2), B (N,2,p), C (N,p,p),
-        the gradients g_u (N,2), g_t (N,p), and the residuals."""
+    def _stencil(
+        self, model: Model, theta: np.ndarray, lm: np.ndarray, lu: np.ndarray, hstep: np.ndarray
+    ) -> tuple[np.ndarray, list[float]]:
+        """The residuals (3 + p, rows) that the normal equations at (theta, objects' ``lm``, ``lu`` (N,)) difference:
+        at the point, at every log m + H, at every log mu + H, and at each component of theta stepped by ``hstep``
+        (forward, or backward where forward leaves the admissible set); and each theta step's signed size (p,)."""
         p = model.dim
-        lm, lu = objs.lm, objs.lu
         thetas = [theta, theta, theta]
         signs = []
-        for j in range(p):
-            # a step along component j alone (forward, or backward where forward leaves the range)
-            e = hstep[j] * np.eye(p)[j]
-            up = theta + e
-            if not np.allclose(model.project(up), up):
-                up = theta - e
-            thetas.append(up)
-            signs.append(up[j] - theta[j])
+        for c, sl in zip(model.candidates, model.slices(), strict=True):
+            for j in range(sl.start, sl.stop):
+                # a step along component j alone moves only its candidate's part, so that part alone is projected
+                up = theta.copy()
+                up[j] += hstep[j]
+                if not _close(c.project(up[sl]), up[sl]):
+                    up[j] = theta[j] - hstep[j]
+                thetas.append(up)
+                signs.append(up[j] - theta[j])
         th = np.stack(thetas) if p else np.zeros((3, 0))
         rs = self.residuals(model, th, np.stack([lm, lm + _H, lm] + [lm] * p), np.stack([lu, lu, lu + _H] + [lu] * p))
+        return rs, signs
+
+    def _normal(self, rs: np.ndarray, signs: list[float]):
+        """Per-object normal-equation blocks from a :meth:`_stencil`'s residuals ``rs`` (3 + p, rows) and steps
+        ``signs`` (p,): A (N,2,2), B (N,2,p), C (N,p,p), the gradients g_u (N,2), g_t (N,p), and the residuals."""
+        p = len(signs)
         r0 = rs[0]
         jm, ju = self._free_columns((rs[1] - r0) / _H, (rs[2] - r0) / _H)
-        jt = (
-            np.stack([(rs[3 + j] - r0) / signs[j] if signs[j] != 0 else np.zeros_like(r0) for j in range(p)], 1)
-            if p
-            else np.zeros((r0.size, 0))
-        )
-        ro = self._row_obj()
-        n = self.n_obj
-        Ju = np.stack([jm, ju], 1)
-        A = np.zeros((n, 2, 2))
-        for a in range(2):
-            for c in range(2):
-                A[:, a, c] = np.bincount(ro, Ju[:, a] * Ju[:, c], minlength=n)
+        step = np.asarray(signs, float)
+        moved = step != 0
+        jt = np.zeros((p, r0.size))
+        jt[moved] = (rs[3:][moved] - r0) / step[moved, None]
+        # every product of two columns of [jm, ju, jt, r0] summed object by object in one bincount: each sum runs
+        # over the rows in order, as one bincount per product would
+        J = np.column_stack([jm, ju, jt.T, r0])
+        q = p + 3
+        first, second = _pairs(q)
+        n, pairs = self.n_obj, first.size
+        index = (self._row_obj()[:, None] * pairs + np.arange(pairs)).ravel()
+        sums = np.bincount(index, (J[:, first] * J[:, second]).ravel(), minlength=n * pairs).reshape(n, pairs)
+        G = np.empty((n, q, q))
+        G[:, first, second] = sums
+        G[:, second, first] = sums
+        A = G[:, :2, :2].copy()
         for a in range(2):
             A[:, a, a] = np.where(A[:, a, a] > 0, A[:, a, a], 1.0)
-        g_u = np.stack([np.bincount(ro, Ju[:, a] * r0, minlength=n) for a in range(2)], 1)
-        B = np.zeros((n, 2, p))
-        C = np.zeros((n, p, p))
-        g_t = np.zeros((n, p))
-        for j in range(p):
-            for a in range(2):
-                B[:, a, j] = np.bincount(ro, Ju[:, a] * jt[:, j], minlength=n)
-            g_t[:, j] = np.bincount(ro, jt[:, j] * r0, minlength=n)
-            for k in range(j, p):
-                C[:, j, k] = C[:, k, j] = np.bincount(ro, jt[:, j] * jt[:, k], minlength=n)
+        B = np.ascontiguousarray(G[:, :2, 2 : 2 + p])
+        C = np.ascontiguousarray(G[:, 2 : 2 + p, 2 : 2 + p])
+        g_u = np.ascontiguousarray(G[:, :2, q - 1])
+        g_t = np.ascontiguousarray(G[:, 2 : 2 + p, q - 1])
         return A, B, C, g_u, g_t, r0
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.allclose(a, b)`` for finite arrays of a few numbers, in plain floats (the same doubles; the fits ask it
+    for every component at every step)."""
+    return all(abs(x - y) <= 1e-8 + 1e-5 * abs(y) for x, y in zip(a.tolist(), b.tolist(), strict=True))
+
+
+@cache
+def _pairs(q: int) -> tuple[np.ndarray, np.ndarray]:
+    """The index pairs (i <= j) of a q x q symmetric matrix's upper triangle, row by row."""
+    return np.triu_indices(q)

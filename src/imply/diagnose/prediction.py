@@ -4,7 +4,7 @@ speeds and frictions the model's effects give the pusher and the box.
 :class:`Predicting` is the part of :class:`imply.diagnose.fit.Problem` that makes predictions; it reads the
 problem's table (``table``, ``etables``), its conditions (``c_v``, ``c_phi``, ``c_obj``, ``cond``, ``n_cond``),
 the table's ranges (``v_range``, ``lm_range``, ``lu_range``) and the observables beside the displacement (``use_t``,
-``aux``, ``aux_cols``, ``t_cond``, ``t_kind``).
+``aux``, ``aux_cols``, ``aux_col_tuple``, ``t_cond``, ``t_kind``).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
+from imply.diagnose.effect_tables import mix_between
 
 
 def distinct_blocks(n_blocks: int, *columns: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -67,6 +68,12 @@ class Prediction:
         return size_d, np.abs(self.extrapolated_t) if self.extrapolated_t is not None else np.zeros(self.log_t.shape)
 
 
+def _clip(x, bounds: tuple[float, float]) -> np.ndarray:
+    """``np.clip(x, *bounds)`` as two ufuncs (the same values; a prediction clips a few times per call, tens of
+    thousands of calls per diagnosis)."""
+    return np.minimum(np.maximum(x, bounds[0]), bounds[1])
+
+
 class Predicting:
     """Predictions of a push log's conditions, and of pushes at any conditions (a mixin of
     :class:`imply.diagnose.fit.Problem`)."""
@@ -109,24 +116,30 @@ class Predicting:
     ) -> Prediction:
         """log d and the aux observables of pushes at logged ``speed`` and direction ``phi`` (n,) of objects of log
         mass and log friction ``lm_c``, ``lu_c`` (n,) carrying ``load`` (n,) kg more (a probe's known added mass;
-        None: none), under theta (p,) or per push (n, p). ``blocks``: the rows are that many equal-length settings
-        (:meth:`residuals`); the tables are read once for settings that put every push at the same point.
+        NaN or None: none), under theta (p,) or per push (n, p). ``blocks``: the rows are that many equal-length
+        settings (:meth:`residuals`); the tables are read once for settings that put every push at the same point.
 
         A speed or friction that the model's effects carry outside the table's range is read at
         the range's edge and extrapolated linearly (the edge's slope); the prediction keeps what
         was extrapolated (:meth:`Prediction.extrapolation_sizes`)."""
         v = np.asarray(speed, float)
-        m = np.exp(np.clip(lm_c, *self.lm_range))
+        m = np.exp(_clip(lm_c, self.lm_range))
         if load is not None:
-            m = np.clip(m + load, *np.exp(self.lm_range))
-            lm_c = np.log(m)
+            # pushes without an added mass (NaN) keep their mass and log mass as they are
+            loaded = ~np.isnan(load)
+            heavier = np.clip(m + load, *np.exp(self.lm_range))
+            m = np.where(loaded, heavier, m)
+            lm_c = np.where(loaded, np.log(heavier), lm_c)
         lu = np.asarray(lu_c, float)
         t = None
         if model.dim:
             t = terms(model, theta, phi)
-            v = v * (1.0 + t.gain) + t.offset
-            lu = lu + np.log(np.maximum(t.friction, 1e-6))
-        vc, luc = np.clip(v, *self.v_range), np.clip(lu, *self.lu_range)
+            # a model without speed or friction terms leaves every push where it is (a gain of 0, a factor of 1)
+            if model.moves_speed:
+                v = v * (1.0 + t.gain) + t.offset
+            if model.moves_friction:
+                lu = lu + np.log(np.maximum(t.friction, 1e-6))
+        vc, luc = _clip(v, self.v_range), _clip(lu, self.lu_range)
         mu = np.exp(luc)
         # a step in an effect's level or in the discrepancy moves no push's point: such settings share reads
         rows, back = distinct_blocks(blocks, vc, m, mu)
@@ -135,8 +148,10 @@ class Predicting:
         def spread(values: np.ndarray) -> np.ndarray:
             return values if back is None else values[back]
 
-        pd = spread(self.table.log_displacement(vr, mr, mur))
-        pt = spread(self.etables.aux_log(vr, mr, mur)[:, self.aux_cols]) if self.use_t else None
+        # every table is read at the same points (v, log m, log mu), each clipped to its own axes
+        pts = np.stack([vr, np.log(mr), np.log(mur)], axis=-1)
+        pd = spread(self.table.log_displacement_at(pts))
+        pt = spread(self.etables.aux_log_at(pts, self.aux_col_tuple)) if self.use_t else None
         ext_d = ext_t = None
         out = (vc != v) | (luc != lu)
         if out.any():
@@ -145,29 +160,49 @@ class Predicting:
             dv, dlu = (v - vc)[o], (lu - luc)[o]
             hv = np.where(vc[o] > 0.5 * sum(self.v_range), -0.01, 0.01)
             hu = np.where(luc[o] > 0.5 * sum(self.lu_range), -0.02, 0.02)
-            mo = m[o]
-            f0 = self.table.log_displacement(vc[o], mo, mu[o])
-            sv = (self.table.log_displacement(vc[o] + hv, mo, mu[o]) - f0) / hv
-            su = (self.table.log_displacement(vc[o], mo, np.exp(luc[o] + hu)) - f0) / hu
+            mo, muo = m[o], mu[o]
+            # the edge is where the tables were just read; a step inward in speed and one in friction are read
+            # together
+            lm_o, lu_o = np.log(mo), np.log(muo)
+            inward = np.concatenate(
+                [
+                    np.stack([vc[o] + hv, lm_o, lu_o], axis=-1),
+                    np.stack([vc[o], lm_o, np.log(np.exp(luc[o] + hu))], axis=-1),
+                ]
+            )
+            f0 = pd[o]
+            fv, fu = np.split(self.table.log_displacement_at(inward), 2)
+            sv = (fv - f0) / hv
+            su = (fu - f0) / hu
             ext_d = np.zeros(v.size)
             ext_d[o] = sv * dv + su * dlu
             pd = pd + ext_d
             if self.use_t:
-                cols = self.aux_cols
-                g0 = self.etables.aux_log(vc[o], mo, mu[o])[:, cols]
-                tv = (self.etables.aux_log(vc[o] + hv, mo, mu[o])[:, cols] - g0) / hv[:, None]
-                tu = (self.etables.aux_log(vc[o], mo, np.exp(luc[o] + hu))[:, cols] - g0) / hu[:, None]
+                g0 = pt[o]
+                gv, gu = np.split(self.etables.aux_log_at(inward, self.aux_col_tuple), 2)
+                tv = (gv - g0) / hv[:, None]
+                tu = (gu - g0) / hu[:, None]
                 ext_t = np.zeros(pt.shape)
                 ext_t[o] = tv * dv[:, None] + tu * dlu[:, None]
                 pt = pt + ext_t
-        if t is not None:
-            pts = self.etables.points(vr, mr, mur) if t.tables else None
-            for key, s in t.tables:
-                vals = spread(self.etables.level_values(key, pts))
-                dd, dt = self.etables.mix_levels(key, vals, np.broadcast_to(s, vc.shape))
+        if t is not None and t.tables:
+            # every tabulated term of the model read in one pass, at the levels its points fall between alone (a
+            # table holds up to seven; the spline's cost grows with the columns read), then mixed between them
+            cols = self.aux_col_tuple if self.use_t else ()
+            brackets = [self.etables.brackets(key, np.broadcast_to(s, vc.shape)) for key, s in t.tables]
+            lowest = [int(lower.min()) for lower, _ in brackets]
+            reads = tuple(
+                (key, tuple(range(low, int(lower.max()) + 2)))
+                for (key, _), (lower, _), low in zip(t.tables, brackets, lowest, strict=True)
+            )
+            values = spread(self.etables.read_levels(reads, self.etables.effect_points(pts), cols))
+            widths = np.cumsum([(1 + len(cols)) * len(levels) for _, levels in reads])[:-1]
+            parts = zip(reads, brackets, lowest, np.split(values, widths, axis=1), strict=True)
+            for (_, levels), (lower, weight), low, vals in parts:
+                dd, dt = mix_between(vals, lower - low, weight, len(levels))
                 pd = pd + dd
                 if self.use_t:
-                    pt = pt + dt[:, self.aux_cols]
+                    pt = pt + dt
         found = model.discrepancy if model.dim else None
         if found is not None:
             beta = np.asarray(theta, float)[..., found[1]]
