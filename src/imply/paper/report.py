@@ -97,11 +97,12 @@ def claim_count(c: Claim) -> str:
 
 
 def _claim_groups(merged: Merged) -> list[tuple[str, list[tuple[str, Claim]]]]:
-    """(title, its claims) for the paper's claims, then this project's targets."""
-    return [
+    """(title, its claims) for the paper's claims, then this project's targets; a kind with no claim left out."""
+    groups = [
         (title, [(stage, c) for stage, c in merged.claims if claim_kind(stage) == kind])
         for kind, title in (("paper", "The paper's claims"), ("project", "This project's targets"))
     ]
+    return [(title, claims) for title, claims in groups if claims]
 
 
 def _claim_detail(c: Claim) -> str:
@@ -154,16 +155,14 @@ def reproduction_md(registry: Registry, merged: Merged, frame: pd.DataFrame) -> 
         "",
     ]
     if not merged.claims:
-        out.append("No claims reported yet.")
+        out += ["No claims reported yet.", ""]
     for title, claims in _claim_groups(merged):
-        if not claims:
-            continue
         out += [f"### {title}", ""]
         for stage, c in claims:
             mark = "holds" if c.holds else "FAILS"
             out.append(f"- **{mark}** [{stage} / {c.id}] {c.statement} ({_claim_detail(c)})")
         out.append("")
-    out += ["", "## Numbers", ""]
+    out += ["## Numbers", ""]
     if merged.read_by:
         out += ["Read by (the instrument that read the rollouts behind a stage's numbers):", ""]
         out += [f"- [{stage}] {text}" for stage, text in merged.read_by.items()] + [""]
@@ -207,8 +206,6 @@ def reproduction_html(registry: Registry, merged: Merged, frame: pd.DataFrame) -
         "<h2>Claims</h2>",
     ]
     for title, claims in _claim_groups(merged):
-        if not claims:
-            continue
         out += [f"<h3>{html.escape(title)}</h3>", "<ul>"]
         for stage, c in claims:
             mark = "<span class='holds'>holds</span>" if c.holds else "<span class='fails'>FAILS</span>"
