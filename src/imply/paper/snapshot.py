@@ -113,23 +113,23 @@ def _benchmark_jobs(root: Path) -> tuple[dict[str, str], list, list]:
     return stages, [j for j in jobs if not developing(j)], [j for j in jobs if developing(j)]
 
 
-def development_times(root: Path) -> dict[str, Any] | None:
+def development_times(root: Path, split: tuple | None = None) -> dict[str, Any] | None:
     """The gap_development target's jobs, span (first start to last end) and CPU seconds; None where it has not
-    run."""
+    run (``split``: :func:`_benchmark_jobs` of ``root``, where the caller has read it)."""
     from imply.paper.timings import span_seconds
 
-    _, _, jobs = _benchmark_jobs(root)
+    _, _, jobs = split or _benchmark_jobs(root)
     if not jobs:
         return None
     return {"jobs": len(jobs), "wall_seconds": span_seconds(jobs), "cpu_seconds": sum(j.cpu_seconds for j in jobs)}
 
 
-def stage_times(root: Path) -> dict[str, Any]:
+def stage_times(root: Path, split: tuple | None = None) -> dict[str, Any]:
     """Each stage's rules, jobs, wall seconds (jobs summed), longest job and CPU seconds, and the run's span: the
-    default run's jobs only (the development target is timed by :func:`development_times`)."""
+    default run's jobs only (the development target is timed by :func:`development_times`; ``split`` as there)."""
     from imply.paper.timings import by_stage, sittings, span_seconds
 
-    stages, jobs, _ = _benchmark_jobs(root)
+    stages, jobs, _ = split or _benchmark_jobs(root)
     if not jobs:
         return {"jobs": 0, "stages": [], "wall_seconds": None}
     table = by_stage(jobs, stages)
@@ -169,7 +169,8 @@ def write_snapshot(root: Path, out: Path, *, commit: str | None = None, kernels:
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(root / rel, out / rel)
     numbers = json.loads((root / "results/paper/numbers.json").read_text())
-    times = stage_times(root)
+    split = _benchmark_jobs(root)  # the benchmark files, read once for both timings
+    times = stage_times(root, split)
     stamp = {
         "commit": commit or _commit(root),
         "date": times.get("ended") or datetime.now(UTC).strftime("%Y-%m-%d"),
@@ -178,7 +179,7 @@ def write_snapshot(root: Path, out: Path, *, commit: str | None = None, kernels:
         "claims": _claims(root / "results/paper/parts"),
         "numbers": sorted(numbers),
         "stage_times": times,
-        "development": development_times(root),
+        "development": development_times(root, split),
         "files": wanted,
     }
     write_json(out / STAMP, stamp)

@@ -48,7 +48,7 @@ from imply.realworld.contact import (
     draw_contact,
     engine_effects,
     no_contact_model,
-    simulate_distinct,
+    simulate_by_engine,
     simulate_engine,
     world_engine,
 )
@@ -491,22 +491,18 @@ def simulate_cases(
             runs.append((case["id"], "contact", engine, _world_pushes(case, design, scene, [])))
     out: dict[str, dict] = {}
     times = track_frame_times(design.noise.track_rate)
-    for engine in dict.fromkeys(r[2] for r in runs):
-        mine = [r for r in runs if r[2] == engine]
-        allp = WorldPushes.concat([r[3] for r in mine])
-        bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
-        res, _ = simulate_distinct(
-            allp,
-            scene,
-            design.stepping,
-            engine=engine,
-            nthread=nthread,
-            track_times=times,
-            chunk=chunk,
-            progress=progress,
-        )
+    batches = simulate_by_engine(
+        [(r[2], r[3]) for r in runs],
+        scene,
+        design.stepping,
+        nthread=nthread,
+        track_times=times,
+        chunk=chunk,
+        progress=progress,
+    )
+    for _, mine, bounds, res, _, _ in batches:
         ok = res.ok & np.isfinite(res.stroke_time) & (res.stroke_time > 0)
-        for k, (cid, what, _, _) in enumerate(mine):
+        for k, (cid, what, _, _) in enumerate(runs[i] for i in mine):
             sl = slice(bounds[k], bounds[k + 1])
             out.setdefault(cid, {})[what] = {
                 "displacement": res.displacement[sl],

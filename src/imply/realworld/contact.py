@@ -27,6 +27,7 @@ no tilt or direction-dependent friction turns them).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -282,3 +283,35 @@ def simulate_distinct(
         out["drive_force"][inverse],
     )
     return result, int(k)
+
+
+def simulate_by_engine(
+    runs: list[tuple[str, WorldPushes]],
+    scene: SceneConfig,
+    stepping: WorldStepping | None = None,
+    *,
+    nthread: int = 0,
+    track_times=None,
+    chunk: int = 2400,
+    progress: bool = False,
+):
+    """Every run of ``runs`` ((engine, pushes) each) simulated with its engine's other runs as one batch
+    (:func:`simulate_distinct`). Yields, per engine in order of first appearance: the engine, the indices of its
+    runs in ``runs``, the bounds (len + 1,) of each run's pushes in the batch, the batch's result, how many pushes
+    were simulated, and the wall seconds it took."""
+    for engine in dict.fromkeys(e for e, _ in runs):
+        mine = [i for i, (e, _) in enumerate(runs) if e == engine]
+        batch = WorldPushes.concat([runs[i][1] for i in mine])
+        bounds = np.concatenate([[0], np.cumsum([runs[i][1].n for i in mine])])
+        t0 = time.perf_counter()
+        res, simulated = simulate_distinct(
+            batch,
+            scene,
+            stepping,
+            engine=engine,
+            nthread=nthread,
+            track_times=track_times,
+            chunk=chunk,
+            progress=progress,
+        )
+        yield engine, mine, bounds, res, simulated, time.perf_counter() - t0

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -47,7 +46,7 @@ from imply.realworld.cases import (
     push_layout,
     pushes_in_world,
 )
-from imply.realworld.contact import simulate_distinct, simulate_engine
+from imply.realworld.contact import simulate_by_engine, simulate_engine
 from imply.realworld.probes import (
     PROBE_COLUMNS,
     ProbeDesign,
@@ -299,25 +298,19 @@ def simulate_lab_cases(
     out: dict[str, dict] = {}
     timing: dict[str, dict] = {}
     layouts = {case["id"]: lab_probe_layout(case, design) for case in cases}
-    for engine in dict.fromkeys(r[2] for r in runs):
-        mine = [r for r in runs if r[2] == engine]
-        allp = WorldPushes.concat([r[3] for r in mine])
-        bounds = np.concatenate([[0], np.cumsum([r[3].n for r in mine])])
+    batches = simulate_by_engine(
+        [(r[2], r[3]) for r in runs],
+        scene,
+        design.stepping,
+        nthread=nthread,
+        track_times=times,
+        chunk=chunk,
+        progress=progress,
+    )
+    for engine, mine, bounds, res, simulated, seconds in batches:
         # the engines that step one push at a time are timed per push; MuJoCo's batches on the threads given
-        t0 = time.perf_counter()
-        res, simulated = simulate_distinct(
-            allp,
-            scene,
-            design.stepping,
-            engine=engine,
-            nthread=nthread,
-            track_times=times,
-            chunk=chunk,
-            progress=progress,
-        )
-        seconds = time.perf_counter() - t0
         timing[engine] = {"pushes": simulated, "seconds": seconds, "seconds_per_push": seconds / max(simulated, 1)}
-        for k, (cid, what, _, batch, n_push) in enumerate(mine):
+        for k, (cid, what, _, batch, n_push) in enumerate(runs[i] for i in mine):
             sl = slice(bounds[k], bounds[k] + n_push)
             psl = slice(bounds[k] + n_push, bounds[k + 1])
             okp = res.ok[sl] & np.isfinite(res.stroke_time[sl]) & (res.stroke_time[sl] > 0)
