@@ -215,7 +215,7 @@ gap_contact_shard_logs = shard_logs("results/gap/contact/logs", GAP_CONTACT_CASE
 gap_contact_shard_tracks = shard_tracks("results/gap/contact/logs", GAP_CONTACT_CASES)
 
 
-# the diagnosis with every observable the benchmark's logs carry, beside the default one
+# the design variant of the development target: the diagnosis with every observable a log carries
 GAP_OBSERVED_OPTIONS = {**config["gap"]["diagnose"], "use_pusher_speed": True, "use_track": True}
 
 

@@ -1,6 +1,7 @@
 # The gap benchmarks' development sets: the same designs as the sealed sets, drawn with their development seeds
-# (config gap.*.development_seed), diagnosed and scored exactly as the sealed sets are. The diagnostic's settings
-# are chosen on these, never on the sealed sets, so they are not part of the default run:
+# (config gap.*.development_seed), diagnosed and scored exactly as the sealed sets are, and with the design variant
+# that reads every observable a log carries (the pusher's measured speed, the box's track). The diagnostic's
+# settings are chosen on these, never on the sealed sets, so they are not part of the default run:
 # `snakemake --cores 2 gap_development` builds them (results/gap/development/ and results/gap/lab/development/).
 
 GAP_DEV = "results/gap/development"
@@ -63,7 +64,7 @@ use rule gap_diagnose as gap_dev_diagnose with:
         "results/benchmarks/gap_dev_diagnose/{shard}.tsv"
 
 
-use rule gap_diagnose_observed as gap_dev_diagnose_observed with:
+use rule gap_diagnose as gap_dev_diagnose_observed with:
     input:
         logs=gap_dev_shard_logs,
         tracks=gap_dev_shard_tracks,
@@ -71,6 +72,10 @@ use rule gap_diagnose_observed as gap_dev_diagnose_observed with:
         tables="results/gap/effect_tables",
     output:
         directory(f"{GAP_DEV}/reports_observed/shard{{shard}}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(GAP_OBSERVED_OPTIONS),
+        effects=gap_effects_option(),
     log:
         "results/logs/gap_dev_diagnose_observed_shard{shard}.log",
     benchmark:
@@ -91,7 +96,7 @@ use rule gap_contact_diagnose as gap_dev_contact_diagnose with:
         "results/benchmarks/gap_dev_contact_diagnose/{shard}.tsv"
 
 
-use rule gap_contact_diagnose_observed as gap_dev_contact_diagnose_observed with:
+use rule gap_contact_diagnose as gap_dev_contact_diagnose_observed with:
     input:
         logs=gap_dev_contact_shard_logs,
         tracks=gap_dev_contact_shard_tracks,
@@ -99,6 +104,10 @@ use rule gap_contact_diagnose_observed as gap_dev_contact_diagnose_observed with
         tables="results/gap/effect_tables",
     output:
         directory(f"{GAP_DEV}/contact/reports_observed/shard{{shard}}"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=as_json(GAP_OBSERVED_OPTIONS),
+        effects=gap_effects_option(),
     log:
         "results/logs/gap_dev_contact_diagnose_observed_shard{shard}.log",
     benchmark:
@@ -142,6 +151,9 @@ use rule gap_benchmark as gap_dev_benchmark with:
     params:
         bench=gap_set_json("benchmark", "development"),
         contact=gap_set_json("contact_benchmark", "development"),
+        observed=lambda wildcards, input: " ".join(
+            ["--observed-reports", *input.observed, "--observed-contact-reports", *input.contact_observed]
+        ),
     log:
         "results/logs/gap_dev_benchmark.log",
     benchmark:

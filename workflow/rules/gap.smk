@@ -21,6 +21,8 @@ rule gap_tables:
         library=gap_library_levels(),
     # one thread: a job asking for both cores waits for the training chain to leave both idle
     threads: 1
+    # every diagnosis reads the effect tables: they go as early as the training chain's jobs
+    priority: 10
     resources:
         mem_mb=2000,
         runtime=15,
@@ -171,40 +173,6 @@ rule gap_contact_closed_loop:
         " --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
-# The same logs diagnosed with every observable they carry (the pusher's measured speed, the box's
-# track), scored beside the default diagnosis.
-use rule gap_diagnose as gap_diagnose_observed with:
-    output:
-        directory("results/gap/reports_observed/shard{shard}"),
-    params:
-        grid=as_json(config["gap"]["effect_grid"]),
-        options=as_json(GAP_OBSERVED_OPTIONS),
-        effects=gap_effects_option(),
-    resources:
-        mem_mb=1500,
-        runtime=30,
-    log:
-        "results/logs/gap_diagnose_observed_shard{shard}.log",
-    benchmark:
-        "results/benchmarks/gap_diagnose_observed/{shard}.tsv"
-
-
-use rule gap_contact_diagnose as gap_contact_diagnose_observed with:
-    output:
-        directory("results/gap/contact/reports_observed/shard{shard}"),
-    params:
-        grid=as_json(config["gap"]["effect_grid"]),
-        options=as_json(GAP_OBSERVED_OPTIONS),
-        effects=gap_effects_option(),
-    resources:
-        mem_mb=1500,
-        runtime=30,
-    log:
-        "results/logs/gap_contact_diagnose_observed_shard{shard}.log",
-    benchmark:
-        "results/benchmarks/gap_contact_diagnose_observed/{shard}.tsv"
-
-
 rule gap_benchmark:
     conda:
         IMPLY_ENV
@@ -216,8 +184,6 @@ rule gap_benchmark:
         contact_reports=expand("results/gap/contact/reports/shard{shard}", shard=GAP_SHARDS),
         contact_sealed="results/gap/contact/sealed/labels.json",
         closed_loop=expand("results/gap/contact/closed_loop/shard{shard}", shard=GAP_SHARDS),
-        observed=expand("results/gap/reports_observed/shard{shard}", shard=GAP_SHARDS),
-        contact_observed=expand("results/gap/contact/reports_observed/shard{shard}", shard=GAP_SHARDS),
     output:
         result=report(
             "results/gap/benchmark.json",
@@ -234,6 +200,8 @@ rule gap_benchmark:
     params:
         bench=gap_set_json("benchmark", "sealed"),
         contact=gap_set_json("contact_benchmark", "sealed"),
+        # the development target scores its sets with the observables too (development.smk)
+        observed="",
     resources:
         mem_mb=2000,
         runtime=10,
@@ -245,8 +213,7 @@ rule gap_benchmark:
         "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
         " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
-        " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop}"
-        " --observed-reports {input.observed} --observed-contact-reports {input.contact_observed} > {log} 2>&1"
+        " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop} {params.observed} > {log} 2>&1"
 
 
 # The lab benchmark: pushes beside calibration probes on MuJoCo contact variants, Bullet and SAPIEN, in a
@@ -267,6 +234,8 @@ rule gap_lab_generate:
         set="development|sealed",
     # one thread: the worlds of other engines step one push at a time
     threads: 1
+    # the head of the stage's longest chain (generation, two diagnoses, the closed loop, the score)
+    priority: 10
     resources:
         mem_mb=3000,
         runtime=40,

@@ -209,7 +209,7 @@ def rule_stages(root: str | Path) -> dict[str, str]:
         text = smk.read_text()
         for name in re.findall(r"^(?:rule|checkpoint)\s+(\w+)\s*:", text, re.M):
             out[name] = smk.stem
-        # a rule derived from another: ``use rule gap_diagnose as gap_diagnose_observed with:``
+        # a rule derived from another: ``use rule gap_diagnose as gap_dev_diagnose with:``
         for name in re.findall(r"^use\s+rule\s+\w+\s+as\s+(\w+)", text, re.M):
             out[name] = smk.stem
     return out
