@@ -11,8 +11,9 @@ rule table:
         grid=as_json(config["table"]),
         check=as_json(config.get("table_check", {})),
     threads: config["threads"]
-    # every later stage reads the table (the trainings' validation, each gap job): it goes first
-    priority: 20
+    # every later stage reads the table (the trainings' validation, each gap job): it goes first (its priority
+    # outweighs two one-thread jobs of the training chain's)
+    priority: 50
     resources:
         mem_mb=2000,
         runtime=15,
