@@ -234,8 +234,9 @@ rule gap_lab_generate:
         set="development|sealed",
     # one thread: the worlds of other engines step one push at a time
     threads: 1
-    # the head of the stage's longest chain (generation, two diagnoses, the closed loop, the score)
-    priority: 10
+    # the head of the stage's longest chain (generation, two diagnoses, the closed loop, the score): it starts
+    # beside the first training, not after the four
+    priority: 15
     resources:
         mem_mb=3000,
         runtime=40,

@@ -10,10 +10,10 @@ rule table:
         scene=as_json(config["scene"]),
         grid=as_json(config["table"]),
         check=as_json(config.get("table_check", {})),
+    # two threads, and after the training chain's two-thread jobs (the encoder, the pixel model): every gap job
+    # waits on the table, and once one-thread jobs are ready, a job asking for both cores waits for both to be idle
+    # at once
     threads: config["threads"]
-    # every later stage reads the table (the trainings' validation, each gap job): it goes first (its priority
-    # outweighs two one-thread jobs of the training chain's)
-    priority: 50
     resources:
         mem_mb=2000,
         runtime=15,
