@@ -48,6 +48,7 @@ from imply.realworld.contact import (
     draw_contact,
     engine_effects,
     no_contact_model,
+    run_observables,
     simulate_by_engine,
     simulate_engine,
     world_engine,
@@ -501,17 +502,11 @@ def simulate_cases(
         progress=progress,
     )
     for _, mine, bounds, res, _, _ in batches:
-        ok = res.ok & np.isfinite(res.stroke_time) & (res.stroke_time > 0)
         for k, (cid, what, _, _) in enumerate(runs[i] for i in mine):
-            sl = slice(bounds[k], bounds[k + 1])
-            out.setdefault(cid, {})[what] = {
-                "displacement": res.displacement[sl],
-                "stop_time": res.stop_time[sl],
-                "ok": ok[sl],
-                "pusher_speed": pusher_speed(scene.stroke, res.stroke_time[sl]),
-            }
-            if what == "all":  # the camera films the log's own pushes
-                out[cid][what]["track"] = res.track[sl]
+            # the camera films the log's own pushes
+            out.setdefault(cid, {})[what] = run_observables(
+                res, slice(bounds[k], bounds[k + 1]), scene.stroke, filmed=what == "all"
+            )
     return {case["id"]: out[case["id"]] for case in cases}
 
 

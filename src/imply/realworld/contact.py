@@ -44,6 +44,7 @@ from imply.realworld.world import (
     simulate_world,
 )
 from imply.sim.scene import SceneConfig
+from imply.sim.track import pusher_speed
 
 # the kinds of contact model and the world parameters each one sets
 CONTACT_KINDS: dict[str, tuple[str, ...]] = {
@@ -283,6 +284,21 @@ def simulate_distinct(
         out["drive_force"][inverse],
     )
     return result, int(k)
+
+
+def run_observables(res: WorldResult, pushes: slice, stroke: float, *, filmed: bool) -> dict[str, np.ndarray]:
+    """One run's noise-free observables, its ``pushes`` of a batch's result ``res``
+    (:func:`simulate_by_engine`): displacement, stop time, whether the push ran (finished with a stroke of
+    positive duration), the pusher's speed over its ``stroke``, and the box's track where the run is ``filmed``."""
+    out = {
+        "displacement": res.displacement[pushes],
+        "stop_time": res.stop_time[pushes],
+        "ok": res.ok[pushes] & np.isfinite(res.stroke_time[pushes]) & (res.stroke_time[pushes] > 0),
+        "pusher_speed": pusher_speed(stroke, res.stroke_time[pushes]),
+    }
+    if filmed:
+        out["track"] = res.track[pushes]
+    return out
 
 
 def simulate_by_engine(

@@ -46,7 +46,7 @@ from imply.realworld.cases import (
     push_layout,
     pushes_in_world,
 )
-from imply.realworld.contact import simulate_by_engine, simulate_engine
+from imply.realworld.contact import run_observables, simulate_by_engine, simulate_engine
 from imply.realworld.probes import (
     PROBE_COLUMNS,
     ProbeDesign,
@@ -60,7 +60,7 @@ from imply.realworld.sapien_world import SapienStepping
 from imply.realworld.shards import shard_cases
 from imply.realworld.world import WorldPushes, WorldResult
 from imply.sim.scene import SceneConfig
-from imply.sim.track import crossing_times, pusher_speed, track_frame_times
+from imply.sim.track import crossing_times, track_frame_times
 
 log = logging.getLogger("imply.realworld")
 
@@ -313,16 +313,10 @@ def simulate_lab_cases(
         for k, (cid, what, _, batch, n_push) in enumerate(runs[i] for i in mine):
             sl = slice(bounds[k], bounds[k] + n_push)
             psl = slice(bounds[k] + n_push, bounds[k + 1])
-            okp = res.ok[sl] & np.isfinite(res.stroke_time[sl]) & (res.stroke_time[sl] > 0)
             cross = crossing_times(times, res.track[sl, :, 0], res.displacement[sl])
-            entry = {
-                "displacement": res.displacement[sl],
-                "stop_time": res.stop_time[sl],
-                "ok": okp,
-                "pusher_speed": pusher_speed(scene.stroke, res.stroke_time[sl]),
-                "log_c": np.log(np.where(cross > 0, cross, np.nan)),
-            }
-            if what == "all":
+            entry = run_observables(res, sl, scene.stroke, filmed=False)
+            entry["log_c"] = np.log(np.where(cross > 0, cross, np.nan))
+            if what == "all":  # the camera films the log's own pushes
                 entry["track"] = res.track[sl]
             if batch.n > n_push:
                 n_probe = batch.n - n_push
