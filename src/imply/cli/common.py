@@ -274,22 +274,30 @@ def diagnosis_options(
     return opts, grid
 
 
-def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) -> DiagnoseRequest:
-    """The options of :func:`add_diagnose_options` and each (push log, report folder), checked once before any
-    work: the report folders, the table, every push log against it, the settings, the candidates."""
+def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> DiagnoseRequest:
+    """The options of :func:`add_diagnose_options` and each (push log, report folder[, reference session or
+    None]), checked once before any work: the report folders, the table, every push log and reference against it
+    (a reference must push the log's boxes), the settings, the candidates."""
     from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog
     from imply.input_files import InputError
     from imply.io import OutputError
 
+    from imply.diagnose.sessions import check_pair
+
     folders = []
-    for pushlog, folder in reports:
+    for pushlog, folder, *ref in reports:
         out = output_dir(folder)
         with user_errors(OutputError, message="-o {error}"):
-            check_report_folder(out, args.force, [pushlog, args.table])
+            check_report_folder(out, args.force, [pushlog, args.table, *(r for r in ref if r)])
         folders.append(out)
     table = load_table(args.table)
     with user_errors(InputError):
-        logs = [read_checked_pushlog(pushlog, table, getattr(args, "track", None)) for pushlog, _ in reports]
+        logs = [read_checked_pushlog(r[0], table, getattr(args, "track", None)) for r in reports]
+        # a reference session reads its own track and probes from the files beside it
+        refs = [read_checked_pushlog(r[2], table) if len(r) > 2 and r[2] else None for r in reports]
+        for log_, ref in zip(logs, refs, strict=True):
+            if ref is not None:
+                check_pair(log_, ref)
     opts, grid = diagnosis_options(
         args.options_json, args.effect_grid_json, noise_sd=args.noise_sd, ignore_measured=args.ignore_measured
     )
@@ -302,5 +310,7 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple[str, Path]]) 
         threads=args.threads,
         force=args.force,
         plots=not args.no_plots,
-        reports=tuple(Report(pushlog=log, folder=out) for log, out in zip(logs, folders, strict=True)),
+        reports=tuple(
+            Report(pushlog=log, folder=out, reference=ref) for log, out, ref in zip(logs, folders, refs, strict=True)
+        ),
     )

@@ -42,6 +42,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the boxes' tracks (CSV or parquet, rows object_id,push,t,x,y[,yaw]; default: "
         "PUSHLOG's <stem>.track.csv or .parquet beside it, where there is one)",
     )
+    d.add_argument(
+        "--reference",
+        metavar="REF",
+        help="a reference session: a push log of the same robot and boxes (matched by object_id), recorded before "
+        "the change to explain, with its own .track.csv and .probes.csv beside it where it has them. The report "
+        "then gives the standing gap (read from REF), what changed since, and how far the gap shrinks",
+    )
     add_diagnose_options(d)
     d.set_defaults(func=cmd_diagnose)
 
@@ -49,5 +56,5 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_diagnose(args: argparse.Namespace) -> int:
     from imply.diagnose.run import run
 
-    run(diagnose_request(args, [(args.pushlog, Path(args.output))]))
+    run(diagnose_request(args, [(args.pushlog, Path(args.output), args.reference)]))
     return 0

@@ -49,6 +49,7 @@ from imply.diagnose.pushlog import PushLog
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.render import OBSERVABLE_WORDS, verdict_text
 from imply.diagnose.screening import folds, screened
+from imply.diagnose.sessions import ReferenceReport, SessionShrink, cause_shrink
 from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
 from imply.diagnose.verdict import Verdict, judge
 from imply.options import Config, option
@@ -233,6 +234,11 @@ class Summary(Record):
     seconds: float
     next_pushes: PushDesign | None = json_field(omit_none=True, default=None)
     discrepancy: DiscrepancyReport | None = json_field(omit_none=True, default=None)
+    # where the log was diagnosed against a reference session: the standing gap and the gap's shrink
+    reference: ReferenceReport | None = json_field(omit_none=True, default=None)
+    # how far the log's gap shrinks once the stated causes alone are added (and, against a reference, once the
+    # standing gap is described too)
+    cause_shrink: SessionShrink | None = json_field(omit_none=True, default=None)
 
 
 @dataclass(frozen=True)
@@ -256,6 +262,8 @@ class Diagnosis:
     summary: Summary
     residuals: Residuals
     pushlog: PushLog  # the log diagnosed (the next pushes are written in its columns)
+    problem: Problem | None = None  # the problem the hypotheses were fitted under (its noise, weights, model error)
+    leading: JointFit | None = None  # the leading hypothesis's fit
 
 
 def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, JointFit]:
@@ -408,6 +416,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         seconds=round(time.perf_counter() - t0, 3),
         next_pushes=design,
         discrepancy=disc,
+        cause_shrink=cause_shrink(problem.log, problem, final, verdict.effects),
     )
     summary = replace(summary, sentence=verdict_text(summary))
     with_effects = bool(final.model.dim)
@@ -423,4 +432,4 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         pusher_resid_before=_aux_part(problem, resid_t, "pusher_speed"),
         pusher_resid_after=_aux_part(problem, held.resid_t, "pusher_speed") if with_effects else None,
     )
-    return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log)
+    return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log, problem=problem, leading=final)

@@ -119,6 +119,19 @@ class JointFit:
         return np.maximum(out, 0.0)
 
 
+def _baseline_sds(pushlog: PushLog, aux: tuple[str, ...]) -> dict[str, np.ndarray | None]:
+    """The per-row sds of a reference baseline taken out of ``pushlog`` (:attr:`PushLog.baseline_sd`), as
+    :class:`Problem`'s fields: log d's (n,) and the aux rows' (n K,), zeros for an observable without one."""
+    sds = pushlog.baseline_sd
+    if not sds:
+        return {}
+    zeros = np.zeros(pushlog.n)
+    return {
+        "baseline_sd_d": np.asarray(sds.get("displacement", zeros), float),
+        "baseline_sd_t": np.concatenate([np.asarray(sds.get(a, zeros), float) for a in aux]) if aux else None,
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class Problem(Predicting, FreeLaunch):
     """A push log against a baseline table, its effect tables, its noise, weights and model error.
@@ -154,6 +167,9 @@ class Problem(Predicting, FreeLaunch):
     noise_t: np.ndarray | float = 1.0  # (K,) or one sd for all
     model_err_d: np.ndarray | None = None  # per row (None: zeros)
     model_err_t: np.ndarray | None = None  # per aux row
+    # the sd of the reference baseline taken out of each row (imply.diagnose.reference; zeros: none)
+    baseline_sd_d: np.ndarray | None = None  # per row
+    baseline_sd_t: np.ndarray | None = None  # per aux row
     w_d: np.ndarray | None = None  # per row, 0 for a flagged outlier (None: ones)
     w_t: np.ndarray | None = None  # per aux row (None: ones where aux observables are used)
     observables: Observables = Observables()  # what the fit was asked to read
@@ -169,6 +185,10 @@ class Problem(Predicting, FreeLaunch):
             object.__setattr__(self, "model_err_d", np.zeros(n))
         if self.model_err_t is None:
             object.__setattr__(self, "model_err_t", np.zeros(n * len(self.aux)))
+        if self.baseline_sd_d is None:
+            object.__setattr__(self, "baseline_sd_d", np.zeros(n))
+        if self.baseline_sd_t is None:
+            object.__setattr__(self, "baseline_sd_t", np.zeros(n * len(self.aux)))
         if self.w_d is None:
             object.__setattr__(self, "w_d", np.ones(n))
         if self.w_t is None and self.use_t:
@@ -257,6 +277,7 @@ class Problem(Predicting, FreeLaunch):
             aux=aux,
             observables=observables,
             probes=probes,
+            **_baseline_sds(pushlog, aux),
         )
 
     # -- noise, weights and model error: each a new problem ---------------------------
@@ -294,8 +315,8 @@ class Problem(Predicting, FreeLaunch):
 
     @cached_property
     def sd_d(self) -> np.ndarray:
-        """Per row: noise and model error together (log d)."""
-        return np.sqrt(self.noise_d**2 + self.model_err_d**2)
+        """Per row: noise, model error and the reference baseline's own noise together (log d)."""
+        return np.sqrt(self.noise_d**2 + self.model_err_d**2 + self.baseline_sd_d**2)
 
     @cached_property
     def noise_aux(self) -> np.ndarray:
@@ -309,8 +330,8 @@ class Problem(Predicting, FreeLaunch):
 
     @cached_property
     def sd_t(self) -> np.ndarray:
-        """Per aux row: noise and model error together."""
-        return np.sqrt(self.noise_t_rows**2 + self.model_err_t**2)
+        """Per aux row: noise, model error and the reference baseline's own noise together."""
+        return np.sqrt(self.noise_t_rows**2 + self.model_err_t**2 + self.baseline_sd_t**2)
 
     @property
     def n_rows(self) -> int:

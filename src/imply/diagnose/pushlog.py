@@ -67,6 +67,10 @@ class PushLog:
     track_path: str | None = None  # the track file they were read from
     track_note: str | None = None  # why the log's track was left out, where it was
     probes: Probes | None = None  # the calibration probes beside the log (imply.diagnose.probes), where it has them
+    # where the log's observables are measured against a reference session (imply.diagnose.reference): by
+    # observable name ("displacement", or one of the aux observables), the (n,) sd of the baseline taken out of
+    # each push's log value, which a fit counts beside the noise (None: the table is the only baseline)
+    baseline_sd: dict[str, np.ndarray] | None = None
 
     def aux(self, name: str) -> np.ndarray | None:
         """(n,) the log of an observable beside the displacement (``stop_time``, ``pusher_speed``, or one of

@@ -305,3 +305,33 @@ def verdict_text(summary: Summary) -> str:
         if how:
             parts.append(f"Measurements that would tell them apart too: {'; '.join(how)}.")
     return " ".join(parts)
+
+
+def _share_words(share: float | None) -> str:
+    if share is None:
+        return "n/a (no gap above the noise)"
+    return f"{min(max(share, 0.0), 1.0):.0%}"
+
+
+def reference_text(summary) -> str:
+    """The verdict of a diagnosis against a reference session (``summary.reference``): what changed since the
+    reference, the standing gap, and how far the new session's gap shrinks."""
+    ref = summary.reference
+    since = verdict_text(summary)
+    if summary.verdict.adequacy == Adequacy.NO_GAP:
+        since = (
+            "nothing beyond noise changed since the reference: with the standing gap taken out, the table agrees "
+            f"with these pushes (RMS residual {summary.shrinkage.before_rms:.3g} against a noise floor of "
+            f"{summary.shrinkage.noise_floor_rms:.3g} in log d)."
+        )
+    else:
+        since = since[0].lower() + since[1:]
+    st = ref.standing
+    sh = summary.cause_shrink
+    return (
+        f"Since the reference session, {since} "
+        f"The standing gap, read from the reference ({st.n_pushes} pushes): {st.headline[0].lower()}{st.headline[1:]} "
+        f"The new session's gap against the table ({sh.before_rms:.3g} RMS log d) shrinks by "
+        f"{_share_words(sh.cause_share_closed)} once the cause of the change is added, and by "
+        f"{_share_words(sh.cause_and_standing_share_closed)} once the standing gap is described too."
+    )

@@ -314,6 +314,43 @@ def _next_push_lines(s: Summary) -> list[str]:
     return lines
 
 
+def _reference_lines(s: Summary) -> list[str]:
+    """The report's section on the reference session and the two gaps (none without a reference)."""
+    ref = s.reference
+    if ref is None:
+        return []
+    st, sh = ref.standing, s.cause_shrink
+    lines = [
+        "## Against a reference session",
+        "",
+        f"Reference: `{ref.pushlog}` ({ref.n_pushes} pushes). Boxes in both sessions: {len(ref.objects_shared)}"
+        + (f"; only in the log, left out: {', '.join(ref.objects_log_only)}" if ref.objects_log_only else "")
+        + (
+            f"; only in the reference, used for the standing gap alone: {', '.join(ref.objects_reference_only)}"
+            if ref.objects_reference_only
+            else ""
+        )
+        + f". The standing gap was taken out of {ref.pushes_matched} of the log's pushes by the reference's own "
+        f"pushes of the same box, speed and direction, and out of {ref.pushes_modelled} by its fit"
+        + (f"; not used against it: {', '.join(ref.observables_dropped)}" if ref.observables_dropped else "")
+        + ".",
+        "",
+        f"**The standing gap** (the reference alone: RMS {_fmt(st.baseline_rms)} in log d, noise sd "
+        f"{_fmt(st.noise_sd)}): {st.sentence}",
+        "",
+    ]
+    if sh is not None:
+        lines += [
+            f"**How far the new session's gap shrinks** (RMS log d against the table, each box refitted, in sample): "
+            f"{_fmt(sh.before_rms)} with the table alone; {_fmt(sh.cause_rms)} once the cause of the change is added "
+            f"(share of the gap above the noise floor {_fmt(sh.noise_floor_rms)} closed: "
+            f"{_fmt(sh.cause_share_closed, '.2f')}); {_fmt(sh.cause_and_standing_rms)} once the standing gap is "
+            f"described too (share {_fmt(sh.cause_and_standing_share_closed, '.2f')}).",
+            "",
+        ]
+    return lines
+
+
 def markdown(s: Summary, *, plots: bool = True) -> str:
     """The human report; ``plots``: whether the folder holds the plots (their image lines are left out otherwise)."""
     v, sh, noise = s.verdict, s.shrinkage, s.noise
@@ -340,9 +377,9 @@ def markdown(s: Summary, *, plots: bool = True) -> str:
         )
         + f". Table model floor: {_fmt(s.options.model_floor)} RMS log d{_floor_parts(s.model_floor)}.",
         "",
-        "## Verdict",
-        "",
     ]
+    lines += _reference_lines(s)
+    lines += ["## Verdict" + (" (what changed since the reference)" if s.reference is not None else ""), ""]
     lines.append(
         f"Adequacy: **{v.adequacy.replace('_', ' ')}**; identification: "
         f"**{v.identification.replace('_', ' ')}**; causes stated: {', '.join(v.effects) or 'none'}"

@@ -25,6 +25,7 @@ from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.fit import Problem
 from imply.diagnose.probes import probes_beside, read_probes
 from imply.diagnose.pushlog import PushLog, read_pushlog
+from imply.diagnose.reference import diagnose_against
 from imply.diagnose.report import REPORT_FILES, write_report
 from imply.diagnose.track_file import read_track, track_beside
 from imply.io import check_folder, write_folder
@@ -35,10 +36,12 @@ log = logging.getLogger("imply.diagnose")
 
 @dataclass(frozen=True)
 class Report:
-    """One push log (read and checked against the table) and the report folder it goes to (checked)."""
+    """One push log (read and checked against the table) and the report folder it goes to (checked); with a
+    reference session of the same robot and boxes, recorded before the change (:mod:`imply.diagnose.reference`)."""
 
     pushlog: PushLog
     folder: Path
+    reference: PushLog | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -140,14 +143,24 @@ def check_report_folder(folder: str | os.PathLike, force: bool, inputs) -> None:
 def diagnose_report(report: Report, session: Session, *, force: bool = False) -> Summary:
     """Diagnose one push log into its report folder; returns the summary."""
     opts = session.options
-    problem = Problem.of(
-        report.pushlog,
-        session.table,
-        session.effect_tables,
-        grid=opts.grid,
-        observables=opts.observables(),
-    )
-    diag = diagnose(problem, list(session.candidates), opts)
+    if report.reference is not None:
+        diag = diagnose_against(
+            report.pushlog,
+            report.reference,
+            table=session.table,
+            etables=session.effect_tables,
+            candidates=list(session.candidates),
+            opts=opts,
+        )
+    else:
+        problem = Problem.of(
+            report.pushlog,
+            session.table,
+            session.effect_tables,
+            grid=opts.grid,
+            observables=opts.observables(),
+        )
+        diag = diagnose(problem, list(session.candidates), opts)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)
     v = diag.summary.verdict
     log.info("%s: %s, %s -> %s", report.pushlog.path, v.adequacy, v.identification, report.folder)

@@ -1,0 +1,150 @@
+"""`imply diagnose LOG --reference REF` end to end on a tiny table: a robot whose contact is not the table's.
+
+The logs come from the benchmark's world (:mod:`imply.realworld`), whose contact model is
+drawn apart from the table's: the standing gap. The log adds an effect; its reference session
+is the same world and boxes without it, one push of each, with noise of its own
+(:func:`imply.realworld.cases.reference_log`).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from imply.cli import main
+from imply.io import write_csv
+from imply.realworld import cases as C
+from imply.sim import SceneConfig
+from sample_inputs import PUSHLOG_CSV
+
+GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, "floor_pushes": 24}'
+EFFECTS = "tilt,speed_offset,viscous"
+DESIGN = C.ContactBenchmarkConfig.from_dict(
+    {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}
+)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("effect-cache")
+
+
+def _case(effects: list[dict], seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    n = DESIGN.n_objects
+    return {
+        "id": f"case{seed}",
+        "group": "test",
+        "effects": effects,
+        "mass": np.exp(rng.uniform(*np.log(DESIGN.masses), n)).tolist(),
+        "friction": np.exp(rng.uniform(*np.log(DESIGN.frictions), n)).tolist(),
+        "direction": rng.uniform(0, 2 * np.pi, n * len(DESIGN.speeds)).tolist(),
+        "measured_mass": True,
+        "stop_time": True,
+        "noise": "gaussian",
+        "noise_seed": seed,
+        "engine": "mujoco",
+        # the robot's standing gap: friction that changes with speed, and a pusher contact of its own
+        "contact": {
+            "kinds": ["pusher_contact", "speed_friction"],
+            "parameters": {
+                "friction_slope": 0.7,
+                "friction_slope_speed": 0.15,
+                "pusher_impedance": 0.3,
+                "pusher_friction": 0.5,
+            },
+        },
+        "design": "random",
+    }
+
+
+@pytest.fixture(scope="module")
+def sessions(tiny_table, tmp_path_factory):
+    """A tilted-table log of a robot with a standing gap, its reference session, and a null log of the same robot."""
+    scene = SceneConfig.from_dict(tiny_table.meta["scene"])
+    tilt = {"name": "tilt", "magnitude": 0.025, "in_library": True, "azimuth": float(np.radians(60.0))}
+    effect, null = _case([tilt], seed=21), _case([], seed=22)
+    sims = C.simulate_cases([effect, null], DESIGN, scene, nthread=2)
+    folder = tmp_path_factory.mktemp("sessions")
+    for case in (effect, null):
+        frame, _ = C.make_log(case, sims[case["id"]], DESIGN, scene)
+        write_csv(folder / f"{case['id']}.csv", frame)
+        write_csv(folder / f"{case['id']}-before.csv", C.reference_log(case, sims[case["id"]], DESIGN, scene))
+    return folder
+
+
+def _diagnose(tiny_table_path, cache, log, out, *extra) -> tuple[dict, str]:
+    argv = [
+        "diagnose",
+        str(log),
+        "--table",
+        str(tiny_table_path),
+        "--effects",
+        EFFECTS,
+        "--effect-grid-json",
+        GRID,
+        "--cache-dir",
+        str(cache),
+        "--threads",
+        "2",
+        "--no-plots",
+        "-o",
+        str(out),
+        *extra,
+    ]
+    assert main(argv) == 0
+    return json.loads((out / "summary.json").read_text()), (out / "report.md").read_text()
+
+
+def test_reference_session_tells_the_change_from_the_standing_gap(tiny_table_path, cache, sessions, tmp_path):
+    """Against its reference, the tilt is the one change, near its size, and the report gives both gaps; the same
+    robot with nothing changed states no change, though its standing gap is there (one test: one effect cache)."""
+    s, report = _diagnose(
+        tiny_table_path,
+        cache,
+        sessions / "case21.csv",
+        tmp_path / "r",
+        "--reference",
+        str(sessions / "case21-before.csv"),
+    )
+    v = s["verdict"]
+    assert v["effects"] == ["tilt"] and v["identification"] == "one_cause", s["sentence"]
+    tilt = next(e for e in s["effects"] if e["effect"] == "tilt")
+    assert abs(tilt["magnitude"] - 0.025) < 0.3 * 0.025
+    ref = s["reference"]
+    assert ref["objects_shared"] == C.object_names(8) and ref["objects_log_only"] == []
+    assert ref["pushes_matched"] == s["n_pushes"] and ref["pushes_modelled"] == 0
+    # the standing gap is the reference's own gap: well beyond its noise
+    assert ref["standing"]["adequacy"] != "no_gap" and ref["standing"]["baseline_rms"] > 3 * ref["standing"]["noise_sd"]
+    shrink = s["cause_shrink"]
+    assert shrink["cause_and_standing_share_closed"] > 0.8
+    assert s["sentence"].startswith("Since the reference session, the gap is ")
+    assert "## Against a reference session" in report and "**The standing gap**" in report
+
+    s, _ = _diagnose(
+        tiny_table_path,
+        cache,
+        sessions / "case22.csv",
+        tmp_path / "n",
+        "--reference",
+        str(sessions / "case22-before.csv"),
+    )
+    assert s["verdict"]["effects"] == [], s["sentence"]
+    assert s["reference"]["standing"]["adequacy"] != "no_gap"
+    assert s["sentence"].startswith("Since the reference session, nothing beyond noise changed")
+
+
+def test_reference_without_shared_boxes_is_refused_in_one_line(tiny_table_path, tmp_path, capsys):
+    log, other = tmp_path / "log.csv", tmp_path / "other.csv"
+    log.write_text(PUSHLOG_CSV)
+    frame = pd.read_csv(log)
+    frame["object_id"] = "crate-" + frame["object_id"].astype(str)
+    frame.to_csv(other, index=False)
+    argv = ["diagnose", str(log), "--table", str(tiny_table_path), "--reference", str(other)]
+    assert main([*argv, "-o", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pushes none of the boxes" in err[0], err
+    assert not (tmp_path / "x").exists()
