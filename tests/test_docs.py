@@ -304,7 +304,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         'else "$PY" -m imply.cli "$@"; fi; }\n'
     )
     blocks = bash_blocks(DOCS / "tutorials" / "diagnose.md")
-    assert len(blocks) == 6
+    assert len(blocks) == 7
     proc = subprocess.run(["bash", "-c", prelude + "\n".join(blocks)], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((tmp_path / "gap-report" / "summary.json").read_text())
@@ -325,3 +325,9 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert {line.split(",")[0] for line in probes[1:]} == {"free_stroke", "friction", "added_mass"}
     probed = json.loads((tmp_path / "gap-report-probed" / "summary.json").read_text())
     assert "calibration probes" in probed["observables_note"]
+    # against the reference session, the slope is what changed, beside the soft pusher's standing gap
+    since = json.loads((tmp_path / "gap-report-since" / "summary.json").read_text())
+    assert since["verdict"]["effects"] == ["tilt"], since["sentence"]
+    assert since["reference"]["pushes_matched"] == since["n_pushes"]
+    assert since["reference"]["standing"]["adequacy"] != "no_gap"
+    assert (tmp_path / "gap-report-since" / "report.md").read_text().count("Since the reference session, the gap") == 1

@@ -68,21 +68,30 @@ def test_gap_workflow_tiny(tmp_path, repo_root):
         "gap-contact-named",
         "gap-contact-contenders",
         "gap-contact-wrong",
-        "gap-contact-loop",
-        # the lab benchmark's sealed set, with and without probes, and its closed loop
+        # the lab benchmark's sealed set alone and with probes ...
         "gap-lab-null",
         "gap-lab-pusher",
         "gap-lab-named",
-        "gap-lab-single-probes",
-        "gap-lab-single",
         "gap-lab-wrong",
+        "gap-lab-wrong-effect",
         "gap-lab-contact",
-        "gap-lab-loop",
+        # ... and against each log's reference session, with its closed loop
+        "gap-lab-ref-null",
+        "gap-lab-ref-single",
+        "gap-lab-ref-named",
+        "gap-lab-ref-wrong-effect",
+        "gap-lab-ref-wrong",
+        "gap-lab-ref-shrink",
+        "gap-lab-ref-contact",
+        "gap-lab-ref-loop",
     }
     assert "gapContactSingleRight" in part["numbers"]
     # the design variant with every observable (pusher speed, track) is scored on the development sets only
     assert not any(name.startswith("gapObs") for name in part["numbers"])
-    assert {"gapLabNullNoLib", "gapLabSingleRightProbes", "gapLabLoopRight"} <= set(part["numbers"])
+    assert {"gapLabNullNoLib", "gapLabSingleRightProbes", "gapLabLoopRight", "gapLabRefNullNoChange"} <= set(
+        part["numbers"]
+    )
+    assert {"gapShrinkTruthWithin", "gapContactShrinkTruthWithin", "gapLabRefShrinkWithin"} <= set(part["numbers"])
     assert {
         "gapContactLogsN",
         "gapContactNullNoLib",
@@ -154,6 +163,7 @@ def check_development_target(tmp_path, repo_root):
         "gap_dev_contact_diagnose_observed",
         "gap_dev_contact_closed_loop",
         "gap_dev_benchmark",
+        "gap_lab_diagnose_reference",
         "gap_lab_score",
     ):
         assert rule in planned, planned
@@ -162,8 +172,8 @@ def check_development_target(tmp_path, repo_root):
 
 
 def check_lab(tmp_path):
-    """The lab benchmark's two sets on every engine, with probes, each effect log marked, and the development set
-    diagnosed with and without its probes and scored."""
+    """The lab benchmark's two sets on every engine, with probes and reference sessions, each effect log marked, and
+    the sealed set diagnosed alone, with its probes and against its references, and scored."""
     target, score = LAB_TARGETS
     result = json.loads((tmp_path / target).read_text())["result"]
     assert set(result["sets"]) == {"sealed"}
@@ -210,9 +220,23 @@ def check_lab(tmp_path):
             if lab["probes"]:
                 said = "entered every fit" if variant == "probes" else "no fit used them"
                 assert said in report
-    # the closed loop ran (probes allowed) on the logs the probes' diagnosis left with several contenders
+    # every log has a reference session: its boxes, one push of each of its pushes' conditions, probes where it has
+    # them; its diagnosis against it says both gaps, and the tier is scored apart
+    refs = tmp_path / "results/gap/lab/sealed/references"
+    for name, lab in labels.items():
+        ref, own = read_pushlog(refs / f"{name}.csv"), read_pushlog(folder / f"{name}.csv")
+        assert ref.objects == own.objects and (refs / f"{name}.probes.csv").is_file() == bool(lab["probes"])
+        conditions = {(o, round(v, 6), round(d, 6)) for o, v, d in zip(own.obj, own.speed, own.direction, strict=True)}
+        assert ref.n == len(conditions)
+        summary = json.loads((tmp_path / f"results/gap/lab/sealed/reports_reference/{name}/summary.json").read_text())
+        assert summary["reference"]["objects_shared"] == own.objects and "cause_shrink" in summary
+        assert summary["sentence"].startswith("Since the reference session, ")
+    assert scored["reference"]["all"]["n_logs"] == 4
+    single = [c for c in scored["reference"]["all"]["cases"] if c["group"].startswith("single")]
+    assert all(c["true_share"] is None or -1 < c["true_share"] <= 1 for c in single)
+    # the closed loop ran (probes allowed) on the logs the reference tier left with several contenders
     loop = json.loads((tmp_path / "results/gap/lab/sealed/closed_loop/closed_loop.json").read_text())
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"}
     assert set(scored["closed_loop"]) >= {"next", "random", "rows"}
     md = (tmp_path / "results/gap/lab/sealed/score.md").read_text()
-    assert md.startswith("# Lab benchmark") and "## Closed loop" in md
+    assert md.startswith("# Lab benchmark") and "## Closed loop" in md and "## How far the gap shrinks" in md

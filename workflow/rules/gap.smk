@@ -226,6 +226,7 @@ rule gap_lab_generate:
         table="results/table/table.npz",
     output:
         logs=directory("results/gap/lab/{set}/logs"),
+        references=directory("results/gap/lab/{set}/references"),
         labels="results/gap/lab/{set}/labels.json",
         timing="results/gap/lab/{set}/timing.json",
     params:
@@ -246,7 +247,8 @@ rule gap_lab_generate:
         "results/benchmarks/gap_lab_generate/{set}.tsv"
     shell:
         "imply gap lab-generate --lab-json {params.lab} --set {wildcards.set} --table {input.table}"
-        " --logs {output.logs} --labels {output.labels} --timing {output.timing} --threads {threads} > {log} 2>&1"
+        " --logs {output.logs} --references {output.references} --labels {output.labels} --timing {output.timing}"
+        " --threads {threads} > {log} 2>&1"
 
 
 # The sealed set's marking (the development set's is part of the gap_development target: development.smk).
@@ -311,15 +313,48 @@ rule gap_lab_diagnose:
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
-# The closed loop with probes allowed: each log the probes' diagnosis leaves with several contenders gets its
-# recommended next pushes and probe, or as many random pushes of its own design, in its own world, and is diagnosed
-# again.
+# The third tier: each log diagnosed against its reference session (the same world and boxes without the effect,
+# one push of each, fresh noise; with probes where the log has them).
+rule gap_lab_diagnose_reference:
+    conda:
+        IMPLY_ENV
+    input:
+        logs="results/gap/lab/{set}/logs",
+        references="results/gap/lab/{set}/references",
+        table="results/table/table.npz",
+        tables="results/gap/effect_tables",
+    output:
+        directory("results/gap/lab/{set}/reports_reference"),
+    params:
+        grid=as_json(config["gap"]["effect_grid"]),
+        options=lambda wildcards: gap_lab_diagnose_options(wildcards, probes=True),
+        effects=gap_effects_option(),
+    wildcard_constraints:
+        set="development|sealed",
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=40,
+    log:
+        "results/logs/gap_lab_diagnose_reference_{set}.log",
+    benchmark:
+        "results/benchmarks/gap_lab_diagnose_reference/{set}.tsv"
+    shell:
+        "imply gap diagnose-many {input.logs} --references {input.references} --table {input.table}"
+        " --effect-grid-json {params.grid} {params.effects} --options-json {params.options} --cache-dir {input.tables}"
+        " --threads 1 --no-plots -o {output} > {log} 2>&1"
+
+
+# The closed loop on the reference tier, probes allowed: each log its diagnosis against the reference leaves with
+# several contenders gets its recommended next pushes and probe, or as many random pushes of its own design, in its
+# own world, and is diagnosed against its reference again.
 rule gap_lab_closed_loop:
     conda:
         IMPLY_ENV
     input:
         logs="results/gap/lab/{set}/logs",
-        reports="results/gap/lab/{set}/reports_probes",
+        references="results/gap/lab/{set}/references",
+        reports="results/gap/lab/{set}/reports_reference",
         table="results/table/table.npz",
         tables="results/gap/effect_tables",
     output:
@@ -341,8 +376,9 @@ rule gap_lab_closed_loop:
         "results/benchmarks/gap_lab_closed_loop/{set}.tsv"
     shell:
         "imply gap closed-loop --lab-json {params.lab} --set {wildcards.set} --logs {input.logs}"
-        " --reports {input.reports} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
-        " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
+        " --reports {input.reports} --references {input.references} --table {input.table}"
+        " --effect-grid-json {params.grid} {params.effects} --options-json {params.options} --cache-dir {input.tables}"
+        " --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
 rule gap_lab_score:
@@ -352,7 +388,9 @@ rule gap_lab_score:
         labels="results/gap/lab/{set}/labels.json",
         probes="results/gap/lab/{set}/reports_probes",
         no_probes="results/gap/lab/{set}/reports_no_probes",
+        reference="results/gap/lab/{set}/reports_reference",
         closed_loop="results/gap/lab/{set}/closed_loop",
+        table="results/table/table.npz",
     output:
         result="results/gap/lab/{set}/score.json",
         markdown=report(
@@ -374,5 +412,6 @@ rule gap_lab_score:
         "results/benchmarks/gap_lab_score/{set}.tsv"
     shell:
         "imply gap lab-score --lab-json {params.lab} --set {wildcards.set} --labels {input.labels}"
-        " --reports-probes {input.probes} --reports-no-probes {input.no_probes} --closed-loop {input.closed_loop}"
+        " --reports-probes {input.probes} --reports-no-probes {input.no_probes} --reports-reference {input.reference}"
+        " --closed-loop {input.closed_loop} --table {input.table}"
         " -o {output.result} --markdown {output.markdown} > {log} 2>&1"

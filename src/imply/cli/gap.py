@@ -50,6 +50,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "them (every .csv or .parquet in it but the tracks and probes)",
     )
     dm.add_argument("-o", "--output", required=True, help="folder for the report folders")
+    dm.add_argument(
+        "--references",
+        metavar="DIR",
+        help="a folder of reference sessions, one per log under the log's file name (with their .probes.csv beside "
+        "them): each log is diagnosed against its own ('imply diagnose --reference')",
+    )
     add_diagnose_options(dm)
     dm.set_defaults(func=cmd_diagnose_many)
 
@@ -104,6 +110,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     cl.add_argument("--logs", required=True, help="folder of the benchmark's push logs")
     cl.add_argument("--reports", required=True, help="folder of their report folders (one per log)")
     cl.add_argument("-o", "--output", required=True, help="folder for the appended logs and their reports")
+    cl.add_argument(
+        "--references",
+        metavar="DIR",
+        help="the logs' reference sessions (one per log under its file name): every diagnosis is against its own",
+    )
     add_diagnose_options(cl)
     cl.set_defaults(func=cmd_closed_loop)
 
@@ -124,6 +135,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--logs",
         required=True,
         help="folder for the push logs (<log id>.csv, .track.csv, and .probes.csv where probed)",
+    )
+    lab.add_argument(
+        "--references",
+        help="folder for each log's reference session (<log id>.csv, .probes.csv where probed): the same world and "
+        "boxes without the effect, one push of each, fresh noise",
     )
     lab.add_argument("--labels", required=True, help="JSON file for the logs' labels (with --shards: the shard's)")
     lab.add_argument(
@@ -169,13 +185,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     ls = gsub.add_parser(
         "lab-score",
-        help="score one lab-benchmark set's diagnoses, with and without its probes (a result document and a report)",
+        help="score one lab-benchmark set's diagnoses: alone, with its probes and against its reference sessions "
+        "(a result document and a report)",
     )
+    ls.add_argument("--table", default=DEFAULT_TABLE, help="the push table (the true share of each log's gap)")
     ls.add_argument("--lab-json", type=json_arg, required=True, help="config gap.lab_benchmark (its targets)")
     ls.add_argument("--set", required=True, choices=("development", "sealed"), help="which set")
     ls.add_argument("--labels", required=True, help="the set's labels ('imply gap lab-generate')")
     ls.add_argument("--reports-probes", required=True, help="the folder of its report folders, diagnosed with probes")
     ls.add_argument("--reports-no-probes", required=True, help="the same diagnosed without them")
+    ls.add_argument("--reports-reference", help="the same diagnosed against their reference sessions")
     ls.add_argument(
         "--closed-loop", nargs="*", default=[], help="folders written by 'imply gap closed-loop --lab-json' on this set"
     )
@@ -251,7 +270,16 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
         if stem in stems:
             raise UserError(f"{path} and {stems[stem]} would share the report folder {out / stem}; rename one")
         stems[stem] = path
-    run(diagnose_request(args, [(path, out / Path(path).stem) for path in pushlogs]))
+    refs: list[str | None] = [None] * len(pushlogs)
+    if args.references is not None:
+        folder = Path(args.references)
+        if not folder.is_dir():
+            raise UserError(f"--references {folder}: no such folder")
+        refs = [str(folder / Path(path).name) for path in pushlogs]
+        missing = [r for r in refs if not Path(r).is_file()]
+        if missing:
+            raise UserError(f"--references {folder}: no reference session {Path(missing[0]).name} for its log")
+    run(diagnose_request(args, [(path, out / Path(path).stem, ref) for path, ref in zip(pushlogs, refs, strict=True)]))
     return 0
 
 
@@ -285,8 +313,8 @@ def cmd_closed_loop(args: argparse.Namespace) -> int:
             raise UserError("--set is the lab benchmark's (with --lab-json)")
         design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
         drawn = draw_cases(design)
-    for name in ("logs", "reports"):
-        if not Path(getattr(args, name)).is_dir():
+    for name in ("logs", "reports", "references"):
+        if getattr(args, name) is not None and not Path(getattr(args, name)).is_dir():
             raise UserError(f"--{name} {getattr(args, name)}: no such folder")
     out = output_dir(args.output)
     request = diagnose_request(args, [])
@@ -299,6 +327,7 @@ def cmd_closed_loop(args: argparse.Namespace) -> int:
         reports=Path(args.reports),
         session=prepare(request),
         out=out,
+        references=Path(args.references) if args.references else None,
         nthread=args.threads,
     )
     log.info("closed loop: %d logs x 2 arms diagnosed again -> %s", len(rows) // 2, out)
@@ -383,6 +412,7 @@ def cmd_lab_generate(args: argparse.Namespace) -> int:
         logs=Path(args.logs),
         labels=Path(args.labels),
         timing=Path(args.timing),
+        references=Path(args.references) if args.references else None,
         nthread=args.threads,
         progress=True,
         shard=args.shard,
@@ -482,7 +512,7 @@ def cmd_separability(args: argparse.Namespace) -> int:
 
 def cmd_lab_score(args: argparse.Namespace) -> int:
     from imply.paper.results import write_result
-    from imply.realworld.benchmark import find_summaries
+    from imply.realworld.benchmark import CONTACT_SINGLE, find_summaries, shrink_sizes
     from imply.realworld.lab_score import score_lab, write_lab_score
 
     design = _lab_config(args)
@@ -490,7 +520,14 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
         with open(args.labels) as fh:
             labels = json.load(fh)
     summaries = {}
-    for variant, folder in (("no_probes", args.reports_no_probes), ("probes", args.reports_probes)):
+    tiers = (
+        ("no_probes", args.reports_no_probes),
+        ("probes", args.reports_probes),
+        ("reference", args.reports_reference),
+    )
+    for variant, folder in tiers:
+        if folder is None:
+            continue
         with user_errors(FileNotFoundError, message=f"--reports-{variant.replace('_', '-')}: {{error}}"):
             summaries[variant] = find_summaries(labels, [Path(folder)])
     result = score_lab(
@@ -500,6 +537,7 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
         min_size_sd=design.min_size_sd,
         alias_cos=design.alias_cos,
         crossing_sd=design.crossing_sd,
+        sizes=shrink_sizes(labels, load_table(args.table), CONTACT_SINGLE),
     )
     if args.closed_loop:
         from imply.realworld.closed_loop import score_closed_loop
@@ -514,12 +552,13 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
     for variant in summaries:
         r = result[variant]["all"]
         log.info(
-            "%s set, %s: nulls stating no effect %.2f, one cause right %.2f, contact named %.2f",
+            "%s set, %s: nulls stating no effect %.2f, one cause right %.2f, contact named %.2f, shrink within %.2f",
             args.set,
             variant,
             r["null_no_library"],
             r["single_right"],
             r["contact_named"],
+            r["shrink_within"],
         )
     write_result(args.output, score_lab, result)
     write_lab_score(result, args.set, args.markdown)
@@ -553,8 +592,14 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         from imply.realworld.cases import ContactBenchmarkConfig
 
         design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
+        from imply.realworld.benchmark import CONTACT_SINGLE, shrink_sizes
+
         result["contact"] = score_contact_cases(
-            contact_labels, contact_summaries, targets=dict(design.targets), min_size_sd=design.min_size_sd
+            contact_labels,
+            contact_summaries,
+            targets=dict(design.targets),
+            min_size_sd=design.min_size_sd,
+            sizes=shrink_sizes(contact_labels, table, CONTACT_SINGLE),
         )
         if args.closed_loop:
             from imply.realworld.closed_loop import score_closed_loop

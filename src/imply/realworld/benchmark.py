@@ -247,6 +247,9 @@ def score_cases(
                 "correct": bool(correct),
                 "exact": exact,
                 "gap_share_closed": sh.gap_share_closed if accepted else 0.0,
+                # the share of the gap the stated causes close against the true one (one-effect logs)
+                "true_share": true_cause_share({"all": size}) if group == "single" else None,
+                "stated_share": stated_cause_share(s),
                 "anchored_share_closed": sh.anchored_share_closed if accepted else 0.0,
                 "before_rms": sh.before_rms,
                 "after_rms": sh.after_rms,
@@ -290,7 +293,9 @@ def score_cases(
     rel = mag["relative_error"].dropna().astype(float)
     az = mag["azimuth_error_deg"].dropna().astype(float)
     out_rows = frame["true_outliers"] > 0
+    shrink = shrink_scores(frame, single & frame["big"], float(config.targets.get("shrink_tolerance", 0.15)))
     return {
+        **shrink,
         "cases": rows,
         "magnitudes": mags,
         "confusion": {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index},
@@ -435,11 +440,68 @@ SCORED_COLUMNS = (
     "named",
     "one_cause_right",
     "told_right",
+    "readable",
+    "wrong_effect_single",
+    "true_share",
+    "stated_share",
 )
 
 
+SPEED_ERRORS = ("speed_gain", "speed_offset")
+
+
+def true_cause_share(sizes: dict) -> float | None:
+    """The share of a one-effect log's gap (the RMS log d its noise-free observables leave after each object's
+    baseline fit: :func:`visible_size`) that its effect accounts for: the gap with the effect (``sizes["all"]``)
+    against the same world's without it (``sizes["contact"]``; 0 where the label has no such run: a world of the
+    table's physics). None where the log has no gap."""
+    total = sizes.get("all")
+    if total is None or not np.isfinite(total) or total <= 1e-9:
+        return None
+    return float((total - sizes.get("contact", 0.0)) / total)
+
+
+def stated_cause_share(summary: Summary) -> float:
+    """The share of the log's gap the diagnosis says its stated causes close (``cause_shrink``; 0 where it states
+    none or sees no gap above the noise)."""
+    sh = summary.cause_shrink
+    share = sh.cause_share_closed if sh is not None else None
+    return 0.0 if share is None or not summary.verdict.effects else float(share)
+
+
+def shrink_sizes(labels: dict[str, dict], table, groups: tuple[str, ...], *, progress: bool = True) -> dict[str, dict]:
+    """:func:`visible_size` of the noise-free log with and without its effect (``all``, ``contact`` where the label
+    has it) for the logs of ``groups``: what :func:`true_cause_share` reads."""
+    from tqdm.auto import tqdm
+
+    chosen = {cid: lab for cid, lab in labels.items() if lab["group"] in groups}
+    return {
+        cid: {what: visible_size(lab, table, what) for what in ("all", "contact") if what in lab["noise_free"]}
+        for cid, lab in tqdm(chosen.items(), desc="true shares", unit="log", disable=not progress)
+    }
+
+
+def shrink_scores(frame: pd.DataFrame, mask: pd.Series, tolerance: float) -> dict:
+    """How close the stated share of the gap comes to the true one over the logs ``mask`` of ``frame`` (columns
+    ``true_share``, ``stated_share``): the share within ``tolerance``, the median and largest absolute difference."""
+    sub = frame.loc[mask & frame["true_share"].notna()] if "true_share" in frame else frame.iloc[:0]
+    err = (sub["stated_share"].astype(float) - sub["true_share"].astype(float)).abs() if len(sub) else pd.Series()
+    return {
+        "shrink_within": float((err <= tolerance).mean()) if len(err) else float("nan"),
+        "n_shrink_within": int(len(err)),
+        "shrink_error_median": float(err.median()) if len(err) else float("nan"),
+        "shrink_error_max": float(err.max()) if len(err) else float("nan"),
+        "shrink_tolerance": tolerance,
+    }
+
+
 def score_contact_cases(
-    labels: dict[str, dict], summaries: dict[str, Summary], *, targets: dict, min_size_sd: float
+    labels: dict[str, dict],
+    summaries: dict[str, Summary],
+    *,
+    targets: dict,
+    min_size_sd: float,
+    sizes: dict[str, dict] | None = None,
 ) -> dict:
     """The other-contact benchmark's metrics from sealed labels and diagnose summaries.
 
@@ -456,7 +518,20 @@ def score_contact_cases(
     - ``told_right``: one-effect logs whose true effect's own hypothesis (:func:`told_error`) has its magnitude within
       that, whatever the verdict: the reach of ``single_right`` on these fits;
     - ``wrong_single``: logs with an effect outside the library whose verdict states a library mechanism as the one
-      cause; ``wrong_mechanism``: ... states one as a cause at all.
+      cause; ``wrong_mechanism``: ... states one as a cause at all;
+    - ``wrong_effect_single``: one-effect logs (any size) whose verdict states another library effect as the one
+      cause;
+    - ``null_no_change``: null logs whose verdict states no cause at all, not even a change of the contact (against a
+      reference session, what "nothing changed" means);
+    - ``single_right_readable``: ``single_right`` over the big one-effect logs whose effect the log's observables can
+      tell from the other library effects once a reference takes the contact out: all but the speed errors, which
+      need the pusher's speed or its free strokes (a log with probes);
+    - ``shrink_within`` (with ``sizes``, :func:`shrink_sizes`): big one-effect logs whose stated share of the gap
+      (:func:`stated_cause_share`) is within ``targets["shrink_tolerance"]`` of the true one
+      (:func:`true_cause_share`), with the median and largest difference.
+
+    Against a reference session (a summary with ``reference``), the contact is named where the reference's own
+    verdict names it: the standing gap is where the contact shows.
     """
     rows = []
     within = float(targets.get("magnitude_within", 0.3))
@@ -479,7 +554,8 @@ def score_contact_cases(
             "causes": "+".join(causes) or "none",
             "effect_causes": "+".join(c for c in causes if c not in CONTACT) or "none",
             "contact_kinds": "+".join(kinds) or "engine",
-            "contact_named": any(set(c) & set(CONTACT) for c in named_classes(s)),
+            "contact_named": any(set(c) & set(CONTACT) for c in named_classes(s))
+            or (s.reference is not None and bool(set(s.reference.standing.named) & set(CONTACT))),
             "contenders": " | ".join("+".join(c.effects) or "none" for c in v.contenders),
             "n_contenders": len(v.contenders),
             "sentence": s.sentence,
@@ -499,7 +575,12 @@ def score_contact_cases(
             rel = stated_error(e, s)
             named = bool(named_cls and rel is not None and rel <= within)
             row.update(told_error=told_error(e, s), told_right=told_within(e, s, within))
+            true_share = true_cause_share(sizes[cid]) if sizes is not None and cid in sizes else None
             row.update(
+                true_share=true_share,
+                stated_share=stated_cause_share(s),
+                readable=bool(e["name"] not in SPEED_ERRORS or lab.get("probes")),
+                wrong_effect_single=bool(row["one_cause"] and not named_cls),
                 size=size,
                 big=bool(size >= min_size_sd * lab["noise"]["sd"]),
                 named_class=named_cls,
@@ -524,6 +605,8 @@ def score_contact_cases(
     # a MuJoCo contact variant whose box-table contact is off (table_compliance): the library names its change
     compliant = frame["contact_kinds"].str.contains("table_compliance")
     frame["wrong_single"] = frame["wrong"] & frame["one_cause"]
+    frame["no_change"] = frame["causes"] == "none"
+    any_single = g.isin(CONTACT_SINGLE)
     single = g.isin(CONTACT_SINGLE) & frame.get("big", pd.Series(False, index=frame.index)).fillna(False).astype(bool)
     outside = g.isin(CONTACT_OUTSIDE)
     out = {"cases": rows, "n_logs": int(len(frame)), "targets": dict(targets), "min_size_sd": min_size_sd}
@@ -535,6 +618,9 @@ def score_contact_cases(
         ("single_right", single, "one_cause_right"),
         ("told_right", single, "told_right"),
         ("wrong_single", outside, "wrong_single"),
+        ("wrong_effect_single", any_single, "wrong_effect_single"),
+        ("null_no_change", null, "no_change"),
+        ("single_right_readable", single & frame["readable"].fillna(False).astype(bool), "one_cause_right"),
         ("wrong_mechanism", outside, "wrong"),
         ("contact_named", compliant, "contact_named"),
         ("null_pusher_stated", null, "pusher_stated"),
@@ -543,6 +629,14 @@ def score_contact_cases(
         for engine in ("mujoco", "bullet", "sapien"):
             out[f"{key}_{engine}"], out[f"n_{key}_{engine}"] = share(mask & (frame["engine"] == engine), column)
     out["one_cause_right"], out["n_one_cause_right"] = share(single & frame["one_cause"], "one_cause_right")
+    tolerance = float(targets.get("shrink_tolerance", 0.15))
+    out.update(shrink_scores(frame, single, tolerance))
+    for engine in ("mujoco", "bullet", "sapien"):
+        part = shrink_scores(frame, single & (frame["engine"] == engine), tolerance)
+        out[f"shrink_within_{engine}"], out[f"n_shrink_within_{engine}"] = (
+            part["shrink_within"],
+            part["n_shrink_within"],
+        )
     n_cont = frame.loc[single, "n_contenders"] if len(frame) else pd.Series(dtype=float)
     out["contenders_mean"] = float(n_cont.mean()) if len(n_cont) else float("nan")
     out["contenders_max"] = int(n_cont.max()) if len(n_cont) else 0

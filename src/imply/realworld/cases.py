@@ -31,6 +31,7 @@ observables of the world without the effect (``noise_free["contact"]``).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -636,6 +637,21 @@ def make_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig)
         if key in case:
             label[key] = case[key]
     return frame, label
+
+
+def reference_seed(case: dict) -> int:
+    """The noise seed of ``case``'s reference session: a fresh draw, apart from the log's own."""
+    return int(np.random.default_rng([int(case["noise_seed"]), 5]).integers(2**31))
+
+
+def reference_log(case: dict, sim: dict, design: BenchmarkConfig, scene: SceneConfig) -> pd.DataFrame:
+    """The reference session a lab would have recorded of ``case`` before the change: the same world and boxes
+    without the effect (``sim["contact"]`` for an effect log, its own world for a null), one push of each of the
+    log's pushes, with a fresh draw of the log's noise (:func:`reference_seed`)."""
+    world = sim["contact"] if case["effects"] else sim["all"]
+    ref_case = {**case, "effects": [], "noise_seed": reference_seed(case)}
+    frame, _ = make_log(ref_case, {"all": world}, dataclasses.replace(design, replicates=1), scene)
+    return frame
 
 
 def extra_pushes(

@@ -73,13 +73,16 @@ def run_closed_loop(
     reports: Path,
     session: Session,
     out: Path,
+    references: Path | None = None,
     nthread: int = 0,
     progress: bool = True,
 ) -> list[dict]:
     """Both arms for every log of ``reports`` with several contenders (one report folder per log of ``logs``;
     ``drawn``: the benchmark's cases, :func:`imply.realworld.cases.draw_cases` or
     :func:`imply.realworld.lab.draw_lab_cases`): the appended logs (and probes files) in ``out/logs``, their reports
-    in ``out/reports``; returns one row per log and arm. Probes are run where ``design`` is a lab benchmark's."""
+    in ``out/reports``; returns one row per log and arm. Probes are run where ``design`` is a lab benchmark's. With
+    ``references`` (a folder of each log's reference session, under its file name), every diagnosis is against the
+    log's reference: the new pushes are ones the reference never ran, so their standing gap is its fit's."""
     probes_allowed = isinstance(design, LabBenchmarkConfig)
     cases = {c["id"]: c for c in drawn}
     # the random arm's draws follow the log's place in the benchmark, not in this job's share of it
@@ -126,7 +129,12 @@ def run_closed_loop(
                 probe_rows = more if probe_rows is None else pd.concat([probe_rows, more], ignore_index=True)
             if probe_rows is not None:
                 write_csv(_probes_file(path), probe_rows)
-            report = Report(pushlog=read_checked_pushlog(path, session.table), folder=out / "reports" / f"{cid}-{arm}")
+            ref = read_checked_pushlog(references / f"{cid}.csv", session.table) if references is not None else None
+            report = Report(
+                pushlog=read_checked_pushlog(path, session.table),
+                folder=out / "reports" / f"{cid}-{arm}",
+                reference=ref,
+            )
             diagnose_report(report, session, force=True)
             rows.append(
                 {
