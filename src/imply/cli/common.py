@@ -279,10 +279,9 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
     None]), checked once before any work: the report folders, the table, every push log and reference against it
     (a reference must push the log's boxes), the settings, the candidates."""
     from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog
+    from imply.diagnose.sessions import check_pair
     from imply.input_files import InputError
     from imply.io import OutputError
-
-    from imply.diagnose.sessions import check_pair
 
     folders = []
     for pushlog, folder, *ref in reports:
