@@ -1,7 +1,7 @@
 """A development run's verdicts judged again, stating causes wherever the gap is at least partly explained.
 
 Reads the summaries that ``benchmarks/gap_contact_dev.py`` wrote for a run (``--out``, ``--name``),
-judges each log's hypothesis table again with :func:`imply.diagnose.verdict.judge` as if its gap were
+judges each log's hypothesis table again with :func:`imply.diagnose.conclusion.verdict.judge` as if its gap were
 explained wherever it is partly explained (adequacy and identification fully separate; the adequacy
 itself is kept), and scores both readings of the same fits with
 :func:`imply.realworld.benchmark.score_contact_cases`. Nothing is diagnosed again.
@@ -22,7 +22,7 @@ from pathlib import Path
 import yaml
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.verdict import Adequacy, judge
+from imply.diagnose.conclusion.verdict import Adequacy, judge
 from imply.realworld.benchmark import find_summaries, score_contact_cases
 
 ROOT = Path(__file__).resolve().parents[1]

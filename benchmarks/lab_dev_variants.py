@@ -30,7 +30,7 @@ from pathlib import Path
 import yaml
 from gap_contact_dev import run_shards
 
-from imply.diagnose.candidates import CONTACT, get
+from imply.diagnose.physics.candidates import CONTACT, get
 from imply.realworld.benchmark import find_summaries, score_contact_cases
 from imply.realworld.lab import LabBenchmarkConfig
 from imply.realworld.lab_score import METRICS as LAB_METRICS

@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-from imply.diagnose.effect_tables import simulate_observables
+from imply.diagnose.physics.effect_tables import simulate_observables
 from imply.realworld.world import WorldPushes, simulate_world
 from imply.sim.effects import EFFECTS, MODEL, effect_spec
 from imply.sim.scene import SceneConfig, build_model

@@ -112,7 +112,7 @@ def test_the_cli_reference_lists_every_command_and_option():
 
 def test_the_formats_page_holds_each_format_module_and_its_column_lists():
     page = docs_pages.formats_reference()
-    from imply.diagnose import pushlog
+    from imply.diagnose.inputs import pushlog
     from imply.score_file import SCORE_COLUMNS
 
     for column in [*pushlog.REQUIRED, *pushlog.OPTIONAL_NUMERIC, *SCORE_COLUMNS]:

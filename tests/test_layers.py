@@ -21,6 +21,8 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 NEUTRAL = ("imply.stats", "imply.results")
+DIAGNOSE_STAGES = ("inputs", "physics", "inference", "conclusion")
+DIAGNOSE_TOP = ("analysis", "reference", "report", "run")
 # package -> the packages it must not import
 FORBIDDEN = {
     "imply.stats": ("imply",),
@@ -30,6 +32,12 @@ FORBIDDEN = {
     # the tool a user runs does not hold the study's benchmark (imply.realworld scores it)
     "imply.diagnose": ("imply.study", "imply.paper", "imply.cli", "imply.realworld"),
     "imply.paper": ("imply.study", "imply.models", "imply.diagnose", "imply.cli"),
+    # the diagnostic's stages, in the order a reader follows them: each imports only the stages before it, and none
+    # the pipeline above them
+    **{
+        f"imply.diagnose.{stage}": tuple(f"imply.diagnose.{s}" for s in DIAGNOSE_STAGES[k + 1 :] + DIAGNOSE_TOP)
+        for k, stage in enumerate(DIAGNOSE_STAGES)
+    },
 }
 
 
@@ -153,6 +161,19 @@ def test_the_checks_see_a_violation(tmp_path):
     graph = import_graph(copy)
     assert "imply.stats imports imply.study.section5.scoring" in layer_violations(graph)
     assert any({"imply.study.section5.scoring", "imply.study.section5.selection"} <= set(c) for c in cycles(graph))
+
+
+def test_the_diagnostic_is_four_stages_and_a_pipeline():
+    """Every module of imply.diagnose sits in a stage or is one of the few above or beside them."""
+    graph = package_graph()
+    loose = {
+        m.removeprefix("imply.diagnose.")
+        for m in graph
+        if m.startswith("imply.diagnose.") and m.count(".") == 2 and m.rpartition(".")[2] not in DIAGNOSE_STAGES
+    }
+    assert loose == {*DIAGNOSE_TOP, "records", "tails"}
+    for stage in DIAGNOSE_STAGES:
+        assert sum(m.startswith(f"imply.diagnose.{stage}.") for m in graph) >= 4, stage
 
 
 @pytest.mark.parametrize("module", NEUTRAL)

@@ -114,7 +114,7 @@ def test_cli_flags_default_to_the_study_values():
     assert (score["grid"], score["floor"]) == (ScoreConfig().grid, ScoreConfig().readout_floor)
 
 
-# dotted names of the package, e.g. imply.diagnose.candidates.CANDIDATES
+# dotted names of the package, e.g. imply.diagnose.physics.candidates.CANDIDATES
 DOTTED = re.compile(r"\bimply(?:\.[A-Za-z_][A-Za-z0-9_]*)+")
 
 

@@ -180,7 +180,7 @@ def check_rules(config: dict[str, Any]) -> None:
 
     gap = config.get("gap")
     if gap is not None:
-        from imply.diagnose.candidates import ALIASES, CANDIDATES
+        from imply.diagnose.physics.candidates import ALIASES, CANDIDATES
         from imply.realworld.cases import BenchmarkConfig
 
         known = list(CANDIDATES)

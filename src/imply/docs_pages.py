@@ -559,21 +559,27 @@ class Format:
 FORMATS: tuple[Format, ...] = (
     Format(
         "Push log (`imply diagnose`)",
-        "imply.diagnose.pushlog",
+        "imply.diagnose.inputs.pushlog",
         ("REQUIRED", "OPTIONAL_NUMERIC"),
         "what a robot records: one row per push",
     ),
     Format(
         "The box's track beside a push log (`imply diagnose --track`)",
-        "imply.diagnose.track_file",
+        "imply.diagnose.inputs.track_file",
         ("REQUIRED", "OPTIONAL_NUMERIC"),
         "where each pushed box was over time, one row per frame",
     ),
     Format(
         "Calibration probes beside a push log (`<log>.probes.csv`, `imply sim pushes --probes`)",
-        "imply.diagnose.probes",
+        "imply.diagnose.inputs.probes",
         ("KINDS", "NUMERIC"),
         "what a lab measures besides its pushes, one row per probe",
+    ),
+    Format(
+        "A reference session (`imply diagnose --reference`)",
+        "imply.diagnose.inference.sessions",
+        (),
+        "a push log of the same robot and boxes, recorded before the change to explain",
     ),
     Format(
         "Pushes to simulate (`imply sim pushes`)", "imply.sim.push_file", (), "the pushes a simulated push log holds"
@@ -595,7 +601,7 @@ FORMATS: tuple[Format, ...] = (
     Format("Rollouts made elsewhere (`imply evaluate --rollouts`)", "imply.evaluate.rollouts_file", ("CSV_COLUMNS",)),
     Format("The report of `imply evaluate`", "imply.evaluate.report", ("REPORT_FILES",)),
     Format("The report of `imply diagnose`", "imply.diagnose.report", ("REPORT_FILES",)),
-    Format("The next pushes (`next_pushes.csv`)", "imply.diagnose.next_pushes"),
+    Format("The next pushes (`next_pushes.csv`)", "imply.diagnose.conclusion.next_pushes"),
     Format("The push table (`results/table/table.npz`)", "imply.table"),
     Format("Result documents (`results/**/*.json`)", "imply.paper.results"),
     Format("Macros and numbers (`results/paper/macros.tex`, `numbers.json`)", "imply.paper.macros"),

@@ -22,7 +22,7 @@ import yaml
 from imply.config_check import PAPER_STAGES
 from imply.data.clips import ClipsConfig
 from imply.diagnose.analysis import DiagnosisConfig
-from imply.diagnose.effect_tables import CoarseGrid
+from imply.diagnose.physics.effect_tables import CoarseGrid
 from imply.evaluate.config import EvaluateConfig
 from imply.evaluate.suite import SuiteConfig
 from imply.kernels import KernelsConfig
@@ -51,7 +51,7 @@ class GapConfig(Config):
     config_key: ClassVar[str] = "gap"
 
     candidates: tuple[str, ...] | None = option(
-        None, doc="candidate effects (imply.diagnose.candidates.CANDIDATES names); null: the whole library"
+        None, doc="candidate effects (imply.diagnose.physics.candidates.CANDIDATES names); null: the whole library"
     )
     effect_grid: CoarseGrid = option(CoarseGrid(), doc="the effect tables' grids", required=True)
     diagnose: DiagnosisConfig = option(DiagnosisConfig(), doc="the diagnostic's settings", required=True)

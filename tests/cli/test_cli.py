@@ -97,8 +97,8 @@ def test_pushes_with_physics_columns_on_the_builtin_scene(tmp_path, capsys):
 def test_pushes_filmed_on_a_user_model_give_a_track_the_diagnostic_reads(tmp_path):
     """`imply sim pushes --track-rate` writes the boxes' tracks beside the log; the track file reader accepts them,
     and their last frame agrees with the log's displacement (two code paths: the frames and the final state)."""
-    from imply.diagnose.pushlog import read_pushlog
-    from imply.diagnose.track_file import read_track, track_beside
+    from imply.diagnose.inputs.pushlog import read_pushlog
+    from imply.diagnose.inputs.track_file import read_track, track_beside
 
     xml = tmp_path / "box.xml"
     assert run_cli("sim", "export-xml", "mass=0.8", "friction=0.3", "-o", str(xml)) == 0
@@ -118,7 +118,7 @@ def test_pushes_filmed_on_a_user_model_give_a_track_the_diagnostic_reads(tmp_pat
     assert (np.diff(tracked.crossing_times, axis=1) > 0).all()  # a quarter, then half, then three quarters
 
     # the log's stop time is the one the diagnostic's tables hold (the box's speed below 1 cm/s), not the settling
-    from imply.diagnose.effect_tables import simulate_observables
+    from imply.diagnose.physics.effect_tables import simulate_observables
     from imply.sim.push_file import load_push_model
 
     tables = simulate_observables(load_push_model(xml), frame.speed, 0.8, 0.3)

@@ -208,7 +208,7 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
 
 
 def test_ranking_colours_mark_only_the_verdict_green():
-    from imply.diagnose.estimates import RankedCandidate
+    from imply.diagnose.inference.estimates import RankedCandidate
     from imply.diagnose.report import ranking_colours
 
     def row(effect: str, identifiable: bool, improvement: float) -> RankedCandidate:

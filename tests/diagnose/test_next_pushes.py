@@ -8,10 +8,16 @@ import pandas as pd
 from test_steps import OPTS, make_log, problem_of
 
 from imply.cli import main
-from imply.diagnose import candidates
-from imply.diagnose.candidates import Model
-from imply.diagnose.next_pushes import candidate_log, design_pushes, next_pushes_frame, predictions, write_next_pushes
-from imply.diagnose.pushlog import read_pushlog
+from imply.diagnose.conclusion.next_pushes import (
+    candidate_log,
+    design_pushes,
+    next_pushes_frame,
+    predictions,
+    write_next_pushes,
+)
+from imply.diagnose.inputs.pushlog import read_pushlog
+from imply.diagnose.physics import candidates
+from imply.diagnose.physics.candidates import Model
 from imply.sim.push_file import read_pushes
 
 
@@ -43,7 +49,7 @@ def test_the_design_separates_the_contenders_better_than_the_logs_own_pushes(ana
     assert cand.n == len(prob.log.objects) * 9 * 4
     first = design.pushes[0]
     for name, fit, _ in _contenders(prob):
-        from imply.diagnose.fit import Problem
+        from imply.diagnose.inference.fit import Problem
 
         cp = Problem.of(cand, prob.table, None, grid=prob.grid)
         log_d, _ = predictions(cp, fit)

@@ -11,13 +11,13 @@ import pytest
 from test_steps import OPTS, make_log
 
 from conftest import analytic_log_d
-from imply.diagnose import candidates
-from imply.diagnose.candidates import Model
-from imply.diagnose.fit import Problem
-from imply.diagnose.observables import Observables
-from imply.diagnose.probe_fit import Servo
-from imply.diagnose.probes import Probes
-from imply.diagnose.shrinkage import heldout, shrinkage
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inference.shrinkage import heldout, shrinkage
+from imply.diagnose.inputs.observables import Observables
+from imply.diagnose.inputs.probes import Probes
+from imply.diagnose.physics import candidates
+from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.probe_fit import Servo
 from imply.sim.scene import SceneConfig, build_model
 
 SCENE = {"pusher_mass": 0.2, "pusher_kv": 80.0, "pusher_force_limit": 100.0, "stroke": 0.01}
@@ -190,7 +190,7 @@ def analytic_log_t(v, m, mu):
 
 
 class StopTimeTables:
-    """Just enough of :class:`imply.diagnose.effect_tables.EffectTables` for the baseline's stop times."""
+    """Just enough of :class:`imply.diagnose.physics.effect_tables.EffectTables` for the baseline's stop times."""
 
     aux = ("stop_time",)
 
@@ -271,7 +271,7 @@ def test_without_stop_times_nothing_is_freed(analytic_table):
 
 
 def test_a_free_stroke_is_recommended_where_it_separates_a_speed_gain_best(analytic_table):
-    from imply.diagnose.next_probes import next_probes_frame, recommend_probe
+    from imply.diagnose.conclusion.next_probes import next_probes_frame, recommend_probe
 
     log = make_log(seed=6, gain=0.06, sd=0.02)
     table = replace(analytic_table, meta={"scene": SCENE})

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imply.diagnose.probes import DEFAULT_FRICTION_SD, read_probes
+from imply.diagnose.inputs.probes import DEFAULT_FRICTION_SD, read_probes
 from imply.input_files import InputError
 
 HEADER = "probe,object_id,speed,direction,pusher_speed,displacement,stop_time,added_mass,friction,friction_sd"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from imply.cli import main
-from imply.diagnose.pushlog import read_pushlog
+from imply.diagnose.inputs.pushlog import read_pushlog
 from imply.input_files import InputError
 from sample_inputs import PUSHLOG_CSV
 

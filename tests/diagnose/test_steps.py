@@ -14,18 +14,18 @@ import pandas as pd
 import pytest
 
 from conftest import analytic_log_d
-from imply.diagnose import candidates
-from imply.diagnose.aliasing import aliasing
 from imply.diagnose.analysis import DiagnosisConfig, Summary, baseline_fit, baseline_residuals, diagnose
-from imply.diagnose.candidates import Model
-from imply.diagnose.fit import Problem
-from imply.diagnose.hypotheses import NO_EFFECT, enumerate_hypotheses, log_evidence
-from imply.diagnose.localisation import localise
-from imply.diagnose.model_error import model_error
-from imply.diagnose.noise import estimate_noise
-from imply.diagnose.prediction import distinct_blocks
-from imply.diagnose.pushlog import PushLog
-from imply.diagnose.shrinkage import heldout, share_closed, shrinkage
+from imply.diagnose.inference.aliasing import aliasing
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inference.hypotheses import NO_EFFECT, enumerate_hypotheses, log_evidence
+from imply.diagnose.inference.localisation import localise
+from imply.diagnose.inference.model_error import model_error
+from imply.diagnose.inference.noise import estimate_noise
+from imply.diagnose.inference.shrinkage import heldout, share_closed, shrinkage
+from imply.diagnose.inputs.pushlog import PushLog
+from imply.diagnose.physics import candidates
+from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.prediction import distinct_blocks
 
 SPEEDS = (0.3, 0.5, 0.7, 0.9)
 OPTS = DiagnosisConfig(grid=41, scan=5, max_effects=2)

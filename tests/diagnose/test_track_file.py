@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from imply.cli import main
-from imply.diagnose.pushlog import read_pushlog
-from imply.diagnose.track_file import read_track, track_beside
+from imply.diagnose.inputs.pushlog import read_pushlog
+from imply.diagnose.inputs.track_file import read_track, track_beside
 from imply.input_files import InputError
 from sample_inputs import PUSHLOG_CSV
 

@@ -12,14 +12,14 @@ from types import SimpleNamespace
 
 import pytest
 
-from imply.diagnose import render
-from imply.diagnose.candidates import CANDIDATES
-from imply.diagnose.discrepancy import DiscrepancyReport
-from imply.diagnose.estimates import AcceptedEffect, EffectEstimate
-from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
-from imply.diagnose.next_pushes import PairSeparation, PushDesign
-from imply.diagnose.render import clauses, verdict_text
-from imply.diagnose.verdict import Adequacy, Identification, adequacy, explanations, judge
+from imply.diagnose.conclusion import render
+from imply.diagnose.conclusion.next_pushes import PairSeparation, PushDesign
+from imply.diagnose.conclusion.render import clauses, verdict_text
+from imply.diagnose.conclusion.verdict import Adequacy, Identification, adequacy, explanations, judge
+from imply.diagnose.inference.discrepancy import DiscrepancyReport
+from imply.diagnose.inference.estimates import AcceptedEffect, EffectEstimate
+from imply.diagnose.inference.hypotheses import NO_EFFECT, Hypothesis
+from imply.diagnose.physics.candidates import CANDIDATES
 
 
 def _estimate(name: str, magnitude: float, azimuth_deg: float | None = None) -> EffectEstimate:

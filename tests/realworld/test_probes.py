@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imply.diagnose.candidates import Model, get
-from imply.diagnose.probe_fit import pull_test_log_reading
+from imply.diagnose.physics.candidates import Model, get
+from imply.diagnose.physics.probe_fit import pull_test_log_reading
 from imply.realworld.bullet import simulate_bullet
 from imply.realworld.effects import apply_effect
 from imply.realworld.probes import ProbeDesign, probe_layout, probe_observables, probe_pushes
@@ -112,7 +112,7 @@ def test_a_recommended_probe_runs_in_the_log_s_world_as_its_own_probes_do(scene)
     ids=["tilt", "viscous", "anisotropic"],
 )
 def test_the_diagnostic_reads_a_pull_test_as_the_world_runs_it(scene, effect, candidate, theta):
-    """What the fits predict a pull test reads under an effect (imply.diagnose.probe_fit, a force balance) against
+    """What the fits predict a pull test reads under an effect (imply.diagnose.physics.probe_fit, a force balance) against
     the world's own pull test stepped in MuJoCo: the change the effect makes to each object's reading."""
     design = ProbeDesign()
     directions = np.array([0.3, 2.0, 4.0])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imply.diagnose.effect_tables import simulate_observables
+from imply.diagnose.physics.effect_tables import simulate_observables
 from imply.realworld.world import WorldPushes, simulate_world
 from imply.sim.scene import build_model
 from imply.sim.track import crossing_times, pusher_speed

@@ -194,8 +194,8 @@ def check_lab(tmp_path):
     md = (tmp_path / "results/gap/lab/separability.md").read_text()
     assert md.startswith("# Lab benchmark") and "| + probes |" in md
     # probes where drawn: every probe file names probes of the three kinds, and is read by the diagnostic's reader
-    from imply.diagnose.probes import read_probes
-    from imply.diagnose.pushlog import read_pushlog
+    from imply.diagnose.inputs.probes import read_probes
+    from imply.diagnose.inputs.pushlog import read_pushlog
 
     labels = json.loads((tmp_path / "results/gap/lab/sealed/labels.json").read_text())
     folder = tmp_path / "results/gap/lab/sealed/logs"

@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from imply.diagnose.analysis import DiagnosisConfig
-    from imply.diagnose.candidates import Candidate
-    from imply.diagnose.effect_tables import CoarseGrid
+    from imply.diagnose.physics.candidates import Candidate
+    from imply.diagnose.physics.effect_tables import CoarseGrid
     from imply.diagnose.run import DiagnoseRequest
     from imply.table import PushTable
 
@@ -252,7 +252,7 @@ def load_table(path: str) -> PushTable:
 
 def candidate_effects(arg: str | None) -> list[Candidate]:
     """The candidates of ``--effects`` (all of the library when absent)."""
-    from imply.diagnose import candidates
+    from imply.diagnose.physics import candidates
 
     with user_errors(ValueError, message="--effects: {error}"):
         return candidates.get(None if not arg else [x.strip() for x in arg.split(",") if x.strip()])
@@ -263,7 +263,7 @@ def diagnosis_options(
 ) -> tuple[DiagnosisConfig, CoarseGrid]:
     """Diagnostic settings and effect-table grid from their JSON options (and the flags that override them)."""
     from imply.diagnose.analysis import DiagnosisConfig
-    from imply.diagnose.effect_tables import CoarseGrid
+    from imply.diagnose.physics.effect_tables import CoarseGrid
 
     opts = config_from_json(DiagnosisConfig, options_json, "--options-json")
     grid = config_from_json(CoarseGrid, grid_json, "--effect-grid-json")
@@ -278,8 +278,8 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
     """The options of :func:`add_diagnose_options` and each (push log, report folder[, reference session or
     None]), checked once before any work: the report folders, the table, every push log and reference against it
     (a reference must push the log's boxes), the settings, the candidates."""
+    from imply.diagnose.inference.sessions import check_pair
     from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog
-    from imply.diagnose.sessions import check_pair
     from imply.input_files import InputError
     from imply.io import OutputError
 

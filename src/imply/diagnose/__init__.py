@@ -2,18 +2,18 @@
 (sets of unmodelled effects built on :mod:`imply.sim.effects`, with or without a smooth model discrepancy) remain
 and how strongly the pushes prefer each, how far the gap shrinks, and which pushes would tell the leaders apart.
 
-Modules: :mod:`~imply.diagnose.pushlog` (reading push logs), :mod:`~imply.diagnose.effect_tables`
-(effect and stop-time tables, cached), :mod:`~imply.diagnose.candidates` (the candidate
-effects and the discrepancy), :mod:`~imply.diagnose.fit` (the immutable
-:class:`~imply.diagnose.fit.Problem` and joint fits of effects and every object's mass and friction),
-:mod:`~imply.diagnose.analysis` (the pipeline :func:`~imply.diagnose.analysis.diagnose` and its typed
-:class:`~imply.diagnose.analysis.Summary`), its steps in order :mod:`~imply.diagnose.noise`,
-:mod:`~imply.diagnose.localisation`, :mod:`~imply.diagnose.aliasing`, :mod:`~imply.diagnose.hypotheses`
-(with :mod:`~imply.diagnose.screening`), :mod:`~imply.diagnose.shrinkage`, :mod:`~imply.diagnose.verdict`
-and :mod:`~imply.diagnose.next_pushes` (with :mod:`~imply.diagnose.model_error` and
-:mod:`~imply.diagnose.estimates` beside them), :mod:`~imply.diagnose.render` (the verdict in words),
-:mod:`~imply.diagnose.records` (the typed results' JSON form), :mod:`~imply.diagnose.report` (summary JSON,
-Markdown report, next_pushes.csv, plots), :mod:`~imply.diagnose.run` (a checked request of push-log files
-diagnosed into report folders). The study's benchmark that scores the diagnostic lives with the worlds that
-make its logs, in :mod:`imply.realworld`.
+Four stages, each a subpackage whose modules import only the stages before it:
+
+1. :mod:`~imply.diagnose.inputs`: what is read (the push log, the boxes' tracks, the calibration probes);
+2. :mod:`~imply.diagnose.physics`: what each hypothesis predicts (the candidates, the effect tables);
+3. :mod:`~imply.diagnose.inference`: the fits, the noise, the hypotheses weighed, the gap's shrink, a reference
+   session's standing gap taken out;
+4. :mod:`~imply.diagnose.conclusion`: the verdict, in words, and the next experiments.
+
+Above them: :mod:`~imply.diagnose.analysis` (the pipeline :func:`~imply.diagnose.analysis.diagnose` and its typed
+:class:`~imply.diagnose.analysis.Summary`), :mod:`~imply.diagnose.reference` (a diagnosis against a reference
+session), :mod:`~imply.diagnose.report` (summary JSON, Markdown report, CSVs, plots) and :mod:`~imply.diagnose.run`
+(a checked request of push-log files diagnosed into report folders). Beside them, used by every stage:
+:mod:`~imply.diagnose.records` (the typed results' JSON form) and :mod:`~imply.diagnose.tails`. The study's
+benchmark that scores the diagnostic lives with the worlds that make its logs, in :mod:`imply.realworld`.
 """

@@ -6,23 +6,23 @@ remain and how strongly the pushes prefer each, how far it shrinks, and which pu
 residuals are divided by its noise sd and the model's own error, so sums of squares are
 chi-squares):
 
-1. :mod:`~imply.diagnose.noise`: each observable's noise and the gross outliers every fit
+1. :mod:`~imply.diagnose.inference.noise`: each observable's noise and the gross outliers every fit
    leaves out; the baseline is then fitted under its own model error
-   (:mod:`~imply.diagnose.model_error`);
-2. :mod:`~imply.diagnose.localisation`: the baseline fit's residuals by band of speed,
+   (:mod:`~imply.diagnose.inference.model_error`);
+2. :mod:`~imply.diagnose.inference.localisation`: the baseline fit's residuals by band of speed,
    displacement, direction, fitted mass and friction, and by object;
-3. :mod:`~imply.diagnose.aliasing`: which candidates these pushes can see and tell apart,
+3. :mod:`~imply.diagnose.inference.aliasing`: which candidates these pushes can see and tell apart,
    from each other and from the per-object (mass, friction) fit;
-4. :mod:`~imply.diagnose.hypotheses`: every hypothesis (a set of library effects, with or
+4. :mod:`~imply.diagnose.inference.hypotheses`: every hypothesis (a set of library effects, with or
    without the model discrepancy) fitted and weighed by its evidence;
-5. :mod:`~imply.diagnose.shrinkage`: how far the leading hypothesis closes the gap, held out;
-6. :mod:`~imply.diagnose.verdict`: adequacy and identification, as data;
-7. :mod:`~imply.diagnose.next_pushes`: the pushes that would best separate the contenders;
-8. the :class:`Summary` (``summary.json``), its sentence from :mod:`~imply.diagnose.render`,
+5. :mod:`~imply.diagnose.inference.shrinkage`: how far the leading hypothesis closes the gap, held out;
+6. :mod:`~imply.diagnose.conclusion.verdict`: adequacy and identification, as data;
+7. :mod:`~imply.diagnose.conclusion.next_pushes`: the pushes that would best separate the contenders;
+8. the :class:`Summary` (``summary.json``), its sentence from :mod:`~imply.diagnose.conclusion.render`,
    which :mod:`~imply.diagnose.report` writes out.
 
 Each step returns a new value; the problem a step fits under (its noise, weights and model
-error) is passed to it, never changed behind it (:class:`imply.diagnose.fit.Problem`).
+error) is passed to it, never changed behind it (:class:`imply.diagnose.inference.fit.Problem`).
 """
 
 from __future__ import annotations
@@ -33,25 +33,25 @@ from typing import ClassVar
 
 import numpy as np
 
-from imply.diagnose.aliasing import Aliasing, aliasing
-from imply.diagnose.candidates import Candidate, Model, discrepancy_candidate, get
-from imply.diagnose.discrepancy import DiscrepancyReport, describe
-from imply.diagnose.effect_tables import AUX
-from imply.diagnose.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
-from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.hypotheses import Hypothesis, enumerate_hypotheses, inclusion_weights, posterior_precision
-from imply.diagnose.localisation import Localisation, localise
-from imply.diagnose.model_error import model_error
-from imply.diagnose.next_pushes import PushDesign, design_pushes
-from imply.diagnose.noise import Noise, ObservableNoise, estimate_noise
-from imply.diagnose.observables import Observables
-from imply.diagnose.pushlog import PushLog
+from imply.diagnose.conclusion.next_pushes import PushDesign, design_pushes
+from imply.diagnose.conclusion.render import OBSERVABLE_WORDS, verdict_text
+from imply.diagnose.conclusion.verdict import Verdict, judge
+from imply.diagnose.inference.aliasing import Aliasing, aliasing
+from imply.diagnose.inference.discrepancy import DiscrepancyReport, describe
+from imply.diagnose.inference.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.hypotheses import Hypothesis, enumerate_hypotheses, inclusion_weights, posterior_precision
+from imply.diagnose.inference.localisation import Localisation, localise
+from imply.diagnose.inference.model_error import model_error
+from imply.diagnose.inference.noise import Noise, ObservableNoise, estimate_noise
+from imply.diagnose.inference.screening import folds, screened
+from imply.diagnose.inference.sessions import ReferenceReport, SessionShrink, cause_shrink
+from imply.diagnose.inference.shrinkage import Shrinkage, heldout, shrinkage
+from imply.diagnose.inputs.observables import Observables
+from imply.diagnose.inputs.pushlog import PushLog
+from imply.diagnose.physics.candidates import Candidate, Model, discrepancy_candidate, get
+from imply.diagnose.physics.effect_tables import AUX
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.render import OBSERVABLE_WORDS, verdict_text
-from imply.diagnose.screening import folds, screened
-from imply.diagnose.sessions import ReferenceReport, SessionShrink, cause_shrink
-from imply.diagnose.shrinkage import Shrinkage, heldout, shrinkage
-from imply.diagnose.verdict import Verdict, judge
 from imply.options import Config, option
 
 
@@ -227,7 +227,7 @@ class Summary(Record):
     dispersion: float  # the chi-square per degree of freedom the weights were computed under (at least 1)
     effects: list[AcceptedEffect]  # the leading hypothesis's library effects
     verdict: Verdict
-    sentence: str  # the verdict in words (imply.diagnose.render)
+    sentence: str  # the verdict in words (imply.diagnose.conclusion.render)
     shrinkage: Shrinkage
     options: DiagnosisConfig
     model_floor: dict | None  # the effect tables' measured model floor

@@ -6,13 +6,13 @@ Three steps, each an ordinary diagnosis or fit (:mod:`imply.diagnose.analysis`):
    discrepancy, or nothing), and its leading fit gives each box's (mass, friction); a reference
    without replicate pushes takes the log's noise (:func:`shared_noise`);
 2. the new log with that standing gap taken out push by push
-   (:func:`imply.diagnose.sessions.against_reference`): its verdict is what changed since the
+   (:func:`imply.diagnose.inference.sessions.against_reference`): its verdict is what changed since the
    reference (nothing; which effect, its size and tier; the contenders; the next pushes);
 3. the new session's gap against the table, before and after the cause of the change is added,
-   and once the standing gap is described too (:func:`imply.diagnose.sessions.session_shrink`).
+   and once the standing gap is described too (:func:`imply.diagnose.inference.sessions.session_shrink`).
 
 In: the new log, the reference, the candidates, the settings, the tables. Out: the diagnosis of
-step 2, whose summary carries steps 1 and 3 (:class:`imply.diagnose.sessions.ReferenceReport`).
+step 2, whose summary carries steps 1 and 3 (:class:`imply.diagnose.inference.sessions.ReferenceReport`).
 """
 
 from __future__ import annotations
@@ -22,13 +22,13 @@ from dataclasses import replace
 import numpy as np
 
 from imply.diagnose.analysis import Diagnosis, DiagnosisConfig, diagnose
-from imply.diagnose.candidates import Candidate
-from imply.diagnose.effect_tables import EffectTables
-from imply.diagnose.fit import Problem
-from imply.diagnose.noise import estimate_noise
-from imply.diagnose.pushlog import TRACK_OBSERVABLES, PushLog
-from imply.diagnose.render import headline, reference_text
-from imply.diagnose.sessions import ReferenceReport, StandingGap, against_reference, cause_shrink
+from imply.diagnose.conclusion.render import headline, reference_text
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inference.noise import estimate_noise
+from imply.diagnose.inference.sessions import ReferenceReport, StandingGap, against_reference, cause_shrink
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES, PushLog
+from imply.diagnose.physics.candidates import Candidate
+from imply.diagnose.physics.effect_tables import EffectTables
 from imply.table import PushTable
 
 

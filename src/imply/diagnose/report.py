@@ -17,9 +17,9 @@ likelihood-ratio statistic and its critical value, delta BIC, held-out gain),
 floor, shares closed), ``noise`` and ``options``. ``residuals.csv`` holds every push's
 residual before and after the leading hypothesis (held out) and whether it was flagged;
 ``next_pushes.csv`` the recommended pushes as push-log columns with what each contender
-predicts (:mod:`imply.diagnose.next_pushes`), and ``next_probes.csv`` the calibration probe
+predicts (:mod:`imply.diagnose.conclusion.next_pushes`), and ``next_probes.csv`` the calibration probe
 that would separate them more than any push, where one would, as a probes-file row with
-what each contender predicts it reads (:mod:`imply.diagnose.next_probes`; a file of its own,
+what each contender predicts it reads (:mod:`imply.diagnose.conclusion.next_probes`; a file of its own,
 so that ``imply sim pushes`` can run ``next_pushes.csv`` as it is). The plots: ``residuals_vs_speed.png``,
 ``before_after.png``, ``ranking.png`` and ``hypotheses.png`` (the contenders' weights).
 """
@@ -34,13 +34,13 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.analysis import Diagnosis, Summary
-from imply.diagnose.estimates import AcceptedEffect, RankedCandidate
-from imply.diagnose.localisation import FACTORS
-from imply.diagnose.next_probes import write_next_probes
-from imply.diagnose.next_pushes import write_next_pushes
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
-from imply.diagnose.render import OBSERVABLE_WORDS, probe_sentence
-from imply.diagnose.verdict import explanations
+from imply.diagnose.conclusion.next_probes import write_next_probes
+from imply.diagnose.conclusion.next_pushes import write_next_pushes
+from imply.diagnose.conclusion.render import OBSERVABLE_WORDS, probe_sentence
+from imply.diagnose.conclusion.verdict import explanations
+from imply.diagnose.inference.estimates import AcceptedEffect, RankedCandidate
+from imply.diagnose.inference.localisation import FACTORS
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
 from imply.io import atomic_path, write_csv, write_json, write_text
 
 # every file write_report puts in the report folder

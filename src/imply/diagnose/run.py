@@ -20,14 +20,14 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import DiagnosisConfig, Summary, diagnose
-from imply.diagnose.candidates import Candidate, library_effects, needs_across
-from imply.diagnose.effect_tables import CoarseGrid, EffectTables, load_or_build
-from imply.diagnose.fit import Problem
-from imply.diagnose.probes import probes_beside, read_probes
-from imply.diagnose.pushlog import PushLog, read_pushlog
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inputs.probes import probes_beside, read_probes
+from imply.diagnose.inputs.pushlog import PushLog, read_pushlog
+from imply.diagnose.inputs.track_file import read_track, track_beside
+from imply.diagnose.physics.candidates import Candidate, library_effects, needs_across
+from imply.diagnose.physics.effect_tables import CoarseGrid, EffectTables, load_or_build
 from imply.diagnose.reference import diagnose_against
 from imply.diagnose.report import REPORT_FILES, write_report
-from imply.diagnose.track_file import read_track, track_beside
 from imply.io import check_folder, write_folder
 from imply.table import PushTable
 
@@ -116,8 +116,8 @@ def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable, track: str | os.PathLike | None = None) -> PushLog:
     """A push log checked against the table's ranges (InputError naming the row and column), with the box's
     track from ``track``, or else from the file beside the log named ``<stem>.track.csv`` (or ``.parquet``)
-    where there is one (:mod:`imply.diagnose.track_file`), and its calibration probes from the file beside it
-    named ``<stem>.probes.csv`` (or ``.parquet``) where there is one (:mod:`imply.diagnose.probes`)."""
+    where there is one (:mod:`imply.diagnose.inputs.track_file`), and its calibration probes from the file beside it
+    named ``<stem>.probes.csv`` (or ``.parquet``) where there is one (:mod:`imply.diagnose.inputs.probes`)."""
     pushlog = read_pushlog(path, table.speed_range, mass_range=table.mass_range, friction_range=table.friction_range)
     track = track or track_beside(path)
     pushlog = read_track(track, pushlog) if track else pushlog

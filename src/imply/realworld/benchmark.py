@@ -36,18 +36,18 @@ import numpy as np
 import pandas as pd
 
 from imply.diagnose.analysis import Summary
-from imply.diagnose.candidates import CONTACT
-from imply.diagnose.estimates import AcceptedEffect
-from imply.diagnose.observables import Observables
-from imply.diagnose.verdict import Identification
+from imply.diagnose.conclusion.verdict import Identification
+from imply.diagnose.inference.estimates import AcceptedEffect
+from imply.diagnose.inputs.observables import Observables
+from imply.diagnose.physics.candidates import CONTACT
 from imply.realworld.cases import BenchmarkConfig
 
 
 def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float:
     """RMS log d of the noise-free log ``what`` ("all" or one effect's name) after each object's baseline fit."""
-    from imply.diagnose.candidates import Model
-    from imply.diagnose.fit import Problem
-    from imply.diagnose.pushlog import PushLog
+    from imply.diagnose.inference.fit import Problem
+    from imply.diagnose.inputs.pushlog import PushLog
+    from imply.diagnose.physics.candidates import Model
 
     nf = label["noise_free"][what]
     p = label["pushes"]
@@ -92,7 +92,7 @@ PUSHER_CAUSES = ("speed_gain", "speed_offset", "pusher_softness")
 
 
 def classes_beyond_contact(classes: list[set[str]]) -> list[set[str]]:
-    """The classes that are not the box-table contact itself (:data:`imply.diagnose.candidates.CONTACT`): on a
+    """The classes that are not the box-table contact itself (:data:`imply.diagnose.physics.candidates.CONTACT`): on a
     world whose contact differs from the table's, naming the contact is never wrong, and an effect stated beside
     it is still the one effect."""
     return [c for c in classes if not c <= set(CONTACT)]

@@ -513,7 +513,7 @@ def simulate_cases(
 
 def log_track(case: dict, sim: dict, label: dict, design: BenchmarkConfig) -> pd.DataFrame:
     """The box's track of every row of ``case``'s log (:func:`make_log`'s ``label`` says which push and replicate
-    each row is), as a camera records it: rows ``object_id,push,t,x,y,yaw`` (:mod:`imply.diagnose.track_file`),
+    each row is), as a camera records it: rows ``object_id,push,t,x,y,yaw`` (:mod:`imply.diagnose.inputs.track_file`),
     positions in the table's frame with the camera's noise, cut shortly after the box stops."""
     nm = design.noise
     times = track_frame_times(nm.track_rate)

@@ -29,8 +29,8 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from imply.diagnose.analysis import Summary
+from imply.diagnose.conclusion.verdict import Identification
 from imply.diagnose.run import Report, Session, diagnose_report, read_checked_pushlog
-from imply.diagnose.verdict import Identification
 from imply.io import write_csv, write_json
 from imply.realworld.benchmark import (
     CONTACT_NULL,

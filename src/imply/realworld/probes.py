@@ -21,7 +21,7 @@ alone leave entangled with the contact:
 :func:`probe_pushes` lays the probes of a log out as world pushes (its contact model
 and effects applied, as to its pushes), :func:`probe_observables` reads what each
 probe measured from the simulation, and :func:`probe_rows` writes the rows a lab
-records, with noise (:mod:`imply.diagnose.probes` reads them). :func:`simulate_probe_table`
+records, with noise (:mod:`imply.diagnose.inputs.probes` reads them). :func:`simulate_probe_table`
 runs the same probes on a user's push model, beside a push log ``imply sim pushes`` wrote
 (the free strokes and pull tests stepped by the world's code path, the added-mass pushes by
 the simulator of the log's own pushes; no noise added).

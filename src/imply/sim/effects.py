@@ -1,6 +1,6 @@
 """Unmodelled effects: physics the push table leaves out, each a parameter that is zero in the baseline.
 
-The library the diagnostic's candidates are built on (:mod:`imply.diagnose.candidates`,
+The library the diagnostic's candidates are built on (:mod:`imply.diagnose.physics.candidates`,
 which also says what each is called and how a verdict describes it). Every effect has
 one signed or one-sided magnitude, the range the diagnostic searches (``bounds``), and
 enters in one of three ways:
@@ -10,7 +10,7 @@ enters in one of three ways:
     :class:`mujoco.MjSpec` of :func:`imply.sim.scene.build_xml` (the friction triple with
     ``condim`` 4/6, joint damping, the pusher's ``solref``, the box-table contact's ``solref``, gravity, the fluid model,
     the box's geometry): :func:`effect_spec`. The diagnostic tabulates these at the
-    effect's ``levels`` on a coarse grid (:mod:`imply.diagnose.effect_tables`).
+    effect's ``levels`` on a coarse grid (:mod:`imply.diagnose.physics.effect_tables`).
 ``speed``
     The pusher's actual speed differs from the command (``speed_gain``: v (1 + g),
     ``speed_offset``: v + c): no new physics, the same table at another speed.
@@ -21,7 +21,7 @@ enters in one of three ways:
 The scene always pushes along its +x axis. ``tilt_x`` and ``tilt_y`` (a table sloping
 along the table's x or y axis) share the ``slope`` scene edit, a slope along the push;
 the diagnostic's ``tilt`` candidate combines them and adds the slope across the push
-(:mod:`imply.diagnose.effect_tables` tabulates ``slope_across``). The benchmark's world
+(:mod:`imply.diagnose.physics.effect_tables` tabulates ``slope_across``). The benchmark's world
 (:mod:`imply.realworld`) injects its effects through its own mechanisms, not through
 this module.
 

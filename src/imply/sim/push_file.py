@@ -8,7 +8,7 @@ encoders give it) and ``ok`` (the simulator's checks). A user MJCF must keep the
 simulator relies on (:func:`imply.sim.pushes.simulate_pushes`).
 
 Beside the log, :func:`simulate_push_table` can film each push: the box's track as the
-rows ``object_id,push,t,x,y,yaw`` of :mod:`imply.diagnose.track_file` (``push`` the log's
+rows ``object_id,push,t,x,y,yaw`` of :mod:`imply.diagnose.inputs.track_file` (``push`` the log's
 row number; positions in the model's frame, the push along +x; no noise added), from the
 start of the push until shortly after the box comes to rest.
 """
@@ -99,7 +99,7 @@ def simulate_push_table(
 
 
 def _track_rows(log_frame: pd.DataFrame, run, frames: np.ndarray) -> pd.DataFrame:
-    """The rows of :mod:`imply.diagnose.track_file` of every push of a run, at its frames ``frames`` (mask)."""
+    """The rows of :mod:`imply.diagnose.inputs.track_file` of every push of a run, at its frames ``frames`` (mask)."""
     q = run.frames_box_qpos[:, frames]
     yaw = yaw_of(q[:, :, 3:7])
     parts = []

@@ -54,7 +54,7 @@ from mujoco import batch as mjbatch
 from scipy.interpolate import RegularGridInterpolator
 from tqdm.auto import tqdm
 
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
 from imply.io import write_json, write_npz
 from imply.options import Config, option
 from imply.sim.effects import MODEL, Effect, effect_spec

@@ -2,9 +2,9 @@
 
 The contact between pusher and box, and the box's compliance on the table, decide how fast the box
 leaves the pusher (the launch); what slows it afterwards decides the slide. :class:`FreeLaunch` is the
-part of :class:`imply.diagnose.fit.Problem` that frees the launch: it reads the problem's conditions and
+part of :class:`imply.diagnose.inference.fit.Problem` that frees the launch: it reads the problem's conditions and
 rows (``cond``, ``t_cond``, ``t_kind``, ``n_cond``), their sds and weights (``sd_d``, ``sd_t``, ``w_d``,
-``w_t``) and predicts with :meth:`imply.diagnose.prediction.Predicting.predict_at`.
+``w_t``) and predicts with :meth:`imply.diagnose.physics.prediction.Predicting.predict_at`.
 """
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ from typing import Self
 
 import numpy as np
 
-from imply.diagnose.candidates import Model
-from imply.diagnose.prediction import ObjectFit
+from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.prediction import ObjectFit
 
 
 class FreeLaunch:
-    """Freeing each condition's launch (a mixin of :class:`imply.diagnose.fit.Problem`; its ``launch`` field holds
+    """Freeing each condition's launch (a mixin of :class:`imply.diagnose.inference.fit.Problem`; its ``launch`` field holds
     the directions once freed)."""
 
     def with_free_launch(self, objects: ObjectFit) -> Self:

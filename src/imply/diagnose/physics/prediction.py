@@ -1,7 +1,7 @@
 """What a model predicts for pushes: the push table, the effect tables' terms and the discrepancy, read at the
 speeds and frictions the model's effects give the pusher and the box.
 
-:class:`Predicting` is the part of :class:`imply.diagnose.fit.Problem` that makes predictions; it reads the
+:class:`Predicting` is the part of :class:`imply.diagnose.inference.fit.Problem` that makes predictions; it reads the
 problem's table (``table``, ``etables``), its conditions (``c_v``, ``c_phi``, ``c_obj``, ``cond``, ``n_cond``),
 the table's ranges (``v_range``, ``lm_range``, ``lu_range``) and the observables beside the displacement (``use_t``,
 ``aux``, ``aux_cols``, ``aux_col_tuple``, ``t_cond``, ``t_kind``).
@@ -14,8 +14,8 @@ from functools import cached_property
 
 import numpy as np
 
-from imply.diagnose.candidates import Model, discrepancy_basis, scaled, terms
-from imply.diagnose.effect_tables import mix_between
+from imply.diagnose.physics.candidates import Model, discrepancy_basis, scaled, terms
+from imply.diagnose.physics.effect_tables import mix_between
 
 
 def distinct_blocks(n_blocks: int, *columns: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -76,7 +76,7 @@ def _clip(x, bounds: tuple[float, float]) -> np.ndarray:
 
 class Predicting:
     """Predictions of a push log's conditions, and of pushes at any conditions (a mixin of
-    :class:`imply.diagnose.fit.Problem`)."""
+    :class:`imply.diagnose.inference.fit.Problem`)."""
 
     @cached_property
     def _linear(self):

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.candidates import FRICTION2, Candidate, Model
-from imply.diagnose.fit import ObjectFit, Problem
+from imply.diagnose.inference.fit import ObjectFit, Problem
+from imply.diagnose.physics.candidates import FRICTION2, Candidate, Model
 from imply.diagnose.records import Record, json_field
 from imply.options import Config
 

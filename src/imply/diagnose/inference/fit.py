@@ -1,7 +1,7 @@
 """Joint fits of a push log: global effect parameters and every object's (mass, friction).
 
 The prediction for a push of object i at logged speed v in direction phi under a model
-(:class:`imply.diagnose.candidates.Model`, parameters theta) is, for each observable,
+(:class:`imply.diagnose.physics.candidates.Model`, parameters theta) is, for each observable,
 
     log d = f(v', m_i, mu') + sum_k Delta_k(v', m_i, mu'; s_k)
     log a = f_a(v', m_i, mu') + sum_k Delta_a,k(v', m_i, mu'; s_k)     (each observable a the log has)
@@ -9,7 +9,7 @@ The prediction for a push of object i at logged speed v in direction phi under a
 with v' the pusher's actual speed and mu' the friction the push sees under the model's
 speed and friction terms, f the push table, f_a the table of the observable a beside the
 displacement (log stop time, log of the pusher's measured mean speed: the "aux" rows) and
-Delta the effect tables (:mod:`imply.diagnose.effect_tables`). The aux rows are stacked
+Delta the effect tables (:mod:`imply.diagnose.physics.effect_tables`). The aux rows are stacked
 observable by observable: row r is push ``t_row[r]``'s observable ``aux[t_kind[r]]``.
 Replicate pushes (same object, speed and direction) share one prediction. Residuals are whitened by each observable's noise sd
 and weighted (0 for a flagged outlier), so the sum of squares is a chi-square at the
@@ -31,17 +31,17 @@ from functools import cache, cached_property
 
 import numpy as np
 
-from imply.diagnose.candidates import Model
-from imply.diagnose.effect_tables import EffectTables
-from imply.diagnose.launch import FreeLaunch
-from imply.diagnose.observables import Observables
-from imply.diagnose.prediction import ObjectFit, Predicting, Prediction
-from imply.diagnose.probe_fit import ProbeRows
-from imply.diagnose.pushlog import PushLog
+from imply.diagnose.inference.launch import FreeLaunch
+from imply.diagnose.inputs.observables import Observables
+from imply.diagnose.inputs.pushlog import PushLog
+from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.effect_tables import EffectTables
+from imply.diagnose.physics.prediction import ObjectFit, Predicting, Prediction
+from imply.diagnose.physics.probe_fit import ProbeRows
 from imply.diagnose.tails import chi2_ppf
 from imply.table import PushTable
 
-# ObjectFit and Prediction live with the predictions (imply.diagnose.prediction); the fits hand them out
+# ObjectFit and Prediction live with the predictions (imply.diagnose.physics.prediction); the fits hand them out
 __all__ = ["JointFit", "ObjectFit", "Prediction", "Problem"]
 
 _H = 1e-4  # finite-difference step in log m and log mu
@@ -162,7 +162,7 @@ class Problem(Predicting, FreeLaunch):
     fixed_lu: np.ndarray | None  # measured log friction, held fixed
     use_t: bool  # the log has observables beside the displacement that the fits use
     y_t: np.ndarray | None  # (n K,) their logs, stacked observable by observable (None without)
-    aux: tuple[str, ...] = ()  # the K observables (names of imply.diagnose.effect_tables.AUX)
+    aux: tuple[str, ...] = ()  # the K observables (names of imply.diagnose.physics.effect_tables.AUX)
     noise_d: float = 1.0
     noise_t: np.ndarray | float = 1.0  # (K,) or one sd for all
     model_err_d: np.ndarray | None = None  # per row (None: zeros)
@@ -467,7 +467,7 @@ class Problem(Predicting, FreeLaunch):
         *,
         added: tuple[np.ndarray, np.ndarray | None] | None = None,
     ) -> np.ndarray:
-        """Whitened residuals (K, q) of the log's probes (:class:`imply.diagnose.probe_fit.ProbeRows`, in the order
+        """Whitened residuals (K, q) of the log's probes (:class:`imply.diagnose.physics.probe_fit.ProbeRows`, in the order
         of its ``row_obj``) at K settings: thetas (K, p), lms and lus (K, N); ``added``: the loaded pushes'
         predictions, log d (K, a) and the aux observables (K, a, len(aux)), where the caller has them."""
         pr = self.probes

@@ -9,7 +9,7 @@ every object's mass and friction) and enters the prediction of a push in directi
 - a friction factor: mu (1 + a_c cos 2 phi + a_s sin 2 phi) (``anisotropic``, two
   components: an anisotropy a = |(a_c, a_s)| whose larger friction lies along the axis
   psi = atan2(a_s, a_c) / 2);
-- tabulated terms (:mod:`imply.diagnose.effect_tables`): the library's scene edits at a level s
+- tabulated terms (:mod:`imply.diagnose.physics.effect_tables`): the library's scene edits at a level s
   per push. ``tilt`` has two components (t_x, t_y): a slope a = |(t_x, t_y)| downhill
   toward azimuth psi = atan2(t_y, t_x); a push in direction phi sees the slope
   a cos(phi - psi) along it (the library's ``slope`` table) and a sin(phi - psi) across
@@ -29,7 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
 from imply.sim.effects import EFFECTS, TABLE_SOLREF, Effect
 from imply.sim.track import FRACTIONS
 

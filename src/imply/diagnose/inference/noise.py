@@ -18,9 +18,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imply.diagnose.candidates import Model
-from imply.diagnose.fit import Problem
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.physics.candidates import Model
 from imply.diagnose.records import Record
 from imply.options import Config
 

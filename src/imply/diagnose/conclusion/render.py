@@ -1,6 +1,6 @@
 """The verdict in words: the one module that turns the diagnosis's data into the report's sentences.
 
-Everything here reads typed records (:class:`imply.diagnose.verdict.Verdict`, the
+Everything here reads typed records (:class:`imply.diagnose.conclusion.verdict.Verdict`, the
 hypotheses' estimates, the shrinkage, the discrepancy's description, the next pushes) and
 writes text; nothing reads text back. The first sentence states adequacy and
 identification; the next ones say which effects are stated in every contender, which
@@ -14,15 +14,15 @@ from typing import Protocol
 
 import numpy as np
 
-from imply.diagnose.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
-from imply.diagnose.discrepancy import DiscrepancyReport
-from imply.diagnose.estimates import EffectEstimate
-from imply.diagnose.hypotheses import Hypothesis
-from imply.diagnose.next_probes import NextProbe, probe_words
-from imply.diagnose.next_pushes import PushDesign
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
-from imply.diagnose.shrinkage import Shrinkage
-from imply.diagnose.verdict import Adequacy, Contender, Identification, Tier, Verdict
+from imply.diagnose.conclusion.next_probes import NextProbe, probe_words
+from imply.diagnose.conclusion.next_pushes import PushDesign
+from imply.diagnose.conclusion.verdict import Adequacy, Contender, Identification, Tier, Verdict
+from imply.diagnose.inference.discrepancy import DiscrepancyReport
+from imply.diagnose.inference.estimates import EffectEstimate
+from imply.diagnose.inference.hypotheses import Hypothesis
+from imply.diagnose.inference.shrinkage import Shrinkage
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.physics.candidates import CANDIDATES, DISCREPANCY, SPEED_GAIN, SPEED_OFFSET, speed_clause
 from imply.sim.track import FRACTIONS
 
 # the observables, as the report and the observables note name them

@@ -3,14 +3,14 @@ report's ranking.
 
 :func:`fit_candidate` adds a candidate to a fitted model and refits jointly (all the
 model's parameters and every object's mass and friction;
-:meth:`imply.diagnose.fit.Problem.fit`, started from the best point of a scan of the new
-candidate's range); :mod:`imply.diagnose.hypotheses` grows every hypothesis with it.
+:meth:`imply.diagnose.inference.fit.Problem.fit`, started from the best point of a scan of the new
+candidate's range); :mod:`imply.diagnose.inference.hypotheses` grows every hypothesis with it.
 :func:`screened` says, for the ranking, what a candidate fitted alone does: its
 likelihood-ratio statistic against the chi-square quantile at ``alpha`` / (candidates
 tried) for its number of components, the leave-one-object-out (``folds``) held-out sum
 of squares it removes, and whether it explains more than the model's own accuracy (its
 explained mean square per push against the model's own error's,
-:mod:`imply.diagnose.model_error`). These tests describe; the hypotheses' weights decide.
+:mod:`imply.diagnose.inference.model_error`). These tests describe; the hypotheses' weights decide.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.candidates import Candidate
-from imply.diagnose.fit import JointFit, ObjectFit, Problem
+from imply.diagnose.inference.fit import JointFit, ObjectFit, Problem
+from imply.diagnose.physics.candidates import Candidate
 from imply.diagnose.tails import chi2_ppf
 
 log = logging.getLogger("imply.diagnose")

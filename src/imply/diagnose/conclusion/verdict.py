@@ -1,10 +1,10 @@
-"""The verdict: two separate answers, read off the weighed hypotheses (:mod:`imply.diagnose.hypotheses`).
+"""The verdict: two separate answers, read off the weighed hypotheses (:mod:`imply.diagnose.inference.hypotheses`).
 
 *Adequacy* says whether the gap is accounted for: ``no_gap`` where the baseline (no
 effect, no discrepancy) carries the most weight or the baseline's held-out gap is inside
 the noise floor; otherwise from the share of the held-out
 gap above the noise floor that the leading hypothesis closes
-(:attr:`imply.diagnose.shrinkage.Shrinkage.judged`): ``explained`` at ``min_share`` or more,
+(:attr:`imply.diagnose.inference.shrinkage.Shrinkage.judged`): ``explained`` at ``min_share`` or more,
 ``not_explained`` below ``1 - min_share``, ``partly_explained`` between.
 
 *Identification* says what accounts for it. Hypotheses are grouped into *explanations*
@@ -25,7 +25,7 @@ for more than the library holds). The identification is
   explanation leaves too much of it open) or an effect would go past the library's range:
   most likely a mechanism outside the library, and nothing is stated;
 - ``undecided``: contenders that disagree (the core is no contender), each with its
-  weight (the next pushes, :mod:`imply.diagnose.next_pushes`, are designed to separate
+  weight (the next pushes, :mod:`imply.diagnose.conclusion.next_pushes`, are designed to separate
   them). The core is stated where the gap is explained.
 
 The box-table contact is kept apart from the effects: a hypothesis's *contact* is the
@@ -45,7 +45,7 @@ with how much of the interval the contact's descriptions span. A gap with no sta
 is one whose cause *cannot be attributed*. No threshold of its own: the interval decides.
 
 Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` and
-``contender_ratio``. The verdict is data; :mod:`imply.diagnose.render` says it in words.
+``contender_ratio``. The verdict is data; :mod:`imply.diagnose.conclusion.render` says it in words.
 """
 
 from __future__ import annotations
@@ -53,8 +53,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from imply.diagnose.candidates import CONTACT
-from imply.diagnose.hypotheses import NO_EFFECT, Hypothesis
+from imply.diagnose.inference.hypotheses import NO_EFFECT, Hypothesis
+from imply.diagnose.physics.candidates import CONTACT
 from imply.diagnose.records import Record
 
 
@@ -144,7 +144,7 @@ class Verdict(Record):
 
 
 def beyond_contact(effects: list[str]) -> list[str]:
-    """The effects that are not the box-table contact itself (:data:`imply.diagnose.candidates.CONTACT`)."""
+    """The effects that are not the box-table contact itself (:data:`imply.diagnose.physics.candidates.CONTACT`)."""
     return [e for e in effects if e not in CONTACT]
 
 

@@ -3,7 +3,7 @@
 Candidates are pushes of the log's own objects at ``speeds`` speeds across the push
 table's range and, where the log has directions, ``directions`` directions around the
 table (otherwise the log's single direction). Under each contender (the hypothesis of
-largest weight of each explanation in contention, :mod:`imply.diagnose.verdict`), every
+largest weight of each explanation in contention, :mod:`imply.diagnose.conclusion.verdict`), every
 candidate push has a predicted log displacement (and log stop time and pusher speed where
 the log has them), from that hypothesis's fitted effects and the object's fitted mass and friction.
 
@@ -12,7 +12,7 @@ log's own design, and the log's own pushes observable by observable set it apart
 measurement told the leading hypotheses apart.
 
 For two hypotheses a and b, a push adds (pred_a - pred_b)^2 / sd^2 to their separation,
-with sd the noise and the model's own error at that push (:mod:`imply.diagnose.model_error`),
+with sd the noise and the model's own error at that push (:mod:`imply.diagnose.inference.model_error`),
 summed over the observables: the expected log Bayes factor between them after the push is
 half the accumulated separation (the Kullback-Leibler divergence of two Gaussian
 predictions of equal spread). The pushes are picked greedily, each candidate at most
@@ -42,11 +42,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.model_error import numerical_floors
-from imply.diagnose.next_probes import NextProbe, recommend_probe
-from imply.diagnose.observables import Observables
-from imply.diagnose.pushlog import SIZE_COLUMNS, TRACK_OBSERVABLES, PushLog
+from imply.diagnose.conclusion.next_probes import NextProbe, recommend_probe
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.model_error import numerical_floors
+from imply.diagnose.inputs.observables import Observables
+from imply.diagnose.inputs.pushlog import SIZE_COLUMNS, TRACK_OBSERVABLES, PushLog
 from imply.diagnose.records import Record, json_field
 from imply.io import write_csv
 from imply.options import Config

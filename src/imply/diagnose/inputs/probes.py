@@ -18,7 +18,7 @@ others left empty):
   simulator's friction parameter means. What the test reads under each hypothesis's
   effects (a tilt along the drag, a viscous force at its speed, anisotropic friction along
   its direction) is predicted where the row says the speed and direction
-  (:mod:`imply.diagnose.probe_fit`);
+  (:mod:`imply.diagnose.physics.probe_fit`);
 - ``added_mass``: a push of an object of the log with a weighed load on it. ``object_id``,
   ``speed``, ``displacement`` (as a push), ``added_mass`` (kg, > 0: the load), and where
   measured ``direction``, ``stop_time`` and ``pusher_speed``.

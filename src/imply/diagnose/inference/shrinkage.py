@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.screening import folds
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.screening import folds
 from imply.diagnose.tails import chi2_sf
 
 
@@ -138,7 +138,7 @@ def shrinkage(
     )
     nw = int((ro_w > 0).sum())
     # whitened by noise and model error together: an adequate model leaves unit variance
-    # a freed launch is one more parameter per condition, fitted on the same rows (imply.diagnose.launch)
+    # a freed launch is one more parameter per condition, fitted on the same rows (imply.diagnose.inference.launch)
     nuisance = problem.n_nuisance
     floor_w = float(np.sqrt(max(nw - k * N * (1 + len(problem.aux)) - nuisance, 0) / nw)) if nw else None
     both_share = share_closed(rms(rw0, ro_w), rms(rw1, ro_w), floor_w)

@@ -1,14 +1,14 @@
 """The next experiment may be a probe, not a push: the calibration probe that best separates the contenders.
 
-Candidates are the probes of :mod:`imply.diagnose.probes` the log could add: a free stroke
+Candidates are the probes of :mod:`imply.diagnose.inputs.probes` the log could add: a free stroke
 at each candidate speed, a friction measurement of each object not yet measured (nor
 weighed into the log as a fixed friction), and a push of each object with a known load (half
 its fitted mass, inside the table's range) at the log's lowest and highest speed. Each
-contender (as in :mod:`imply.diagnose.next_pushes`) predicts what each probe would read, by
-the same physics its fit uses (:mod:`imply.diagnose.probe_fit`): the free stroke through
+contender (as in :mod:`imply.diagnose.conclusion.next_pushes`) predicts what each probe would read, by
+the same physics its fit uses (:mod:`imply.diagnose.physics.probe_fit`): the free stroke through
 the rig's servo at the pusher's speed under that contender, the friction reading as a pull
-test reads it under that contender's effects (:func:`imply.diagnose.probe_fit.pull_test_log_reading`:
-a drag at :data:`imply.diagnose.probes.DEFAULT_PULL_SPEED` along the object's first push of the log, so that a tilt or a
+test reads it under that contender's effects (:func:`imply.diagnose.physics.probe_fit.pull_test_log_reading`:
+a drag at :data:`imply.diagnose.inputs.probes.DEFAULT_PULL_SPEED` along the object's first push of the log, so that a tilt or a
 viscous force moves the reading and a change of the table's friction does not), the loaded
 push as a push at the loaded mass. A probe's
 separation of two contenders is the squared difference of their predictions over its noise
@@ -29,9 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.probe_fit import Servo, free_stroke_log_speed, pull_test_log_reading
-from imply.diagnose.probes import DEFAULT_FRICTION_SD, DEFAULT_PULL_SPEED
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inputs.probes import DEFAULT_FRICTION_SD, DEFAULT_PULL_SPEED
+from imply.diagnose.physics.probe_fit import Servo, free_stroke_log_speed, pull_test_log_reading
 from imply.diagnose.records import Record
 from imply.io import write_csv
 

@@ -12,12 +12,12 @@ time from the start of the push until the pusher reached the end of its stroke),
 refers to; without it, a push is its row number). Other columns are kept and ignored.
 
 The box's track over time, where recorded, comes in a second file of long rows
-(:mod:`imply.diagnose.track_file`); the diagnostic reads from it the times at which the box
+(:mod:`imply.diagnose.inputs.track_file`); the diagnostic reads from it the times at which the box
 covers fractions of its travel (:attr:`PushLog.crossing_times`).
 
 Measured ``mass`` and ``friction`` must be constant within an object and inside the
 table's range; the diagnostic then holds them fixed instead of fitting them (see
-:class:`imply.diagnose.fit.Problem`), which removes the aliasing of effects with the
+:class:`imply.diagnose.inference.fit.Problem`), which removes the aliasing of effects with the
 (m, mu) fit.
 
 Nothing is dropped: a bad cell raises :class:`imply.input_files.InputError` naming its
@@ -38,7 +38,7 @@ from imply.input_files import InputError, read_table_lines, row_error
 from imply.sim.track import FRACTIONS
 
 if TYPE_CHECKING:
-    from imply.diagnose.probes import Probes
+    from imply.diagnose.inputs.probes import Probes
 
 REQUIRED = ["object_id", "speed", "displacement"]
 SIZE_COLUMNS = ["size_x", "size_y", "size_z"]
@@ -66,7 +66,9 @@ class PushLog:
     crossing_times: np.ndarray | None = None  # (n, Q) from the box's track: when it covered each of FRACTIONS (s)
     track_path: str | None = None  # the track file they were read from
     track_note: str | None = None  # why the log's track was left out, where it was
-    probes: Probes | None = None  # the calibration probes beside the log (imply.diagnose.probes), where it has them
+    probes: Probes | None = (
+        None  # the calibration probes beside the log (imply.diagnose.inputs.probes), where it has them
+    )
     # where the log's observables are measured against a reference session (imply.diagnose.reference): by
     # observable name ("displacement", or one of the aux observables), the (n,) sd of the baseline taken out of
     # each push's log value, which a fit counts beside the noise (None: the table is the only baseline)

@@ -1,6 +1,6 @@
 """The model discrepancy, described: how the table's pushes differ from these ones in a way no library effect explains.
 
-The discrepancy term (:func:`imply.diagnose.candidates.discrepancy_candidate`) is a smooth,
+The discrepancy term (:func:`imply.diagnose.physics.candidates.discrepancy_candidate`) is a smooth,
 low-dimensional function of speed, mass and friction with a Gaussian prior that keeps it
 small (the model discrepancy of Kennedy and O'Hagan, in its simplest form: a few basis
 functions with a ridge prior, fitted jointly with every object's mass and friction). What
@@ -10,7 +10,7 @@ parameters: where the log carries weighed masses, the masses a free fit would gi
 :func:`describe` turns a fitted discrepancy into numbers a lab can act on: how much the
 table's slides change relative to these from the slowest to the fastest push, how that
 differs for rough against smooth and heavy against light objects, the stop times' offset,
-and the implied masses; :mod:`imply.diagnose.render` says it in words.
+and the implied masses; :mod:`imply.diagnose.conclusion.render` says it in words.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imply.diagnose.candidates import Model, discrepancy_basis, scaled
-from imply.diagnose.fit import JointFit, Problem
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.physics.candidates import Model, discrepancy_basis, scaled
 from imply.diagnose.records import Record, json_field
 
 

@@ -1,6 +1,6 @@
 """What a log's calibration probes add to every hypothesis's fit: whitened residual rows beside the pushes'.
 
-Each probe (:mod:`imply.diagnose.probes`) is predicted under the hypothesis being fitted, as
+Each probe (:mod:`imply.diagnose.inputs.probes`) is predicted under the hypothesis being fitted, as
 a push is, and its residual counts in the same sum of squares:
 
 - a **friction measurement** of object i is a prior on its friction, never a value held
@@ -30,7 +30,7 @@ a push is, and its residual counts in the same sum of squares:
   no longer read alike.
 
 Free strokes belong to no object; their rows are counted with the first object's (the
-per-object blocks of :meth:`imply.diagnose.fit.Problem.fit` see no mass or friction in them),
+per-object blocks of :meth:`imply.diagnose.inference.fit.Problem.fit` see no mass or friction in them),
 so a leave-objects-out fold that drops the first object drops them too.
 """
 
@@ -41,8 +41,8 @@ from functools import cached_property
 
 import numpy as np
 
-from imply.diagnose.candidates import Model, terms
-from imply.diagnose.probes import Probes
+from imply.diagnose.inputs.probes import Probes
+from imply.diagnose.physics.candidates import Model, terms
 from imply.sim.effects import EFFECTS
 from imply.sim.scene import GRAVITY
 

@@ -2,7 +2,7 @@
 
 A *hypothesis* is a set of library effects (at most ``max_effects``, at most one per alias
 class) with or without the model discrepancy. Each one is fitted jointly with every
-object's mass and friction (:meth:`imply.diagnose.fit.Problem.fit`) under the same noise
+object's mass and friction (:meth:`imply.diagnose.inference.fit.Problem.fit`) under the same noise
 and model error (the baseline's), so their sums of squares are comparable, and scored by
 its Laplace-approximated log evidence:
 
@@ -49,12 +49,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.aliasing import Aliasing
-from imply.diagnose.candidates import DISCREPANCY, Candidate, Model
-from imply.diagnose.estimates import EffectEstimate, estimate_fields
-from imply.diagnose.fit import JointFit, Problem
+from imply.diagnose.inference.aliasing import Aliasing
+from imply.diagnose.inference.estimates import EffectEstimate, estimate_fields
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.screening import fit_candidate, folds
+from imply.diagnose.physics.candidates import DISCREPANCY, Candidate, Model
 from imply.diagnose.records import Record
-from imply.diagnose.screening import fit_candidate, folds
 
 NO_EFFECT = "none"  # the label of the hypothesis with neither library effects nor the discrepancy
 

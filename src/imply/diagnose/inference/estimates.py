@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.aliasing import Aliasing
-from imply.diagnose.candidates import Candidate, Model
+from imply.diagnose.inference.aliasing import Aliasing
+from imply.diagnose.inference.screening import StepResult
+from imply.diagnose.physics.candidates import Candidate, Model
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.screening import StepResult
 
 Z95 = 1.959964
 
@@ -154,5 +154,5 @@ def accepted_effects(fit_model: Model, theta: np.ndarray, *, cov: np.ndarray, al
             fit_alias=alias.effects[c.name].fit_alias,
         )
         for c, sl in zip(fit_model.candidates, fit_model.slices(), strict=True)
-        if c.is_library  # the discrepancy is described apart (imply.diagnose.discrepancy)
+        if c.is_library  # the discrepancy is described apart (imply.diagnose.inference.discrepancy)
     ]

@@ -7,7 +7,7 @@ for a model with effects, the size of any extrapolation beyond the table's range
 tabulated effect's measured relative error times the effect it carries. The baseline is
 fitted under the baseline's error (:func:`model_error` with no effects); every effect
 that a model adds brings its own; the hypotheses are all weighed under the baseline's
-(:mod:`imply.diagnose.hypotheses`), so that their chi-squares compare.
+(:mod:`imply.diagnose.inference.hypotheses`), so that their chi-squares compare.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.candidates import Model
-from imply.diagnose.fit import ObjectFit, Problem
+from imply.diagnose.inference.fit import ObjectFit, Problem
+from imply.diagnose.physics.candidates import Model
 from imply.options import Config
 
 

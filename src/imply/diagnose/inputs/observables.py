@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from imply.diagnose.pushlog import TRACK_OBSERVABLES
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imply.diagnose.fit import ObjectFit, Problem
+from imply.diagnose.inference.fit import ObjectFit, Problem
 from imply.diagnose.records import Record, json_field
 from imply.diagnose.tails import chi2_sf, t_ppf
 

@@ -11,7 +11,7 @@ takes the standing gap out of every push of the new log, observable by observabl
   measurement: the mean of its replicates there, less the table's prediction at the box's
   fitted (mass, friction). That cancels the standing gap whatever its form, at the price of
   the reference's noise, which every fit then counts beside the log's
-  (:attr:`imply.diagnose.pushlog.PushLog.baseline_sd`);
+  (:attr:`imply.diagnose.inputs.pushlog.PushLog.baseline_sd`);
 - elsewhere, by the reference's leading hypothesis (the standing gap as fitted), at the
   same (mass, friction).
 
@@ -26,12 +26,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from imply.diagnose.candidates import Model
-from imply.diagnose.discrepancy import DiscrepancyReport
-from imply.diagnose.fit import JointFit, Problem
-from imply.diagnose.pushlog import TRACK_OBSERVABLES, PushLog
+from imply.diagnose.inference.discrepancy import DiscrepancyReport
+from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.shrinkage import rms, share_closed
+from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES, PushLog
+from imply.diagnose.physics.candidates import Model
 from imply.diagnose.records import Record, json_field
-from imply.diagnose.shrinkage import rms, share_closed
 from imply.input_files import InputError
 
 # the aux observables held as columns of the push log (the track's are columns of crossing_times)

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imply.diagnose.pushlog import PushLog
+from imply.diagnose.inputs.pushlog import PushLog
 from imply.input_files import InputError, read_table_lines, row_error, row_label
 from imply.sim.track import FRACTIONS, crossing_times
 
