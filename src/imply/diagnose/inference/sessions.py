@@ -82,7 +82,9 @@ class ReferenceReport(Record):
     objects_reference_only: list[str]  # boxes only the reference has: they inform the standing gap alone
     pushes_matched: int  # the log's pushes whose (object, speed, direction) the reference ran
     pushes_modelled: int  # the others: their baseline is the standing gap's fit
-    observables_dropped: list[str]  # observables of the log the reference lacks: not used against it
+    # observables of the log the reference lacks, not used against it ("probes": the log's probes, where it has boxes
+    # the reference lacks)
+    observables_dropped: list[str]
     standing: StandingGap
 
 
@@ -109,7 +111,8 @@ def check_pair(log: PushLog, reference: PushLog) -> None:
 
 
 def _subset(log: PushLog, keep: list[str]) -> PushLog:
-    """``log``'s pushes of the objects ``keep`` (in ``log``'s order); its probes only where no object is dropped."""
+    """``log``'s pushes of the objects ``keep`` (in ``log``'s order); its probes only where no object is dropped (they
+    are indexed by the log's boxes)."""
     if len(keep) == len(log.objects):
         return log
     index = [log.objects.index(o) for o in keep]
@@ -133,10 +136,6 @@ def _subset(log: PushLog, keep: list[str]) -> PushLog:
         pusher_speed=cut(log.pusher_speed),
         crossing_times=cut(log.crossing_times),
         probes=None,
-        track_note=(log.track_note + "; " if log.track_note else "")
-        + "the probes were left out: they name boxes the reference lacks"
-        if log.probes is not None
-        else log.track_note,
     )
 
 
@@ -196,6 +195,8 @@ def against_reference(
     log_only = [o for o in log.objects if o not in ref.log.objects]
     ref_only = [o for o in ref.log.objects if o not in log.objects]
     dropped = [a for a in observables_used if a not in ref.aux]
+    if log_only and log.probes is not None:
+        dropped.append("probes")
     unused = [a for a in (*_COLUMNS, *TRACK_OBSERVABLES) if a not in observables_used or a in dropped]
     raw = _without(_subset(log, shared), unused)
     aux = tuple(a for a in observables_used if a in ref.aux)
