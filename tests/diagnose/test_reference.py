@@ -15,6 +15,10 @@ import pandas as pd
 import pytest
 
 from imply.cli import main
+from imply.diagnose.inference.fit import Problem
+from imply.diagnose.inference.sessions import against_reference
+from imply.diagnose.inputs.pushlog import PushLog
+from imply.diagnose.physics.candidates import Model
 from imply.io import write_csv
 from imply.realworld import cases as C
 from imply.sim import SceneConfig
@@ -148,3 +152,50 @@ def test_reference_without_shared_boxes_is_refused_in_one_line(tiny_table_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pushes none of the boxes" in err[0], err
     assert not (tmp_path / "x").exists()
+
+
+def _log(table, boxes: dict[str, tuple[float, float]], speeds, shift: float, path: str) -> PushLog:
+    """A push log of ``boxes`` ({name: (mass, friction)}) at ``speeds``, the table's slides shifted by ``shift`` in
+    log d (a standing gap of the simplest kind), the masses measured."""
+    names = list(boxes)
+    obj = np.repeat(np.arange(len(names)), len(speeds))
+    v = np.tile(np.asarray(speeds, float), len(names))
+    m = np.array([boxes[n][0] for n in names])[obj]
+    mu = np.array([boxes[n][1] for n in names])[obj]
+    return PushLog(
+        path=path,
+        frame=pd.DataFrame({"object_id": [names[i] for i in obj], "speed": v}),
+        objects=names,
+        obj=obj,
+        speed=v,
+        displacement=np.exp(table.log_displacement(v, m, mu) + shift),
+        direction=np.zeros(v.size),
+        has_direction=False,
+        mass=np.array([boxes[n][0] for n in names]),
+    )
+
+
+def test_the_standing_gap_comes_out_by_the_reference_s_own_pushes_where_it_ran_them(tiny_table):
+    """Boxes of one session only, pushes the reference never ran: what each is paired with, and the new session's
+    change alone left where the reference ran the same push."""
+    boxes = {"a": (0.4, 0.2), "b": (0.8, 0.3), "c": (1.2, 0.25), "d": (0.5, 0.4)}
+    new = _log(tiny_table, {k: boxes[k] for k in "abc"}, [0.3, 0.5, 0.7, 0.9], 0.15, "new.csv")
+    ref = _log(tiny_table, {k: boxes[k] for k in "bcd"}, [0.3, 0.5, 0.7], 0.10, "ref.csv")
+    ref_problem = Problem.of(ref, tiny_table, None, grid=31).with_noise(0.02, None)
+    standing = ref_problem.fit(Model(), np.zeros(0), ref_problem.initial_fit())
+    corrected, pairing = against_reference(new, ref_problem, standing, observables_used=())
+    assert (pairing.objects_shared, pairing.objects_log_only, pairing.objects_reference_only) == (
+        ["b", "c"],
+        ["a"],
+        ["d"],
+    )
+    assert corrected.objects == ["b", "c"] and corrected.n == 8
+    assert (pairing.pushes_matched, pairing.pushes_modelled) == (6, 2)
+    # where the reference ran the push: the new reading less the reference's, on the table at the reference's fit
+    problem = Problem.of(corrected, tiny_table, None, grid=31)
+    at = np.array([ref.objects.index(o) for o in corrected.objects])[problem.c_obj]
+    table_hat = problem.predict(Model(), np.zeros(0), standing.objects.lm[at], standing.objects.lu[at]).log_d
+    matched = corrected.speed < 0.8
+    np.testing.assert_allclose((corrected.log_d - table_hat[problem.cond])[matched], 0.05, atol=1e-9)
+    # the reference's noise is counted there (one push of each: its whole sd), and nowhere else
+    np.testing.assert_allclose(corrected.baseline_sd["displacement"], np.where(matched, 0.02, 0.0))
