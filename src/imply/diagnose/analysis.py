@@ -328,8 +328,9 @@ def baseline_residuals(problem: Problem, base: JointFit) -> tuple[np.ndarray, np
     return problem.row_residuals(problem.predict(Model(), np.zeros(0), lm, lu))
 
 
-def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfig) -> Diagnosis:
-    """Run every step on a push log's :class:`Problem` (built with :meth:`Problem.of`)."""
+def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfig, *, advise: bool = True) -> Diagnosis:
+    """Run every step on a push log's :class:`Problem` (built with :meth:`Problem.of`); ``advise``: design the next
+    pushes (step 7; a reference session's diagnosis, read for its standing gap alone, skips it)."""
     t0 = time.perf_counter()
     noise = estimate_noise(problem, opts)  # 1. noise and outliers, then the baseline under them
     problem, base = baseline_fit(noise.apply(problem), opts)
@@ -367,13 +368,17 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     effects = accepted_effects(final.model, final.theta, cov=cov, alias=alias)
     disc = describe(problem, final, mimics=alias.mimicked)
     by_label = {h.label: f for h, f in zip(hyps.table, hyps.fits, strict=True)}
-    design = design_pushes(
-        problem,
-        [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
-        n=opts.next_pushes,
-        speeds=opts.next_speeds,
-        directions=opts.next_directions,
-        opts=opts,
+    design = (
+        design_pushes(
+            problem,
+            [(c.label, by_label[c.label], c.weight) for c in verdict.contenders],
+            n=opts.next_pushes,
+            speeds=opts.next_speeds,
+            directions=opts.next_directions,
+            opts=opts,
+        )
+        if advise
+        else None
     )  # 7. the pushes that would tell the contenders apart
     singles = screened(problem, base, hyps.singles, alpha=opts.alpha, fold_of=folds(problem.n_obj, opts.folds))
 

@@ -72,7 +72,8 @@ def diagnose_against(
     observables = opts.observables()
     log_problem = Problem.of(log, table, etables, grid=opts.grid, observables=observables)
     ref_problem = Problem.of(reference, table, etables, grid=opts.grid, observables=observables)
-    standing = diagnose(ref_problem, candidates, shared_noise(log_problem, ref_problem, opts))
+    # the reference is read for its standing gap: no next pushes are designed for it
+    standing = diagnose(ref_problem, candidates, shared_noise(log_problem, ref_problem, opts), advise=False)
     # the observables a diagnosis of the log alone would read
     used = log_problem.aux
     corrected, pairing = against_reference(log, standing.problem, standing.leading, observables_used=used)
