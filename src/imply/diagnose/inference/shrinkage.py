@@ -2,7 +2,8 @@
 
 The held-out RMS gap in log displacement before (the baseline fit) and after the
 accepted effects (each object's parameters refitted at the effects fitted without its
-fold), the share of the gap above the noise floor it closes, and the same for stop
+fold), the share of the gap above the noise floor it closes (the floor holds a reference
+session's noise where its readings are the baseline), and the same for stop
 times, for both observables whitened together (what the verdict is judged on), and for
 the objects' anchored disagreement. The lack of fit of the accepted model, held out, is
 a chi-square at the noise and the model's own error; its overdispersion widens the
@@ -122,7 +123,11 @@ def shrinkage(
     """The gap closed by ``final``'s effects: baseline residuals ``resid_d`` / ``resid_t`` against the held-out ones."""
     rd0, rt0 = resid_d, resid_t
     n, N, k = problem.n_rows, problem.n_obj, problem.k_free
+    # the noise a push's residual carries: the log's, and a reference session's where its reading is the baseline
+    keep_d = problem.w_d > 0
     sd = problem.noise_d
+    if problem.baseline_sd_d[keep_d].any():
+        sd = float(np.sqrt(sd**2 + np.mean(problem.baseline_sd_d[keep_d] ** 2)))
     floor = sd * np.sqrt(max(n - k * N, 0) / n) if n else None
     rms0 = rms(rd0, problem.w_d)
     rms1 = rms(held.resid_d, problem.w_d)
@@ -145,7 +150,10 @@ def shrinkage(
     stop_share = None
     stop_rows = problem.aux_rows("stop_time")
     if stop_rows.size:
-        floor_t = problem.noise_t_rows[stop_rows[0]] * np.sqrt(max(n - k * N, 0) / n)
+        sd_t = problem.noise_t_rows[stop_rows[0]]
+        if problem.baseline_sd_t[stop_rows].any():
+            sd_t = float(np.sqrt(sd_t**2 + np.mean(problem.baseline_sd_t[stop_rows] ** 2)))
+        floor_t = sd_t * np.sqrt(max(n - k * N, 0) / n)
         w_s = problem.w_t[stop_rows]
         stop_share = share_closed(rms(rt0[stop_rows], w_s), rms(held.resid_t[stop_rows], w_s), floor_t)
 
