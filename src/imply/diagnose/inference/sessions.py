@@ -13,7 +13,10 @@ takes the standing gap out of every push of the new log, observable by observabl
   the reference's noise, which every fit then counts beside the log's
   (:attr:`imply.diagnose.inputs.pushlog.PushLog.baseline_sd`);
 - elsewhere, by the reference's leading hypothesis (the standing gap as fitted), at the
-  same (mass, friction).
+  same (mass, friction);
+- the log's calibration probes by the reference's probes of the same kind: a free stroke by
+  the reference's at the same speed, a friction measurement by the reference's of the same
+  box; the probes the reference did not run, and the loaded pushes, are left out (and said).
 
 What comes out is a push log whose gap against the table is what changed since the
 reference, diagnosed as any log is. In: the new log, the reference's problem and leading fit.
@@ -29,8 +32,10 @@ import numpy as np
 from imply.diagnose.inference.discrepancy import DiscrepancyReport
 from imply.diagnose.inference.fit import JointFit, Problem
 from imply.diagnose.inference.shrinkage import rms, share_closed
+from imply.diagnose.inputs.probes import Probes
 from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES, PushLog
 from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.probe_fit import Servo
 from imply.diagnose.records import Record, json_field
 from imply.input_files import InputError
 
@@ -147,6 +152,64 @@ def _without(log: PushLog, drop: list[str]) -> PushLog:
     return replace(log, **cols) if cols else log
 
 
+def _corrected_probes(log: PushLog, ref: Problem, standing: JointFit) -> tuple[Probes | None, list[str]]:
+    """``log``'s probes with the standing gap taken out by the reference's probes of the same kind: a free stroke by
+    the reference's strokes at the same commanded speed (against the servo's nominal mean speed), a friction
+    measurement by the reference's of the same box (against the box's friction as the reference's fit has it, its
+    stated sd combined with the reference's). Probes the reference did not run, and the loaded pushes, are left out;
+    returns the probes (None: none left) and what was left out, in words."""
+    own, theirs = log.probes, ref.log.probes
+    if own is None:
+        return None, []
+    if theirs is None:
+        return None, ["probes (the reference has none)"]
+    left = []
+    # free strokes: the log's reading over the reference's, at the nominal servo's mean speed
+    servo = Servo.of_scene(ref.table.meta.get("scene"))
+    speeds = np.round(theirs.free_stroke_speed, 9)
+    keep = np.isin(np.round(own.free_stroke_speed, 9), speeds) if servo is not None else np.zeros(0, bool)
+    stroke_v = own.free_stroke_speed[keep]
+    stroke_p = own.free_stroke_pusher_speed[keep]
+    if stroke_v.size:
+        ref_log = {v: np.mean(np.log(theirs.free_stroke_pusher_speed[speeds == v])) for v in np.unique(speeds)}
+        standing_log = np.array([ref_log[v] for v in np.round(stroke_v, 9)]) - np.log(servo.mean_speed(stroke_v))
+        stroke_p = stroke_p * np.exp(-standing_log)
+    if keep.size and not keep.all():
+        left.append(f"{int((~keep).sum())} free stroke(s) at speeds the reference did not stroke")
+    # friction measurements: the log's reading over the reference's of the same box, at the box's fitted friction
+    friction = np.full(len(log.objects), np.nan)
+    friction_sd = np.full(len(log.objects), np.nan)
+    for i, name in enumerate(log.objects):
+        j = ref.log.objects.index(name) if name in ref.log.objects else -1
+        if j < 0 or not np.isfinite(own.friction[i]) or not np.isfinite(theirs.friction[j]):
+            continue
+        ratio = own.friction[i] / theirs.friction[j]
+        friction[i] = ratio * np.exp(standing.objects.lu[j])
+        rel = np.hypot(own.friction_sd[i] / own.friction[i], theirs.friction_sd[j] / theirs.friction[j])
+        friction_sd[i] = rel * friction[i]
+    dropped = int(np.isfinite(own.friction).sum() - np.isfinite(friction).sum())
+    if dropped:
+        left.append(f"{dropped} friction measurement(s) of boxes the reference did not measure")
+    if own.n_added:
+        left.append(f"{own.n_added} loaded push(es)")
+    none_added = np.zeros(0)
+    probes = replace(
+        own,
+        free_stroke_speed=stroke_v,
+        free_stroke_pusher_speed=stroke_p,
+        friction=friction,
+        friction_sd=friction_sd,
+        added_obj=np.zeros(0, int),
+        added_speed=none_added,
+        added_displacement=none_added,
+        added_mass=none_added,
+        added_direction=none_added,
+        added_stop_time=none_added,
+        added_pusher_speed=none_added,
+    )
+    return (probes if stroke_v.size or np.isfinite(friction).any() else None), left
+
+
 def _condition_keys(objects: list[str], obj: np.ndarray, v: np.ndarray, phi: np.ndarray) -> list[tuple]:
     """Each push's condition as a key two sessions share: its box's name, speed and direction (mod 2 pi)."""
     return [
@@ -196,9 +259,13 @@ def against_reference(
     ref_only = [o for o in ref.log.objects if o not in log.objects]
     dropped = [a for a in observables_used if a not in ref.aux]
     if log_only and log.probes is not None:
-        dropped.append("probes")
+        dropped.append("probes (they name boxes the reference lacks)")
     unused = [a for a in (*_COLUMNS, *TRACK_OBSERVABLES) if a not in observables_used or a in dropped]
     raw = _without(_subset(log, shared), unused)
+    if raw.probes is not None and ref.observables.probes:
+        probes, left_out = _corrected_probes(raw, ref, standing)
+        raw = replace(raw, probes=probes)
+        dropped += left_out
     aux = tuple(a for a in observables_used if a in ref.aux)
     pl = Problem.of(raw, ref.table, ref.etables, grid=ref.grid, observables=ref.observables)
     if pl.aux != aux:  # the log's problem reads the same observables as the reference's (those both have)
