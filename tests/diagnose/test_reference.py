@@ -9,6 +9,7 @@ is the same world and boxes without it, one push of each, with noise of its own
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -17,8 +18,10 @@ import pytest
 from imply.cli import main
 from imply.diagnose.inference.fit import Problem
 from imply.diagnose.inference.sessions import against_reference
+from imply.diagnose.inputs.probes import Probes
 from imply.diagnose.inputs.pushlog import PushLog
 from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.probe_fit import Servo
 from imply.io import write_csv
 from imply.realworld import cases as C
 from imply.sim import SceneConfig
@@ -199,3 +202,52 @@ def test_the_standing_gap_comes_out_by_the_reference_s_own_pushes_where_it_ran_t
     np.testing.assert_allclose((corrected.log_d - table_hat[problem.cond])[matched], 0.05, atol=1e-9)
     # the reference's noise is counted there (one push of each: its whole sd), and nowhere else
     np.testing.assert_allclose(corrected.baseline_sd["displacement"], np.where(matched, 0.02, 0.0))
+
+
+def _probes(path: str, strokes: dict[float, float], friction: list[float], sd: list[float]) -> Probes:
+    """Probes of free strokes ({commanded speed: measured mean speed}) and friction measurements (NaN: none), and one
+    loaded push of the first box."""
+    one = np.ones(1)
+    return Probes(
+        path=path,
+        free_stroke_speed=np.array(list(strokes), float),
+        free_stroke_pusher_speed=np.array(list(strokes.values()), float),
+        friction=np.array(friction, float),
+        friction_sd=np.array(sd, float),
+        friction_speed=np.full(len(friction), np.nan),
+        friction_direction=np.full(len(friction), np.nan),
+        added_obj=np.zeros(1, int),
+        added_speed=0.5 * one,
+        added_displacement=0.05 * one,
+        added_mass=0.2 * one,
+        added_direction=np.full(1, np.nan),
+        added_stop_time=np.full(1, np.nan),
+        added_pusher_speed=np.full(1, np.nan),
+    )
+
+
+def test_the_probes_lose_the_standing_gap_by_the_reference_s_probes_of_the_same_kind(tiny_table):
+    """A free stroke over the reference's at the same speed, a friction reading over the reference's of the same box;
+    what the reference did not run, and the loaded pushes, are left out and said."""
+    boxes = {"b": (0.8, 0.3), "c": (1.2, 0.25)}
+    new = _log(tiny_table, boxes, [0.3, 0.5, 0.7], 0.15, "new.csv")
+    ref = _log(tiny_table, boxes, [0.3, 0.5, 0.7], 0.10, "ref.csv")
+    new = replace(new, probes=_probes("new.probes.csv", {0.3: 0.27, 0.6: 0.50, 0.9: 0.80}, [0.33, 0.2], [0.02, 0.02]))
+    ref = replace(ref, probes=_probes("ref.probes.csv", {0.3: 0.25, 0.6: 0.52}, [0.30, np.nan], [0.03, np.nan]))
+    ref_problem = Problem.of(ref, tiny_table, None, grid=31).with_noise(0.02, None)
+    standing = ref_problem.fit(Model(), np.zeros(0), ref_problem.initial_fit())
+    corrected, pairing = against_reference(new, ref_problem, standing, observables_used=())
+    p = corrected.probes
+    servo = Servo.of_scene(tiny_table.meta["scene"])
+    np.testing.assert_allclose(p.free_stroke_speed, [0.3, 0.6])
+    np.testing.assert_allclose(
+        p.free_stroke_pusher_speed, [0.27, 0.50] * servo.mean_speed(np.array([0.3, 0.6])) / [0.25, 0.52]
+    )
+    np.testing.assert_allclose(p.friction[0], 0.33 / 0.30 * np.exp(standing.objects.lu[0]))
+    np.testing.assert_allclose(p.friction_sd[0] / p.friction[0], np.hypot(0.02 / 0.33, 0.03 / 0.30))
+    assert np.isnan(p.friction[1]) and p.n_added == 0
+    assert pairing.observables_dropped == [
+        "1 free stroke(s) at speeds the reference did not stroke",
+        "1 friction measurement(s) of boxes the reference did not measure",
+        "1 loaded push(es)",
+    ]
