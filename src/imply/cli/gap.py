@@ -581,7 +581,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     visible = visible_sizes(labels, table)
     result = score_cases(labels, summaries, visible, config=config, accuracy=accuracy)
     if args.contact_sealed:
-        from imply.realworld.benchmark import score_contact_cases
+        from imply.realworld.benchmark import CONTACT_SINGLE, score_contact_cases, shrink_sizes
 
         if args.contact_bench_json is None or not args.contact_reports:
             raise UserError("--contact-sealed needs --contact-bench-json and --contact-reports")
@@ -592,8 +592,6 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         from imply.realworld.cases import ContactBenchmarkConfig
 
         design = config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
-        from imply.realworld.benchmark import CONTACT_SINGLE, shrink_sizes
-
         result["contact"] = score_contact_cases(
             contact_labels,
             contact_summaries,

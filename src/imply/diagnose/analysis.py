@@ -382,6 +382,8 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     )  # 7. the pushes that would tell the contenders apart
     singles = screened(problem, base, hyps.singles, alpha=opts.alpha, fold_of=folds(problem.n_obj, opts.folds))
 
+    shrunk = cause_shrink(problem.log, problem, final, verdict.effects)  # the stated causes' share of the gap
+
     # 8. the report's summary and residuals
     observables, note = _observables(problem)
     outliers = _outliers(problem, noise)
@@ -421,7 +423,7 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         seconds=round(time.perf_counter() - t0, 3),
         next_pushes=design,
         discrepancy=disc,
-        cause_shrink=cause_shrink(problem.log, problem, final, verdict.effects),
+        cause_shrink=shrunk,
     )
     summary = replace(summary, sentence=verdict_text(summary))
     with_effects = bool(final.model.dim)
