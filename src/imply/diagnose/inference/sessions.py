@@ -167,7 +167,7 @@ def _corrected_probes(log: PushLog, ref: Problem, standing: JointFit) -> tuple[P
     # free strokes: the log's reading over the reference's, at the nominal servo's mean speed
     servo = Servo.of_scene(ref.table.meta.get("scene"))
     speeds = np.round(theirs.free_stroke_speed, 9)
-    keep = np.isin(np.round(own.free_stroke_speed, 9), speeds) if servo is not None else np.zeros(0, bool)
+    keep = np.isin(np.round(own.free_stroke_speed, 9), speeds) & (servo is not None)
     stroke_v = own.free_stroke_speed[keep]
     stroke_p = own.free_stroke_pusher_speed[keep]
     if stroke_v.size:
