@@ -330,4 +330,4 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert since["verdict"]["effects"] == ["tilt"], since["sentence"]
     assert since["reference"]["pushes_matched"] == since["n_pushes"]
     assert since["reference"]["standing"]["adequacy"] != "no_gap"
-    assert (tmp_path / "gap-report-since" / "report.md").read_text().count("Since the reference session, the gap") == 1
+    assert (tmp_path / "gap-report-since" / "report.md").read_text().count("Since the reference, the gap") == 1

@@ -128,7 +128,10 @@ def test_reference_session_tells_the_change_from_the_standing_gap(tiny_table_pat
     assert ref["standing"]["adequacy"] != "no_gap" and ref["standing"]["baseline_rms"] > 3 * ref["standing"]["noise_sd"]
     shrink = s["cause_shrink"]
     assert shrink["cause_and_standing_share_closed"] > 0.8
-    assert s["sentence"].startswith("Since the reference session, the gap is ")
+    assert (
+        s["sentence"].startswith("The standing gap, read from the reference session")
+        and " Since the reference, the gap is " in s["sentence"]
+    )
     assert "## Against a reference session" in report and "**The standing gap**" in report
 
     s, _ = _diagnose(
@@ -141,7 +144,7 @@ def test_reference_session_tells_the_change_from_the_standing_gap(tiny_table_pat
     )
     assert s["verdict"]["effects"] == [], s["sentence"]
     assert s["reference"]["standing"]["adequacy"] != "no_gap"
-    assert s["sentence"].startswith("Since the reference session, nothing beyond noise changed")
+    assert " Since the reference, nothing beyond noise changed" in s["sentence"]
 
 
 def test_reference_without_shared_boxes_is_refused_in_one_line(tiny_table_path, tmp_path, capsys):

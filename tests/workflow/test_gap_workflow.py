@@ -230,7 +230,7 @@ def check_lab(tmp_path):
         assert ref.n == len(conditions)
         summary = json.loads((tmp_path / f"results/gap/lab/sealed/reports_reference/{name}/summary.json").read_text())
         assert summary["reference"]["objects_shared"] == own.objects and "cause_shrink" in summary
-        assert summary["sentence"].startswith("Since the reference session, ")
+        assert summary["sentence"].startswith("The standing gap, read from the reference session")
     assert scored["reference"]["all"]["n_logs"] == 4
     single = [c for c in scored["reference"]["all"]["cases"] if c["group"].startswith("single")]
     assert all(c["true_share"] is None or -1 < c["true_share"] <= 1 for c in single)

@@ -314,8 +314,8 @@ def _share_words(share: float | None) -> str:
 
 
 def reference_text(summary) -> str:
-    """The verdict of a diagnosis against a reference session (``summary.reference``): what changed since the
-    reference, the standing gap, and how far the new session's gap shrinks."""
+    """The verdict of a diagnosis against a reference session (``summary.reference``): the standing gap, what changed
+    since the reference, and how far the new session's gap shrinks."""
     ref = summary.reference
     since = verdict_text(summary)
     if summary.verdict.adequacy == Adequacy.NO_GAP:
@@ -329,8 +329,8 @@ def reference_text(summary) -> str:
     st = ref.standing
     sh = summary.cause_shrink
     return (
-        f"Since the reference session, {since} "
-        f"The standing gap, read from the reference ({st.n_pushes} pushes): {st.headline[0].lower()}{st.headline[1:]} "
+        f"The standing gap, read from the reference session ({st.n_pushes} pushes): "
+        f"{st.headline[0].lower()}{st.headline[1:]} Since the reference, {since} "
         f"The new session's gap against the table ({sh.before_rms:.3g} RMS log d) shrinks by "
         f"{_share_words(sh.cause_share_closed)} once the cause of the change is added, and by "
         f"{_share_words(sh.cause_and_standing_share_closed)} once the standing gap is described too."
