@@ -382,7 +382,9 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
     )  # 7. the pushes that would tell the contenders apart
     singles = screened(problem, base, hyps.singles, alpha=opts.alpha, fold_of=folds(problem.n_obj, opts.folds))
 
-    shrunk = cause_shrink(problem.log, problem, final, verdict.effects)  # the stated causes' share of the gap
+    shrunk = cause_shrink(
+        problem.log, problem, final, verdict.effects, base=base
+    )  # the stated causes' share of the gap
 
     # 8. the report's summary and residuals
     observables, note = _observables(problem)

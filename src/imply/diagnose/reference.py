@@ -83,12 +83,7 @@ def diagnose_against(
     report = ReferenceReport(
         pushlog=reference.path,
         n_pushes=reference.n,
-        objects_shared=pairing.objects_shared,
-        objects_log_only=pairing.objects_log_only,
-        objects_reference_only=pairing.objects_reference_only,
-        pushes_matched=pairing.pushes_matched,
-        pushes_modelled=pairing.pushes_modelled,
-        observables_dropped=pairing.observables_dropped,
+        **pairing.record_fields(),
         standing=StandingGap(
             pushlog=reference.path,
             n_pushes=reference.n,

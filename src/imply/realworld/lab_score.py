@@ -127,6 +127,7 @@ def _cell(r: dict, key: str, engine: str | None) -> str:
 
 def lab_score_markdown(result: Mapping, set_name: str) -> str:
     """The lab benchmark's scores as a report: per metric, each variant over all logs and per engine."""
+    last_tier = next(v for v in reversed(VARIANTS) if v in result)  # the tier the per-engine columns show
     lines = [
         f"# Lab benchmark: the {set_name} set diagnosed alone, with its probes, and against its reference session",
         "",
@@ -149,7 +150,6 @@ def lab_score_markdown(result: Mapping, set_name: str) -> str:
             + " | per engine, with a reference |",
         ]
         lines.append("|---|---|" + "---|" * sum(v in result for v in VARIANTS) + "---|")
-        last_tier = next(v for v in reversed(VARIANTS) if v in result)
         for key, words_, target, floor in METRICS:
             t = result["targets"].get(target) if target else None
             tt = "–" if t is None else (f"≥ {t:g}" if floor else f"≤ {t:g}")
@@ -161,7 +161,6 @@ def lab_score_markdown(result: Mapping, set_name: str) -> str:
     lines += _shrink_lines(result)
     if "closed_loop" in result:
         lines += _closed_loop_lines(result["closed_loop"], result["targets"].get("closed_loop"))
-    last_tier = next(v for v in reversed(VARIANTS) if v in result)
     lines += [
         f"## Confusion, {VARIANT_WORDS[last_tier]} (true effect and world against the verdict's causes)",
         "",

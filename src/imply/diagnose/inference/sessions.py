@@ -35,12 +35,13 @@ from imply.diagnose.inference.shrinkage import rms, share_closed
 from imply.diagnose.inputs.probes import Probes
 from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES, PushLog
 from imply.diagnose.physics.candidates import Model
+from imply.diagnose.physics.effect_tables import AUX
 from imply.diagnose.physics.probe_fit import Servo
 from imply.diagnose.records import Record, json_field
 from imply.input_files import InputError
 
 # the aux observables held as columns of the push log (the track's are columns of crossing_times)
-_COLUMNS = ("stop_time", "pusher_speed")
+_COLUMNS = tuple(a for a in AUX if a not in TRACK_OBSERVABLES)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -104,6 +105,10 @@ class Pairing:
     pushes_modelled: int
     observables_dropped: list[str]
     raw: PushLog  # the log's shared boxes, before the standing gap is taken out
+
+    def record_fields(self) -> dict:
+        """The fields :class:`ReferenceReport` holds of the pairing (all but the log)."""
+        return {k: v for k, v in vars(self).items() if k != "raw"}
 
 
 def check_pair(log: PushLog, reference: PushLog) -> None:
@@ -260,7 +265,7 @@ def against_reference(
     dropped = [a for a in observables_used if a not in ref.aux]
     if log_only and log.probes is not None:
         dropped.append("probes (they name boxes the reference lacks)")
-    unused = [a for a in (*_COLUMNS, *TRACK_OBSERVABLES) if a not in observables_used or a in dropped]
+    unused = [a for a in AUX if a not in observables_used or a in dropped]
     raw = _without(_subset(log, shared), unused)
     if raw.probes is not None and ref.observables.probes:
         probes, left_out = _corrected_probes(raw, ref, standing)
@@ -337,24 +342,37 @@ def stated_part(fit: JointFit, causes: list[str]) -> tuple[Model, np.ndarray]:
 
 
 def cause_shrink(
-    raw: PushLog, fitted: Problem, fit: JointFit, causes: list[str], *, standing_described: bool = False
+    raw: PushLog,
+    fitted: Problem,
+    fit: JointFit,
+    causes: list[str],
+    *,
+    base: JointFit | None = None,
+    standing_described: bool = False,
 ) -> SessionShrink:
     """How far the gap of the log ``raw`` against the table (log d, RMS, in sample, its boxes refitted each time)
     shrinks once the stated ``causes`` are added at their estimates in ``fit`` (the leading fit on ``fitted``,
     whose rows are ``raw``'s: its noise, weights and model error are used), and (``standing_described``: ``fitted``
-    is ``raw`` with a reference's standing gap taken out) once the standing gap is described too."""
-    p = Problem.of(raw, fitted.table, fitted.etables, grid=fitted.grid, observables=fitted.observables)
-    p = replace(
-        p,
-        noise_d=fitted.noise_d,
-        noise_t=fitted.noise_t,
-        model_err_d=fitted.model_err_d,
-        model_err_t=fitted.model_err_t,
-        w_d=fitted.w_d,
-        w_t=fitted.w_t,
-    )
+    is ``raw`` with a reference's standing gap taken out) once the standing gap is described too. ``base``: the
+    table alone fitted on ``fitted``, where the caller has it and ``fitted`` is ``raw``'s own problem (launch the
+    table's): it is then the baseline, not fitted again."""
     none = np.zeros(0)
-    base = p.fit(Model(), none, p.initial_fit())
+    if raw is fitted.log and fitted.launch is None:
+        p = fitted
+    else:
+        p = Problem.of(raw, fitted.table, fitted.etables, grid=fitted.grid, observables=fitted.observables)
+        p = replace(
+            p,
+            noise_d=fitted.noise_d,
+            noise_t=fitted.noise_t,
+            model_err_d=fitted.model_err_d,
+            model_err_t=fitted.model_err_t,
+            w_d=fitted.w_d,
+            w_t=fitted.w_t,
+        )
+        base = None
+    if base is None:
+        base = p.fit(Model(), none, p.initial_fit())
 
     def resid(problem: Problem, model: Model, theta: np.ndarray, lm: np.ndarray, lu: np.ndarray) -> np.ndarray:
         return problem.row_residuals(problem.predict(model, theta, lm[problem.c_obj], lu[problem.c_obj]))[0]
