@@ -45,10 +45,14 @@ model = ACPredictor(preset.predictor(embed_dim=int(split.tokens.shape[-1]), grid
 train = TrainConfig.from_dict(cfg["train"])
 opt = torch.optim.AdamW(model.parameters(), lr=train.lr)
 bs = train.batch_size
+tf_weights = torch.as_tensor(
+    layout.teacher_forcing_weights(final_weight=train.final_weight, calib_targets=train.calib_targets),
+    dtype=torch.float32,
+)
 
 def step(i):
     frames, actions, states = seqs.batch(np.arange(i * bs, (i + 1) * bs) % len(seqs))
-    tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, q0=layout.n_calib_steps, cfg=train)
+    tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, tf_weights=tf_weights, cfg=train)
     opt.zero_grad(set_to_none=True)
     (tf + train.rollout_weight * ar).backward()
     torch.nn.utils.clip_grad_norm_(model.parameters(), train.grad_clip)

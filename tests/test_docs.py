@@ -89,8 +89,8 @@ def test_the_config_reference_lists_every_key_with_its_type_default_and_doc():
     for key, f in keys.items():
         assert docs_pages.cell(f.metadata["doc"]) in rows[key], key
     # defaults are the study's values, bounds in words
-    assert "| `60` |" in rows["model.train.epochs"]
-    assert "≥ 1" in rows["threads"] and "one of avx2, native" in rows["kernels.pin"]
+    assert "| `40` |" in rows["model.train.epochs"]
+    assert "≥ 1" in rows["threads"] and "one of avx2, numpy-avx2, native" in rows["kernels.pin"]
     assert "`1024`" in rows["model.presets.vitg-300m.width"]
     assert "list of 3 numbers" in rows["scene.box_half_extents"]
 

@@ -38,6 +38,14 @@ def test_the_pin_reaches_torch_and_numpy():
     assert pinned["numpy_v4"] is False
 
 
+def test_the_default_pins_numpy_and_leaves_torch_its_own_kernels():
+    assert KernelsConfig().pin == "numpy-avx2"
+    env = environment("numpy-avx2")
+    assert _probe(env)["numpy_v4"] is False
+    assert not any(k.startswith(("ATEN", "MKL", "ONEDNN")) for k in env)
+    assert set(env) < set(environment("avx2"))
+
+
 def test_native_sets_nothing_and_unknown_pins_are_refused():
     assert environment("native") == {}
     with pytest.raises(ValueError, match="avx512"):

@@ -212,9 +212,17 @@ PAPER_CLAIM_STAGES = ("section4", "clips", "section5")
 CLAIM_KINDS = {"paper": "the paper's claims", "project": "this project's targets"}
 
 
-def claim_kind(stage: str) -> str:
-    """``paper`` for a claim of the paper's stages, ``project`` for one of this project's targets."""
-    return "paper" if stage in PAPER_CLAIM_STAGES else "project"
+# claims of the paper's stages that are this project's bar, not the paper's: the per-seed targets of the Section 5
+# stand-in (own-calibration r >= 0.9, anchored >= 80%, ...), which the paper's own model does not reach (0.91, 73%)
+PROJECT_TARGET_PREFIXES = ("s5-targets-seed",)
+
+
+def claim_kind(stage: str, claim_id: str = "") -> str:
+    """``paper`` for a claim of the paper's stages, ``project`` for one of this project's targets (another stage's
+    claims, and those of :data:`PROJECT_TARGET_PREFIXES`)."""
+    if stage not in PAPER_CLAIM_STAGES or claim_id.startswith(PROJECT_TARGET_PREFIXES):
+        return "project"
+    return "paper"
 
 
 def claim_tally(claims: Iterable[tuple[str, Claim | Mapping]]) -> dict[str, dict[str, int]]:
@@ -223,7 +231,7 @@ def claim_tally(claims: Iterable[tuple[str, Claim | Mapping]]) -> dict[str, dict
     out = {kind: {"checked": 0, "hold": 0} for kind in CLAIM_KINDS}
     for stage, c in claims:
         holds = c.holds if isinstance(c, Claim) else bool(c.get("holds"))
-        row = out[claim_kind(stage)]
+        row = out[claim_kind(stage, c.id if isinstance(c, Claim) else str(c.get("id", "")))]
         row["checked"] += 1
         row["hold"] += int(holds)
     return out

@@ -46,7 +46,7 @@ def test_training_rollout_term_runs_the_rollout_loop():
     model = tiny_model()
     x, a, s = torch.randn(2, 14, 4, 8), torch.randn(2, 14, 1), torch.randn(2, 14, 1)
     cfg = TrainConfig(rollout_steps=4, final_weight=1.0)
-    tf, ar = losses(model, x, a, s, n_context=8, q0=6, cfg=cfg)
+    tf, ar = losses(model, x, a, s, n_context=8, tf_weights=torch.tensor([0.0] * 6 + [1.0] * 7), cfg=cfg)
     rolled = rollout(model, x, a, s, n_context=8, steps=4, context_pass=model.run(x, a, s))
     assert torch.equal(ar, (rolled - x[:, 8:12]).abs().mean(dim=(0, 2, 3)).sum() / 4)
     assert torch.allclose(rolled, rollout(model, x, a, s, n_context=8, steps=4), atol=1e-5)

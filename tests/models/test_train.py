@@ -34,9 +34,12 @@ def test_training_loss_falls(synth):
     model = tiny_model()
     opt = torch.optim.AdamW(model.parameters(), lr=3e-3)
     batch = seqs.batch(np.arange(48))
+    weights = torch.as_tensor(
+        layout.teacher_forcing_weights(final_weight=1.0, calib_targets=False), dtype=torch.float32
+    )
     first = None
     for _ in range(25):
-        tf, ar = losses(model, *batch, n_context=seqs.n_context, q0=layout.n_calib_steps, cfg=cfg)
+        tf, ar = losses(model, *batch, n_context=seqs.n_context, tf_weights=weights, cfg=cfg)
         loss = tf + ar
         first = first if first is not None else loss.item()
         opt.zero_grad()
@@ -98,3 +101,21 @@ def test_derangement_has_no_fixed_point():
     p = derangement(50, 3)
     assert sorted(p) == list(range(50)) and np.all(p != np.arange(50))
     assert np.array_equal(p, derangement(50, 3))
+
+
+def test_teacher_forcing_targets_stay_within_a_clip_and_weigh_the_rest_frame():
+    layout = Layout(calib=True, calib_frames=(0, 7), query_context=1, query_frames=(0, 4, 7))
+    # steps: calib 1 (0, 7), calib 2 (0, 7), query (0, 4, 7); weights are of targets 1 .. 6
+    query_only = layout.teacher_forcing_weights(final_weight=10.0, calib_targets=False)
+    assert query_only.tolist() == [0, 0, 0, 0, 1, 10]
+    with_calib = layout.teacher_forcing_weights(final_weight=10.0, calib_targets=True)
+    assert with_calib.tolist() == [10, 0, 10, 0, 1, 10]
+    blind = Layout(calib=False, query_context=1, query_frames=(0, 1, 4, 7))
+    assert blind.teacher_forcing_weights(final_weight=3.0, calib_targets=True).tolist() == [1, 1, 3]
+
+
+def test_with_one_rest_frame_per_calibration_push_the_second_is_predicted_from_the_first():
+    layout = Layout(calib=True, calib_frames=(7,), query_context=1, query_frames=(0, 4, 7))
+    # steps: calib 1 rest, calib 2 rest, query 0, 4, 7
+    assert layout.teacher_forcing_weights(final_weight=10.0, calib_targets=True).tolist() == [10, 0, 1, 10]
+    assert layout.teacher_forcing_weights(final_weight=10.0, calib_targets=False).tolist() == [0, 0, 1, 10]

@@ -129,3 +129,18 @@ def test_build_part_reads_every_number_of_a_stage(tmp_path):
     assert numbers["gapTopOneN"] == 13 and {c.id for c in claims} >= {"gap-null", "gap-top1", "gap-both"}
     write_part(tmp_path / "g.json", stage="gap", numbers=numbers, claims=claims)
     assert read_part(tmp_path / "g.json")["numbers"]["gapTopOneN"] == 13
+
+
+def test_the_report_gives_each_seed_s_value_and_the_range():
+    from imply.paper.macros import Merged, MergedNumber
+    from imply.paper.report import per_seed_rows
+
+    reg = load_registry()
+    numbers = {
+        "vjCTrack": MergedNumber("vjCTrack", 0.95, ".2f", "section5"),
+        "vjSOneCTrack": MergedNumber("vjSOneCTrack", 0.91, ".2f", "section5"),
+        "vjCErr": MergedNumber("vjCErr", 0.2, ".3f", "section5"),  # no second seed: not a row
+    }
+    rows = per_seed_rows(reg, Merged(numbers=numbers, claims=[], stages=["section5"]))
+    assert [(values, spread) for _, values, spread in rows] == [(["0.95", "0.91"], "0.04")]
+    assert "vjCTrack" in rows[0][0]

@@ -24,7 +24,7 @@ IMPLY_ENV = "../../envs/imply.yaml"
 
 # every job computes with the same numerical kernels on any x86-64 machine (imply.kernels):
 # jobs inherit this process's environment, here and on a cluster (each job reads the Snakefile)
-os.environ.update(kernel_environment(config.get("kernels", {}).get("pin", "avx2")))
+os.environ.update(kernel_environment(config.get("kernels", {}).get("pin", "numpy-avx2")))
 
 CLIP_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "pretrain", "validation"]
 FEATURE_SPLITS = ["train", "heldout_calib", "heldout_nocalib", "validation"]

@@ -188,7 +188,7 @@ rule snapshot:
     output:
         "docs/snapshot/snapshot.json",
     params:
-        kernels=config.get("kernels", {}).get("pin", "avx2"),
+        kernels=config.get("kernels", {}).get("pin", "numpy-avx2"),
         folder=lambda wildcards, output: folder_of(output),
     log:
         "results/logs/snapshot.log",

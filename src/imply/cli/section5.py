@@ -55,6 +55,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     s5.set_defaults(func=cmd_section5)
 
 
+def section5_part(result):
+    """A Section 5 result's registered numbers and its claims checked on them, as the stage's paper part computes
+    them (:class:`imply.study.section5.scoring.Section5Result` -> (name -> value, claims))."""
+    import dataclasses
+
+    from imply.paper.parts import build_part
+    from imply.paper.results import producer_name
+    from imply.study.section5.claims import section5_claims
+    from imply.study.section5.scoring import section5_results
+
+    document = {producer_name(section5_results): dataclasses.asdict(result)}
+    return build_part("section5", document, claims=section5_claims)
+
+
 def cmd_section5(args: argparse.Namespace) -> int:
     import pandas as pd
 

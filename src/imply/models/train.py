@@ -102,13 +102,10 @@ def lr_at(step: int, total: int, cfg: TrainConfig) -> float:
     return cfg.lr
 
 
-def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, *, last_is_final: bool, final_weight: float) -> torch.Tensor:
-    """Mean L1 over (B, S, P, D), the last of the S steps weighted ``final_weight`` when it is the final frame."""
+def _weighted_l1(pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
+    """Mean L1 over (B, S, P, D), step s weighted ``weights[s]`` (S,)."""
     per_step = (pred - target).abs().mean(dim=(0, 2, 3))
-    w = torch.ones_like(per_step)
-    if last_is_final:
-        w[-1] = final_weight
-    return (per_step * w).sum() / w.sum()
+    return (per_step * weights).sum() / weights.sum()
 
 
 def losses(
@@ -118,10 +115,11 @@ def losses(
     states: torch.Tensor,
     *,
     n_context: int,
-    q0: int,
+    tf_weights: torch.Tensor,
     cfg: TrainConfig,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(teacher-forcing L1, rollout L1) for one batch; q0 is the query's first step.
+    """(teacher-forcing L1, rollout L1) for one batch; ``tf_weights`` (T - 1,) weighs each teacher-forcing target
+    (:meth:`imply.models.config.Layout.teacher_forcing_weights`).
 
     The teacher-forcing pass also yields the keys and values of the true context, so
     the rollout (:func:`imply.models.rollout.rollout`) continues from them: its first
@@ -129,14 +127,17 @@ def losses(
     only its own tokens (gradients flow through the fed-back predictions).
     """
     tf_pass = model.run(frames, actions, states)
-    tf = _weighted_l1(tf_pass[0][:, q0:-1], frames[:, q0 + 1 :], last_is_final=True, final_weight=cfg.final_weight)
+    tf = _weighted_l1(tf_pass[0][:, :-1], frames[:, 1:], tf_weights)
     t = frames.shape[1]
     steps = min(cfg.rollout_steps, t - n_context)
     if cfg.rollout_weight == 0 or steps <= 0:
         return tf, torch.zeros((), device=frames.device)
     rolled = rollout(model, frames, actions, states, n_context=n_context, steps=steps, context_pass=tf_pass)
     target = frames[:, n_context : n_context + steps]
-    ar = _weighted_l1(rolled, target, last_is_final=n_context + steps == t, final_weight=cfg.final_weight)
+    ar_weights = torch.ones(steps, device=frames.device)
+    if n_context + steps == t:  # the rollout reaches the box at rest
+        ar_weights[-1] = cfg.final_weight
+    ar = _weighted_l1(rolled, target, ar_weights)
     return tf, ar
 
 
@@ -238,7 +239,11 @@ def train(
         config.epochs,
         per_epoch,
     )
-    q0 = layout.n_calib_steps
+    tf_weights = torch.as_tensor(
+        layout.teacher_forcing_weights(final_weight=config.final_weight, calib_targets=config.calib_targets),
+        dtype=torch.float32,
+        device=device,
+    )
     model.train()
     # where the run's time goes, logged at the end (never stored: the outputs stay the same bytes on every run)
     phases = PhaseClock(("data", "forward", "backward", "optimiser", "validation", "checkpoint"))
@@ -254,7 +259,9 @@ def train(
             with phases("data"):
                 frames, actions, states = (x.to(device) for x in seqs.batch(idx))
             with phases("forward"):
-                tf, ar = losses(model, frames, actions, states, n_context=seqs.n_context, q0=q0, cfg=config)
+                tf, ar = losses(
+                    model, frames, actions, states, n_context=seqs.n_context, tf_weights=tf_weights, cfg=config
+                )
                 loss = tf + config.rollout_weight * ar
             with phases("backward"):
                 opt.zero_grad(set_to_none=True)

@@ -91,7 +91,7 @@ def claims_sentence(stamp: dict) -> str:
     return (
         f"{paper['hold']} of the paper's {paper['checked']} claims hold; "
         f"{ours['hold']} of this project's {ours['checked']} own targets (the gap benchmarks, the evaluate checks, "
-        "the pixel model) hold"
+        "the pixel model, the Section 5 stand-in's per-seed bar) hold"
     )
 
 
@@ -218,13 +218,21 @@ def timing(stamp: dict) -> str:
     return text + (f", {cpu:.0f} CPU-min of jobs" if cpu else "")
 
 
+# how a snapshot's line names the run's kernel pin (config kernels.pin)
+KERNEL_WORDS = {
+    "avx2": "every library pinned to AVX2",
+    "numpy-avx2": "NumPy pinned to AVX2, PyTorch the machine's own",
+    "native": "the machine's own",
+}
+
+
 def label(stamp: dict) -> str:
     """One line naming a snapshot's run: commit, date, machine, time."""
     m = stamp["machine"]
     took = timing(stamp)
     return (
         f"commit {(stamp.get('commit') or 'unknown')[:7]}, run on {stamp['date']} on an {m['cpu']} "
-        f"({m['instruction_set']}; kernels pinned to {m.get('kernels') or 'the default'})"
+        f"({m['instruction_set']}; kernels: {KERNEL_WORDS.get(m.get('kernels'), m.get('kernels') or 'the default')})"
         + (f", {took}" if took else "")
     )
 

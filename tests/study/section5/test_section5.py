@@ -15,46 +15,7 @@ from imply.paper.results import producer_name
 from imply.score import ScoreConfig
 from imply.study.section5.rollouts import read_evaluations
 from imply.study.section5.scoring import Section5Result, nocalib_vs_blind, own_lt_swap, section5_results
-
-QUERY = np.array([0.3, 0.5, 0.7, 0.9])
-CALIB = np.array([0.4, 0.8])
-
-
-def _rollout_table(true_mu: np.ndarray, contexts: dict[str, np.ndarray]) -> pd.DataFrame:
-    """A rollout table: per context, predictions from that context's friction per object."""
-
-    def slide(v, mu):
-        return 0.05 * v**2 / mu
-
-    rows = []
-    for ctx, pred_mu in contexts.items():
-        for i, (mu, pmu) in enumerate(zip(true_mu, pred_mu, strict=True)):
-            oid = f"o{i:03d}"
-            for k, v in enumerate(QUERY):
-                rows.append(
-                    dict(
-                        object_id=oid,
-                        context=ctx,
-                        role="rollout",
-                        speed_index=k,
-                        speed=v,
-                        displacement=slide(v, pmu),
-                        true_displacement=slide(v, mu),
-                    )
-                )
-            for k, v in enumerate(CALIB):
-                rows.append(
-                    dict(
-                        object_id=oid,
-                        context=ctx,
-                        role="calibration",
-                        speed_index=k,
-                        speed=v,
-                        displacement=slide(v, mu),
-                        true_displacement=slide(v, mu),
-                    )
-                )
-    return pd.DataFrame(rows)
+from section5_helpers import rollout_table
 
 
 @pytest.fixture(scope="module")
@@ -66,8 +27,8 @@ def tables() -> dict[tuple[str, int], pd.DataFrame]:
         own = mu * np.exp(rng.normal(0, 0.05, mu.size))  # tracks the object
         swap = np.roll(own, 1)  # another object's calibration
         none = np.full(mu.size, 0.3)  # the typical object
-        out[("calib", seed)] = _rollout_table(mu, {"own": own, "swap": swap, "none": none})
-        out[("nocalib", seed)] = _rollout_table(mu, {"none": none})
+        out[("calib", seed)] = rollout_table(mu, {"own": own, "swap": swap, "none": none})
+        out[("nocalib", seed)] = rollout_table(mu, {"none": none})
     return out
 
 

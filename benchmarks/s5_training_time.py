@@ -1,0 +1,99 @@
+"""The Section 5 trainings' CPU time: the config's recipe against another, side by side in one run.
+
+Each recipe's four trainings (calibrated and context-free, data-order seeds 0 and 1) run with
+the study's own rule (Snakemake's ``benchmark:`` file gives each job's CPU seconds), two at a
+time and alternating between the recipes, so both see the same machine and the same
+neighbour. ``--epochs N`` trains every model N epochs (validated after the first and the last)
+and scales each to its recipe's own epochs: a measured ratio of CPU per epoch, not a whole
+training (the whole default trainings' CPU is in the study's ``results/benchmarks/model_train``).
+
+The other recipe is ``--before KEY=VALUE`` on config ``model`` (dotted keys, as in
+``benchmarks/s5_robustness.py``); ``--before-pin`` its kernel pin.
+
+Usage: ``python benchmarks/s5_training_time.py --before train.epochs=60 --before-pin avx2 ...``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import yaml
+from s5_robustness import INPUTS, ROOT, ROUNDINGS, cpu_name, parse_value, set_dotted, train_and_roll
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--before", action="append", default=[], metavar="KEY=VALUE", help="the other recipe (config model)"
+    )
+    ap.add_argument("--before-pin", default=None, help="the other recipe's kernel pin (default: the config's)")
+    ap.add_argument("--epochs", type=int, default=None, help="train N epochs and scale (default: whole trainings)")
+    ap.add_argument("--out", type=Path, default=Path("/tmp/s5-training-time"))
+    args = ap.parse_args(argv)
+    missing = [p for p in INPUTS if not (ROOT / p).exists()]
+    if missing:
+        print("missing training inputs: " + ", ".join(missing), file=sys.stderr)
+        return 2
+    config = yaml.safe_load((ROOT / "config.yaml").read_text())
+    after = config["model"]
+    before = json.loads(json.dumps(after))
+    for item in args.before:
+        key, _, text = item.partition("=")
+        set_dotted(before, key, parse_value(text))
+    pins = {"after": config["kernels"]["pin"], "before": args.before_pin or config["kernels"]["pin"]}
+    for name, pin in pins.items():
+        ROUNDINGS[f"{name}-pin"] = (pin, {}, 1)
+    recipes = {"after": after, "before": before}
+    jobs = [
+        (name, variant, seed) for variant in ("calib", "nocalib") for seed in (0, 1) for name in ("before", "after")
+    ]
+
+    def one(job):
+        name, variant, seed = job
+        model = json.loads(json.dumps(recipes[name]))
+        epochs, validate_every = model["train"]["epochs"], model["train"]["validate_every"]
+        if args.epochs:
+            model["train"]["epochs"] = validate_every = args.epochs
+        done = train_and_roll(
+            variant=variant,
+            seed=seed,
+            rounding=f"{name}-pin",
+            model=model,
+            validate_every=validate_every,
+            out=args.out / name,
+            roll=False,
+        )
+        scale = epochs / args.epochs if args.epochs else 1.0
+        return name, variant, seed, done["cpu_seconds"] * scale
+
+    with ThreadPoolExecutor(2) as pool:
+        rows = list(pool.map(one, jobs))
+    cpu = {(name, variant, seed): c for name, variant, seed, c in rows}
+    total = {}
+    how = f", scaled from {args.epochs} epochs of each to its recipe's epochs" if args.epochs else ""
+    print(f"Section 5 trainings, CPU seconds on {cpu_name()}, two side by side on one thread each{how}\n")
+    print("| training | before | after | after / before |")
+    print("|---|---|---|---|")
+    for variant in ("calib", "nocalib"):
+        for seed in (0, 1):
+            whole = {name: cpu[(name, variant, seed)] for name in ("before", "after")}
+            for name, c in whole.items():
+                total[name] = total.get(name, 0.0) + c
+            print(
+                f"| {variant} seed {seed} | {whole['before']:.0f} | {whole['after']:.0f} | "
+                f"{whole['after'] / whole['before']:.2f} |"
+            )
+    print(
+        f"| the four | {total['before'] / 60:.1f} min | {total['after'] / 60:.1f} min | "
+        f"{total['after'] / total['before']:.2f} |"
+    )
+    (args.out / "training_time.json").write_text(json.dumps({"rows": rows, "total_cpu_s": total}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
