@@ -289,10 +289,11 @@ def main(argv=None) -> int:
         v: sum(t["train_seconds"] for t in trained if t["variant"] == v) / (len(seeds) * len(roundings))
         for v in ("calib", "nocalib")
     }
+    what = "read back from --out" if args.score_only else f"the whole benchmark {wall / 60:.1f} min"
     report += (
         f"\nOn {cpu_name()}, {args.jobs} trainings side by side, one thread each: a calibrated training took "
         f"{seconds['calib']:.0f} s on average, a context-free one {seconds['nocalib']:.0f} s (validating every "
-        f"{args.validate_every} epochs); the whole benchmark {wall / 60:.1f} min.\n"
+        f"{args.validate_every} epochs; {what}).\n"
     )
     (args.out / "robustness.md").write_text(report)
     (args.out / "runs.json").write_text(
