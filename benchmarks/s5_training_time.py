@@ -3,9 +3,8 @@
 Each recipe's four trainings (calibrated and context-free, data-order seeds 0 and 1) run with
 the study's own rule (Snakemake's ``benchmark:`` file gives each job's CPU seconds), two at a
 time and alternating between the recipes, so both see the same machine and the same
-neighbour. ``--epochs N`` trains every model N epochs (validated after the first and the last)
-and scales each to its recipe's own epochs: a measured ratio of CPU per epoch, not a whole
-training (the whole default trainings' CPU is in the study's ``results/benchmarks/model_train``).
+neighbour. Whole trainings only: a few epochs scaled up would count each job's start-up (Snakemake,
+imports, the features) many times over.
 
 The other recipe is ``--before KEY=VALUE`` on config ``model`` (dotted keys, as in
 ``benchmarks/s5_robustness.py``); ``--before-pin`` its kernel pin.
@@ -31,7 +30,6 @@ def main(argv=None) -> int:
         "--before", action="append", default=[], metavar="KEY=VALUE", help="the other recipe (config model)"
     )
     ap.add_argument("--before-pin", default=None, help="the other recipe's kernel pin (default: the config's)")
-    ap.add_argument("--epochs", type=int, default=None, help="train N epochs and scale (default: whole trainings)")
     ap.add_argument("--out", type=Path, default=Path("/tmp/s5-training-time"))
     args = ap.parse_args(argv)
     missing = [p for p in INPUTS if not (ROOT / p).exists()]
@@ -54,28 +52,23 @@ def main(argv=None) -> int:
 
     def one(job):
         name, variant, seed = job
-        model = json.loads(json.dumps(recipes[name]))
-        epochs, validate_every = model["train"]["epochs"], model["train"]["validate_every"]
-        if args.epochs:
-            model["train"]["epochs"] = validate_every = args.epochs
+        model = recipes[name]
         done = train_and_roll(
             variant=variant,
             seed=seed,
             rounding=f"{name}-pin",
             model=model,
-            validate_every=validate_every,
+            validate_every=model["train"]["validate_every"],
             out=args.out / name,
             roll=False,
         )
-        scale = epochs / args.epochs if args.epochs else 1.0
-        return name, variant, seed, done["cpu_seconds"] * scale
+        return name, variant, seed, done["cpu_seconds"]
 
     with ThreadPoolExecutor(2) as pool:
         rows = list(pool.map(one, jobs))
     cpu = {(name, variant, seed): c for name, variant, seed, c in rows}
     total = {}
-    how = f", scaled from {args.epochs} epochs of each to its recipe's epochs" if args.epochs else ""
-    print(f"Section 5 trainings, CPU seconds on {cpu_name()}, two side by side on one thread each{how}\n")
+    print(f"Section 5 trainings, CPU seconds on {cpu_name()}, two side by side on one thread each\n")
     print("| training | before | after | after / before |")
     print("|---|---|---|---|")
     for variant in ("calib", "nocalib"):
