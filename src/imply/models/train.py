@@ -3,7 +3,10 @@
 Objective (as V-JEPA 2-AC's): an L1 loss on layer-normed encoder tokens, the sum of
 
 * a teacher-forcing term: every query frame after the first predicted from the true
-  frames, actions and states before it (one pass, thanks to the block-causal mask);
+  frames, actions and states before it (one pass, thanks to the block-causal mask), and
+  with ``calib_targets`` every calibration frame that shows a push under way or done, so
+  the second calibration push is predicted with the first in context
+  (:meth:`imply.models.config.Layout.teacher_forcing_weights`);
 * a rollout term: from the context (calibration steps, if any, and the query's first
   ``query_context`` frames) the model rolls out auto-regressively, feeding its own
   predictions back, for ``rollout_steps`` steps (:func:`imply.models.rollout.rollout`,
