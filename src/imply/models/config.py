@@ -202,7 +202,7 @@ class TrainConfig(Config):
     epochs: int = option(
         40,
         doc="passes over the training sequences (40: the calibrated models of 4 data-order seeds under 2 roundings "
-        "learned to use their calibration by epoch 20; benchmarks/s5_robustness.py)",
+        "learned to use their calibration by epoch 22; benchmarks/s5_robustness.py)",
         minimum=1,
     )
     batch_size: int = option(16, doc="sequences per step", minimum=1)
