@@ -40,18 +40,10 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
+from kernels_reproducibility import INPUTS, ROOT
 
 from imply.kernels import environment
 
-ROOT = Path(__file__).resolve().parents[1]
-INPUTS = [
-    "results/features/train.npz",
-    "results/clips/train.csv",
-    "results/model/readout_ln.npz",
-    "results/features/validation.npz",
-    "results/clips/validation.csv",
-    "results/table/table.npz",
-]
 # rounding -> (config kernels.pin, environment set from outside, torch threads)
 ROUNDINGS = {
     "native": ("numpy-avx2", {}, 1),  # the study's default: PyTorch on this machine's own kernels
@@ -132,18 +124,9 @@ def train_and_roll(
     t0 = time.perf_counter()
     subprocess.run(cmd, env=env, check=True, cwd=work)
     seconds = time.perf_counter() - t0
-    bench = work / f"results/benchmarks/model_train/{variant}-{seed}.tsv"
-    cpu = float(pd.read_csv(bench, sep="\t")["cpu_time"].iloc[0])
-    history = json.loads((work / f"{target}/training.json").read_text())["history"]
+    record = run_record(work=work, variant=variant, seed=seed, rounding=rounding, seconds=seconds)
     if not roll:
-        return {
-            "variant": variant,
-            "seed": seed,
-            "rounding": rounding,
-            "train_seconds": round(seconds, 1),
-            "cpu_seconds": round(cpu, 1),
-            "history": history,
-        }
+        return record
     contexts = "own,swap,none" if variant == "calib" else "none"
     subprocess.run(
         ["imply", "model", "rollout", "--model", f"{target}/model.pt", "--features", "results/features/validation.npz"]
@@ -156,31 +139,29 @@ def train_and_roll(
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
+    return {**record, "rollouts": str(work / f"{target}/validation_rollouts.csv")}
+
+
+def run_record(*, work: Path, variant: str, seed: int, rounding: str, seconds: float | None = None) -> dict:
+    """One trained model in its work folder: its history and its rule's CPU seconds (Snakemake's ``benchmark:`` file);
+    ``seconds`` the training's wall time (default: the rule's own, from the same file)."""
+    bench = pd.read_csv(work / f"results/benchmarks/model_train/{variant}-{seed}.tsv", sep="\t")
+    target = work / f"results/model/{variant}/seed{seed}"
     return {
         "variant": variant,
         "seed": seed,
         "rounding": rounding,
-        "train_seconds": round(seconds, 1),
-        "cpu_seconds": round(cpu, 1),
-        "history": history,
-        "rollouts": str(work / f"{target}/validation_rollouts.csv"),
+        "train_seconds": round(float(bench["s"].iloc[0]) if seconds is None else seconds, 1),
+        "cpu_seconds": round(float(bench["cpu_time"].iloc[0]), 1),
+        "history": json.loads((target / "training.json").read_text())["history"],
     }
 
 
 def already_trained(*, variant: str, seed: int, rounding: str, out: Path) -> dict:
     """What :func:`train_and_roll` returned for a run whose outputs are in ``out`` already."""
     work = out / f"{rounding}-seed{seed}-{variant}"
-    target = work / f"results/model/{variant}/seed{seed}"
-    bench = pd.read_csv(work / f"results/benchmarks/model_train/{variant}-{seed}.tsv", sep="\t")
-    return {
-        "variant": variant,
-        "seed": seed,
-        "rounding": rounding,
-        "train_seconds": round(float(bench["s"].iloc[0]), 1),
-        "cpu_seconds": round(float(bench["cpu_time"].iloc[0]), 1),
-        "history": json.loads((target / "training.json").read_text())["history"],
-        "rollouts": str(target / "validation_rollouts.csv"),
-    }
+    record = run_record(work=work, variant=variant, seed=seed, rounding=rounding)
+    return {**record, "rollouts": str(work / f"results/model/{variant}/seed{seed}/validation_rollouts.csv")}
 
 
 def main(argv=None) -> int:

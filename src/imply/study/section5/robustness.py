@@ -31,32 +31,15 @@ from imply.study.section5.scoring import Section5Result, section5_results
 # of the stage computes (the command line passes it in, as it ties every stage to its claims)
 PartFunction = Callable[[Section5Result], tuple[Mapping[str, float], list[Claim]]]
 
-# Table 3's quantities (first seed's names) whose spread across runs is reported
+# Table 3's quantities (first seed's names) whose spread across runs is reported: each row (the context-free model,
+# the calibrated one with its own, another object's and no calibration) by each column, then the own-vs-swap shares
+# and the selection
 TABLE3 = (
-    "vjQTrack",
-    "vjQErr",
-    "vjQSelf",
-    "vjQAnch",
-    "vjQCorrSelf",
-    "vjQCorrAnch",
-    "vjCTrack",
-    "vjCErr",
-    "vjCSelf",
-    "vjCAnch",
-    "vjCCorrSelf",
-    "vjCCorrAnch",
-    "vjSTrack",
-    "vjSErr",
-    "vjSSelf",
-    "vjSAnch",
-    "vjSCorrSelf",
-    "vjSCorrAnch",
-    "vjCQTrack",
-    "vjCQErr",
-    "vjCQSelf",
-    "vjCQAnch",
-    "vjCQCorrSelf",
-    "vjCQCorrAnch",
+    *(
+        f"vj{row}{col}"
+        for row in ("Q", "C", "S", "CQ")
+        for col in ("Track", "Err", "Self", "Anch", "CorrSelf", "CorrAnch")
+    ),
     "vjAnchOwnLtSwap",
     "vjSelfOwnLtSwap",
     "vjSelAnch",
