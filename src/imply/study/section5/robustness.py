@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from imply.models.object_blind import TypicalSlide
+from imply.paper.latex_tables import TABLE3_CALIB_ROWS, TABLE3_NOCALIB_ROWS
 from imply.results import Claim
 from imply.score import Scorer
 from imply.study.section5.claims import ALPHA, TARGET_ANCHORED_SHARE, TARGET_OWN_TRACK, TARGET_SWAP_TRACK
@@ -31,15 +32,11 @@ from imply.study.section5.scoring import Section5Result, section5_results
 # of the stage computes (the command line passes it in, as it ties every stage to its claims)
 PartFunction = Callable[[Section5Result], tuple[Mapping[str, float], list[Claim]]]
 
-# Table 3's quantities (first seed's names) whose spread across runs is reported: each row (the context-free model,
-# the calibrated one with its own, another object's and no calibration) by each column, then the own-vs-swap shares
-# and the selection
+# Table 3's quantities (first seed's names) whose spread across runs is reported: each of the table's rows (the
+# context-free model, the calibrated one with its own, another object's and no calibration, the object-blind
+# baseline, which no run moves) by each column, then the own-vs-swap shares and the selection
 TABLE3 = (
-    *(
-        f"vj{row}{col}"
-        for row in ("Q", "C", "S", "CQ")
-        for col in ("Track", "Err", "Self", "Anch", "CorrSelf", "CorrAnch")
-    ),
+    *(name for _label, *names in (*TABLE3_NOCALIB_ROWS, *TABLE3_CALIB_ROWS) for name in names if name is not None),
     "vjAnchOwnLtSwap",
     "vjSelfOwnLtSwap",
     "vjSelAnch",
