@@ -98,17 +98,28 @@ def parse_value(text: str):
 
 
 def train_and_roll(
-    *, variant: str, seed: int, rounding: str, model: dict, validate_every: int, out: Path, roll: bool = True
+    *,
+    variant: str,
+    seed: int,
+    rounding: str,
+    model: dict,
+    validate_every: int,
+    out: Path,
+    roll: bool = True,
+    source: Path = ROOT,
 ) -> dict:
     """The study's model_train rule for one model under one rounding, then (``roll``) its rollouts on the validation
-    objects. Returns its history, its rule's CPU seconds (Snakemake's ``benchmark:`` file) and the rollouts' path."""
+    objects. Returns its history, its rule's CPU seconds (Snakemake's ``benchmark:`` file) and the rollouts' path.
+
+    ``source``: the checkout whose workflow and package run the training (another commit's, to time its recipe with
+    its own code; the training inputs are this checkout's)."""
     pin, outside, threads = ROUNDINGS[rounding]
     work = out / f"{rounding}-seed{seed}-{variant}"
     shutil.rmtree(work, ignore_errors=True)
     for rel in INPUTS:
         (work / rel).parent.mkdir(parents=True, exist_ok=True)
         os.symlink(ROOT / rel, work / rel)
-    config = yaml.safe_load((ROOT / "config.yaml").read_text())
+    config = yaml.safe_load((source / "config.yaml").read_text())
     config["kernels"] = {"pin": pin}
     config["model"] = json.loads(json.dumps(model))
     config["model"]["seeds"] = [seed]
@@ -118,8 +129,10 @@ def train_and_roll(
     env = {k: v for k, v in os.environ.items() if k not in environment("avx2")}
     env.update(environment(pin))
     env.update(outside)
+    if source != ROOT:  # that checkout's package before this one's (installed in development mode)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(source / "src"), env.get("PYTHONPATH")]))
     target = f"results/model/{variant}/seed{seed}"
-    cmd = ["snakemake", "-s", str(ROOT / "Snakefile"), "-d", str(work), "--cores", str(threads), "--quiet", "all"]
+    cmd = ["snakemake", "-s", str(source / "Snakefile"), "-d", str(work), "--cores", str(threads), "--quiet", "all"]
     cmd += ["--allowed-rules", "model_train", "--", f"{target}/training.json"]
     t0 = time.perf_counter()
     subprocess.run(cmd, env=env, check=True, cwd=work)

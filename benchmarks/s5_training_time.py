@@ -7,9 +7,12 @@ neighbour. Whole trainings only: a few epochs scaled up would count each job's s
 imports, the features) many times over.
 
 The other recipe is ``--before KEY=VALUE`` on config ``model`` (dotted keys, as in
-``benchmarks/s5_robustness.py``); ``--before-pin`` its kernel pin.
+``benchmarks/s5_robustness.py``); ``--before-pin`` its kernel pin. Or ``--before-source DIR``: a
+checkout of another commit (``git worktree add DIR COMMIT``), whose own config, workflow and
+package train the other recipe, so that a change of the training code is timed too.
 
-Usage: ``python benchmarks/s5_training_time.py --before train.epochs=60 --before-pin avx2 ...``
+Usage: ``python benchmarks/s5_training_time.py --before-source /tmp/before`` or
+``python benchmarks/s5_training_time.py --before train.epochs=60 --before-pin avx2 ...``
 """
 
 from __future__ import annotations
@@ -30,6 +33,12 @@ def main(argv=None) -> int:
         "--before", action="append", default=[], metavar="KEY=VALUE", help="the other recipe (config model)"
     )
     ap.add_argument("--before-pin", default=None, help="the other recipe's kernel pin (default: the config's)")
+    ap.add_argument(
+        "--before-source",
+        type=Path,
+        default=None,
+        help="another commit's checkout: its config's recipe and pin, trained by its own workflow and package",
+    )
     ap.add_argument("--out", type=Path, default=Path("/tmp/s5-training-time"))
     args = ap.parse_args(argv)
     missing = [p for p in INPUTS if not (ROOT / p).exists()]
@@ -38,11 +47,13 @@ def main(argv=None) -> int:
         return 2
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
     after = config["model"]
-    before = json.loads(json.dumps(after))
+    source = {"after": ROOT, "before": (args.before_source or ROOT).resolve()}
+    before_config = yaml.safe_load((source["before"] / "config.yaml").read_text())
+    before = json.loads(json.dumps(before_config["model"]))
     for item in args.before:
         key, _, text = item.partition("=")
         set_dotted(before, key, parse_value(text))
-    pins = {"after": config["kernels"]["pin"], "before": args.before_pin or config["kernels"]["pin"]}
+    pins = {"after": config["kernels"]["pin"], "before": args.before_pin or before_config["kernels"]["pin"]}
     for name, pin in pins.items():
         ROUNDINGS[f"{name}-pin"] = (pin, {}, 1)
     recipes = {"after": after, "before": before}
@@ -61,6 +72,7 @@ def main(argv=None) -> int:
             validate_every=model["train"]["validate_every"],
             out=args.out / name,
             roll=False,
+            source=source[name],
         )
         return name, variant, seed, done["cpu_seconds"]
 
@@ -68,7 +80,8 @@ def main(argv=None) -> int:
         rows = list(pool.map(one, jobs))
     cpu = {(name, variant, seed): c for name, variant, seed, c in rows}
     total = {}
-    print(f"Section 5 trainings, CPU seconds on {cpu_name()}, two side by side on one thread each\n")
+    print(f"Section 5 trainings, CPU seconds on {cpu_name()}, two side by side on one thread each")
+    print(f"before: {source['before']} (kernels {pins['before']}); after: {ROOT} (kernels {pins['after']})\n")
     print("| training | before | after | after / before |")
     print("|---|---|---|---|")
     for variant in ("calib", "nocalib"):

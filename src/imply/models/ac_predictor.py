@@ -43,7 +43,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from imply.models.config import PredictorConfig
-from imply.models.modules import Block, KeyValue, init_weights, rope_tables, shrink_residual_branches
+from imply.models.modules import Block, KeyValue, Rope, init_weights, rope_tables, shrink_residual_branches
 
 
 def normalise_tokens(x: torch.Tensor) -> torch.Tensor:
@@ -92,6 +92,7 @@ class ACPredictor(nn.Module):
         self.out = nn.Linear(w, cfg.embed_dim)
         self.apply(init_weights)
         shrink_residual_branches(self.blocks)
+        self._position_cache: dict[tuple[int, int, str], tuple[torch.Tensor | None, Rope]] = {}
 
     def forward(self, frames: torch.Tensor, actions: torch.Tensor, states: torch.Tensor) -> torch.Tensor:
         """Predict the next step's frame tokens at every step.
@@ -127,16 +128,7 @@ class ACPredictor(nn.Module):
             [self.action_embed(actions)[:, :, None], self.state_embed(states)[:, :, None], self.frame_embed(frames)],
             dim=2,
         ).reshape(b, t * tps, cfg.width)
-        # new tokens see every cached (earlier) token and, block-causally, each other
-        mask = block_causal_mask(t, tps, device=frames.device)
-        if t0:
-            mask = torch.cat([torch.ones(t * tps, t0 * tps, dtype=torch.bool, device=frames.device), mask], dim=1)
-        if t == 1:
-            mask = None  # one step attends to everything before and within it
-        pos, spatial = token_positions(t0 + t, cfg.grid, device=frames.device)
-        rope = rope_tables(
-            pos[:, :, t0 * tps :], cfg.width // cfg.heads, spatial=spatial[t0 * tps :], theta=cfg.rope_theta
-        )
+        mask, rope = self._positions(t0, t, frames.device)
         new_cache = []
         for i, blk in enumerate(self.blocks):
             tok, kv = blk(tok, rope, mask, None if cache is None else cache[i])
@@ -144,6 +136,29 @@ class ACPredictor(nn.Module):
         tok = self.norm(tok).reshape(b, t, tps, cfg.width)[:, :, 2:]
         out = self.out(tok)
         return (out + frames if cfg.residual else out), new_cache
+
+    def _positions(self, t0: int, t: int, device: torch.device) -> tuple[torch.Tensor | None, Rope]:
+        """The attention mask (None for one step) and rotary tables of steps t0 .. t0+t-1 against the cache of steps < t0.
+
+        They depend on the step counts alone, and a training step asks for the same few twice per batch, so they are
+        built once per (t0, t, device) and kept (a handful of small tensors, never part of the autograd graph).
+        """
+        key = (t0, t, str(device))
+        if key not in self._position_cache:
+            cfg = self.cfg
+            tps = cfg.tokens_per_step
+            # new tokens see every cached (earlier) token and, block-causally, each other
+            mask = block_causal_mask(t, tps, device=device)
+            if t0:
+                mask = torch.cat([torch.ones(t * tps, t0 * tps, dtype=torch.bool, device=device), mask], dim=1)
+            if t == 1:
+                mask = None  # one step attends to everything before and within it
+            pos, spatial = token_positions(t0 + t, cfg.grid, device=device)
+            rope = rope_tables(
+                pos[:, :, t0 * tps :], cfg.width // cfg.heads, spatial=spatial[t0 * tps :], theta=cfg.rope_theta
+            )
+            self._position_cache[key] = (mask, rope)
+        return self._position_cache[key]
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
