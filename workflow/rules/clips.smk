@@ -46,7 +46,9 @@ rule encoder_pretrain:
         "results/encoder/encoder.pt",
     params:
         encoder=as_json({k: config["encoder"][k] for k in ("cpu_arch", "pretrain")}),
-    threads: config["threads"]
+    # one thread: on two cores a job asking for both waits until both are idle at once, which the lab's long
+    # generation (one core for a quarter of the run) would delay past the trainings
+    threads: 1
     # the training chain is the study's longest: it starts first, the rest fills the other core
     priority: 10
     resources:

@@ -17,8 +17,8 @@ rule pixel_train:
         recipe=as_json(config["pixel"]["recipe"]),
     wildcard_constraints:
         variant="calib|nocalib",
-    threads: config["threads"]
-    # before the predictors' trainings: a job asking for both cores waits until both are idle at once
+    # one thread: a job asking for both cores waits until both are idle at once (encoder_pretrain says why)
+    threads: 1
     priority: 10
     resources:
         mem_mb=6000,

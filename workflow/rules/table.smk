@@ -10,10 +10,10 @@ rule table:
         scene=as_json(config["scene"]),
         grid=as_json(config["table"]),
         check=as_json(config.get("table_check", {})),
-    # two threads, and after the training chain's two-thread jobs (the encoder, the pixel model): every gap job
-    # waits on the table, and once one-thread jobs are ready, a job asking for both cores waits for both to be idle
-    # at once
+    # first, on both cores while nothing else runs: the trainings and every gap job wait on the table, and it is the
+    # only job asking for more than one thread (one asking for both waits until both are idle at once)
     threads: config["threads"]
+    priority: 20
     resources:
         mem_mb=2000,
         runtime=15,

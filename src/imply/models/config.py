@@ -244,7 +244,7 @@ class ModelResources(Config):
     gpu: int = option(
         0, doc="GPUs per model job (encoder_encode asks for one unless encoder.kind is cpu)", minimum=0, required=True
     )
-    encode_threads: int = option(2, doc="CPU threads of encoder_encode", minimum=1, required=True)
+    encode_threads: int = option(1, doc="CPU threads of encoder_encode", minimum=1, required=True)
     encode_mem_mb: int = option(8000, doc="memory of encoder_encode (MB)", minimum=100, required=True)
     encode_runtime: int = option(60, doc="minutes of encoder_encode", minimum=1, required=True)
     train_threads: int = option(
@@ -252,7 +252,7 @@ class ModelResources(Config):
     )
     train_mem_mb: int = option(4000, doc="memory of a training job (MB)", minimum=100, required=True)
     train_runtime: int = option(30, doc="minutes of a training job", minimum=1, required=True)
-    rollout_threads: int = option(2, doc="CPU threads of a rollout job", minimum=1, required=True)
+    rollout_threads: int = option(1, doc="CPU threads of a rollout job", minimum=1, required=True)
     rollout_mem_mb: int = option(4000, doc="memory of a rollout job (MB)", minimum=100, required=True)
     rollout_runtime: int = option(15, doc="minutes of a rollout job", minimum=1, required=True)
 
