@@ -218,13 +218,8 @@ def train(
     digest = run_digest(predictor=predictor, config=config, layout=layout, data_seed=data_seed, data_key=data_key)
     torch.manual_seed(config.init_seed)
     model = ACPredictor(predictor).to(device)
-    # fused: one kernel updates every parameter; the tiny preset's step is otherwise a fifth optimiser overhead
     opt = torch.optim.AdamW(
-        model.parameters(),
-        lr=config.lr,
-        betas=(config.beta1, config.beta2),
-        weight_decay=config.weight_decay,
-        fused=True,
+        model.parameters(), lr=config.lr, betas=(config.beta1, config.beta2), weight_decay=config.weight_decay
     )
     n = len(seqs)
     per_epoch = math.ceil(n / config.batch_size)
@@ -276,7 +271,7 @@ def train(
                 loss.backward()
             with phases("optimiser"):
                 if config.grad_clip > 0:
-                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip, foreach=True)
+                    torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
                 opt.step()
             sums += [tf.item(), ar.item()]
             bar.set_postfix(tf=f"{tf.item():.4f}", ar=f"{ar.item():.4f}", refresh=False)
