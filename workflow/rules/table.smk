@@ -11,9 +11,10 @@ rule table:
         grid=as_json(config["table"]),
         check=as_json(config.get("table_check", {})),
     # first, on both cores while nothing else runs: the trainings and every gap job wait on the table, and it is the
-    # only job asking for more than one thread (one asking for both waits until both are idle at once)
+    # only job asking for more than one thread (one asking for both waits until both are idle at once). Snakemake
+    # starts the set of ready jobs with the largest sum of priorities, so the table's is above any two others'
     threads: config["threads"]
-    priority: 20
+    priority: 50
     resources:
         mem_mb=2000,
         runtime=15,
