@@ -19,9 +19,8 @@ rule gap_tables:
         options=as_json(config["gap"]["diagnose"]),
         effects=gap_effects_option(),
         library=gap_library_levels(),
-    # one thread: a job asking for both cores waits for the training chain to leave both idle
     threads: 1
-    # every diagnosis reads the effect tables: they go as early as the training chain's jobs
+    # every diagnosis reads the effect tables: they go right after the training chain's jobs
     priority: 10
     resources:
         mem_mb=2000,

@@ -23,8 +23,9 @@ rule model_readout:
     params:
         token_grid=token_grid_option,
     threads: 1
-    # the training chain is the study's longest: it starts first, the rest fills the other core
-    priority: 10
+    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
+    # effect tables, the pixel model: priority 10), the rest fills the other core
+    priority: 12
     resources:
         mem_mb=6000,
         runtime=20,
@@ -59,8 +60,9 @@ rule model_train:
         score=score_subset("grid", "readout_floor"),
         derangement_seed=config["model"]["derangement_seed"],
     threads: config["model"]["resources"]["train_threads"]
-    # the training chain is the study's longest: it starts first, the rest fills the other core
-    priority: 10
+    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
+    # effect tables, the pixel model: priority 10), the rest fills the other core
+    priority: 12
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
         runtime=config["model"]["resources"]["train_runtime"],
