@@ -7,8 +7,9 @@ import pytest
 
 from imply.cli.section5 import section5_part
 from imply.models.object_blind import TypicalSlide
+from imply.paper.latex_tables import TABLE3_CALIB_ROWS, TABLE3_NOCALIB_ROWS
 from imply.score import ScoreConfig
-from imply.study.section5.robustness import learned_at, robustness_report, run_outcome, target_margins
+from imply.study.section5.robustness import TABLE3, learned_at, robustness_report, run_outcome, target_margins
 from section5_helpers import rollout_table
 
 
@@ -79,3 +80,10 @@ def test_margins_are_negative_where_a_target_is_missed():
     )
     assert m.own_track < 0 and m.swap_track < 0 and m.anchored_share < 0 and m.error_ratio < 0
     assert not m.thresholds_hold
+
+
+def test_the_spread_covers_every_quantity_of_table3():
+    """The robustness report's list of Table 3 names (written out in the study layer) is the paper table's cells."""
+    cells = {name for _label, *names in (*TABLE3_NOCALIB_ROWS, *TABLE3_CALIB_ROWS) for name in names if name}
+    assert cells <= set(TABLE3)
+    assert len(TABLE3) == len(set(TABLE3))
