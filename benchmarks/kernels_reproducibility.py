@@ -38,6 +38,24 @@ INPUTS = [
     "results/clips/validation.csv",
     "results/table/table.npz",
 ]
+
+
+def missing_inputs() -> bool:
+    """True (after saying which, on stderr) when a training input is not built yet."""
+    missing = [p for p in INPUTS if not (ROOT / p).exists()]
+    if missing:
+        print("missing training inputs (build them first, see the module doc): " + ", ".join(missing), file=sys.stderr)
+    return bool(missing)
+
+
+def fresh_work_folder(work: Path) -> None:
+    """``work`` emptied, with the training inputs linked in from this checkout's results."""
+    shutil.rmtree(work, ignore_errors=True)
+    for rel in INPUTS:
+        (work / rel).parent.mkdir(parents=True, exist_ok=True)
+        os.symlink(ROOT / rel, work / rel)
+
+
 # an AVX2 machine: every library on its AVX2 code path, as the pin sets it, less MKL's reproducibility mode
 AVX2_MACHINE = {k: v for k, v in environment("avx2").items() if k != "MKL_CBWR"}
 CONDITIONS = [  # (name, kernels.pin, the machine's own choice)
@@ -79,10 +97,7 @@ def run(
     set in the environment (and ``train`` overriding config ``model.train``), in a work folder of its own; the last
     epoch's validation ``keys``."""
     work = out / name.replace(" ", "_").replace(",", "")
-    shutil.rmtree(work, ignore_errors=True)
-    for rel in INPUTS:
-        (work / rel).parent.mkdir(parents=True, exist_ok=True)
-        os.symlink(ROOT / rel, work / rel)
+    fresh_work_folder(work)
     import yaml
 
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
@@ -128,9 +143,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", type=Path, default=Path("/tmp/kernels"))
     args = ap.parse_args(argv)
-    missing = [p for p in INPUTS if not (ROOT / p).exists()]
-    if missing:
-        print("missing training inputs (build them first, see the module doc): " + ", ".join(missing), file=sys.stderr)
+    if missing_inputs():
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     rows = [run(n, p, o, epochs=args.epochs, seed=args.seed, out=args.out) for n, p, o in CONDITIONS]

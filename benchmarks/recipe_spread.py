@@ -25,7 +25,7 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from kernels_reproducibility import INPUTS, ROOT, run
+from kernels_reproducibility import ROOT, missing_inputs, run
 
 KEYS = {
     "calib": ("own_track", "own_error", "own_lt_swap_anchored", "swap_track", "none_track"),
@@ -40,9 +40,7 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a config model.train key")
     ap.add_argument("--variants", default="calib,nocalib", help="comma-separated: calib, nocalib")
     args = ap.parse_args(argv)
-    missing = [p for p in INPUTS if not (ROOT / p).exists()]
-    if missing:
-        print("missing training inputs: " + ", ".join(missing), file=sys.stderr)
+    if missing_inputs():
         return 2
     import yaml
 

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -40,7 +39,7 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
-from kernels_reproducibility import INPUTS, ROOT
+from kernels_reproducibility import ROOT, fresh_work_folder, missing_inputs
 
 from imply.kernels import environment
 
@@ -115,10 +114,7 @@ def train_and_roll(
     its own code; the training inputs are this checkout's)."""
     pin, outside, threads = ROUNDINGS[rounding]
     work = out / f"{rounding}-seed{seed}-{variant}"
-    shutil.rmtree(work, ignore_errors=True)
-    for rel in INPUTS:
-        (work / rel).parent.mkdir(parents=True, exist_ok=True)
-        os.symlink(ROOT / rel, work / rel)
+    fresh_work_folder(work)
     config = yaml.safe_load((source / "config.yaml").read_text())
     config["kernels"] = {"pin": pin}
     config["model"] = json.loads(json.dumps(model))
@@ -200,9 +196,7 @@ def main(argv=None) -> int:
         help="train the calibrated models alone and print their validation histories (a quick look at a candidate)",
     )
     args = ap.parse_args(argv)
-    missing = [p for p in INPUTS if not (ROOT / p).exists()]
-    if missing:
-        print("missing training inputs (see the module doc): " + ", ".join(missing), file=sys.stderr)
+    if missing_inputs():
         return 2
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     roundings = ["native", "avx2" if has_avx512() else "sse"] if args.roundings == "auto" else args.roundings.split(",")

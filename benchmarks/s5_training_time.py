@@ -24,7 +24,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import yaml
-from s5_robustness import INPUTS, ROOT, ROUNDINGS, cpu_name, parse_value, set_dotted, train_and_roll
+from kernels_reproducibility import missing_inputs
+from s5_robustness import ROOT, ROUNDINGS, cpu_name, parse_value, set_dotted, train_and_roll
 
 
 def main(argv=None) -> int:
@@ -41,9 +42,7 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--out", type=Path, default=Path("/tmp/s5-training-time"))
     args = ap.parse_args(argv)
-    missing = [p for p in INPUTS if not (ROOT / p).exists()]
-    if missing:
-        print("missing training inputs: " + ", ".join(missing), file=sys.stderr)
+    if missing_inputs():
         return 2
     config = yaml.safe_load((ROOT / "config.yaml").read_text())
     after = config["model"]
