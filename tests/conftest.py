@@ -134,3 +134,9 @@ def known_answers_suite(full_table, tmp_path_factory) -> Path:
         nthread=2,
         progress=False,
     )
+
+
+@pytest.fixture(scope="session")
+def effect_cache(tmp_path_factory) -> Path:
+    """One effect-table cache for the diagnostic's tests (tables are keyed by the grid and effects they hold)."""
+    return tmp_path_factory.mktemp("effect-cache")

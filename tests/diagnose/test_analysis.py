@@ -25,8 +25,8 @@ DESIGN = C.BenchmarkConfig.from_dict(
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("effect-cache")
+def cache(effect_cache):
+    return effect_cache
 
 
 def _case(effects: list[dict], seed: int, *, stop_time: bool = False, measured_mass: bool = True, noise="gaussian"):

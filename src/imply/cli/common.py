@@ -279,7 +279,7 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
     None]), checked once before any work: the report folders, the table, every push log and reference against it
     (a reference must push the log's boxes), the settings, the candidates."""
     from imply.diagnose.inference.sessions import check_pair
-    from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog
+    from imply.diagnose.run import DiagnoseRequest, Report, check_report_folder, read_checked_pushlog, user_scene
     from imply.input_files import InputError
     from imply.io import OutputError
 
@@ -290,6 +290,10 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
             check_report_folder(out, args.force, [pushlog, args.table, *(r for r in ref if r)])
         folders.append(out)
     table = load_table(args.table)
+    scene = None
+    if getattr(args, "model", None):
+        with user_errors(ValueError, message="--model {error}"):
+            scene = user_scene(args.model)
     with user_errors(InputError):
         logs = [read_checked_pushlog(r[0], table, getattr(args, "track", None)) for r in reports]
         # a reference session reads its own track and probes from the files beside it
@@ -300,6 +304,8 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
     opts, grid = diagnosis_options(
         args.options_json, args.effect_grid_json, noise_sd=args.noise_sd, ignore_measured=args.ignore_measured
     )
+    if getattr(args, "refit", False):
+        opts = opts.replace(simulator_refit=True)
     return DiagnoseRequest(
         table=table,
         candidates=tuple(candidate_effects(args.effects)),
@@ -307,6 +313,7 @@ def diagnose_request(args: argparse.Namespace, reports: list[tuple]) -> Diagnose
         grid=grid,
         cache_dir=cache_dir(args.cache_dir),
         threads=args.threads,
+        scene=scene,
         force=args.force,
         plots=not args.no_plots,
         reports=tuple(

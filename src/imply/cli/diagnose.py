@@ -30,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "alone are replaced): report.md (the verdict first), summary.json (every number), residuals.csv, "
             "next_pushes.csv (the pushes that would best tell the leading explanations apart), next_probes.csv "
             "(the calibration probe that would tell them apart better than any push, where one would), and the figures "
-            "residuals_vs_speed.png, before_after.png, ranking.png and hypotheses.png."
+            "residuals_vs_speed.png, before_after.png, ranking.png and hypotheses.png; where a cause is stated, "
+            "corrected.xml (the scene with the causes written in, the log's pushes re-simulated in it)."
         ),
     )
     d.add_argument(
@@ -48,6 +49,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a reference session: a push log of the same robot and boxes (matched by object_id), recorded before "
         "the change to explain, with its own .track.csv and .probes.csv beside it where it has them. The report "
         "then gives the standing gap (read from REF), what changed since, and how far the gap shrinks",
+    )
+    d.add_argument(
+        "--model",
+        metavar="MJCF",
+        help="the push scene the stated causes are written into (corrected.xml) and the log's pushes re-simulated "
+        "in, with the names the simulator needs (see imply sim export-xml); default: the table's built-in scene",
+    )
+    d.add_argument(
+        "--refit",
+        action="store_true",
+        help="also refit the stated causes and the boxes in the simulator (mujoco.sysid), for the simulator's own "
+        "estimate and 95%% interval beside the tables' (tens of passes over the log)",
     )
     add_diagnose_options(d)
     d.set_defaults(func=cmd_diagnose)

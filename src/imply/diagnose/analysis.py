@@ -35,7 +35,8 @@ import numpy as np
 
 from imply.diagnose.conclusion.next_pushes import PushDesign, design_pushes
 from imply.diagnose.conclusion.render import OBSERVABLE_WORDS, verdict_text
-from imply.diagnose.conclusion.verdict import Verdict, judge
+from imply.diagnose.conclusion.simulator_check import Scene, SimulatorCheck, check_causes
+from imply.diagnose.conclusion.verdict import Verdict, contradicted, judge
 from imply.diagnose.inference.aliasing import Aliasing, aliasing
 from imply.diagnose.inference.discrepancy import DiscrepancyReport, describe
 from imply.diagnose.inference.estimates import AcceptedEffect, RankedCandidate, accepted_effects, ranked
@@ -45,7 +46,7 @@ from imply.diagnose.inference.localisation import Localisation, localise
 from imply.diagnose.inference.model_error import model_error
 from imply.diagnose.inference.noise import Noise, ObservableNoise, estimate_noise
 from imply.diagnose.inference.screening import folds, screened
-from imply.diagnose.inference.sessions import ReferenceReport, SessionShrink, cause_shrink
+from imply.diagnose.inference.sessions import ReferenceReport, SessionShrink, against_table, cause_shrink, stated_part
 from imply.diagnose.inference.shrinkage import Shrinkage, heldout, shrinkage
 from imply.diagnose.inputs.observables import Observables
 from imply.diagnose.inputs.pushlog import PushLog
@@ -157,6 +158,19 @@ class DiagnosisConfig(Config):
         unique=True,
         items={"choices": tuple(c.name for c in get())},
     )
+    simulator_check: bool = option(
+        True,
+        doc="put the stated causes into the simulator: write corrected.xml, re-simulate the log's pushes in it and "
+        "in the uncorrected scene, and withdraw the causes where the simulator or the log's probes contradict them "
+        "(imply.diagnose.conclusion.simulator_check)",
+    )
+    simulator_refit: bool = option(
+        False,
+        doc="refit the stated causes and the boxes in the simulator (mujoco.sysid) for an interval beside the "
+        "tables' (imply diagnose --refit); it informs, it does not decide the verdict, and costs tens of passes over "
+        "the log, so it is off for the study's hundreds of benchmark logs",
+    )
+    refit_iterations: int = option(10, doc="Levenberg-Marquardt iterations of the simulator refit at most", minimum=1)
     next_pushes: int = option(12, doc="pushes recommended to separate the contenders", minimum=0)
     next_speeds: int = option(9, doc="candidate speeds of the next pushes, across the table's range", minimum=2)
     next_directions: int = option(12, doc="candidate directions of the next pushes (logs with directions)", minimum=1)
@@ -239,6 +253,8 @@ class Summary(Record):
     # how far the log's gap shrinks once the stated causes alone are added (and, against a reference, once the
     # standing gap is described too)
     cause_shrink: SessionShrink | None = json_field(omit_none=True, default=None)
+    # what the simulator and the log's probes say of the stated causes (imply.diagnose.conclusion.simulator_check)
+    simulator: SimulatorCheck | None = json_field(omit_none=True, default=None)
 
 
 @dataclass(frozen=True)
@@ -264,6 +280,11 @@ class Diagnosis:
     pushlog: PushLog  # the log diagnosed (the next pushes are written in its columns)
     problem: Problem | None = None  # the problem the hypotheses were fitted under (its noise, weights, model error)
     leading: JointFit | None = None  # the leading hypothesis's fit
+    # against a reference: the log as pushed (the problem's log has the standing gap taken out), and the standing
+    # gap's stated causes at the reference's estimates (native components, by candidate name)
+    raw: PushLog | None = None
+    standing: dict[str, np.ndarray] | None = None
+    corrected_xml: str | None = None  # the corrected scene (simulator_check), written beside the report
 
 
 def baseline_fit(problem: Problem, opts: DiagnosisConfig) -> tuple[Problem, JointFit]:
@@ -442,3 +463,43 @@ def diagnose(problem: Problem, candidates: list[Candidate], opts: DiagnosisConfi
         pusher_resid_after=_aux_part(problem, held.resid_t, "pusher_speed") if with_effects else None,
     )
     return Diagnosis(summary=summary, residuals=residuals, pushlog=problem.log, problem=problem, leading=final)
+
+
+def check_in_simulator(diag: Diagnosis, scene: Scene, *, nthread: int = 0, text=verdict_text) -> Diagnosis:
+    """``diag`` with its stated causes put into the simulator (:mod:`imply.diagnose.conclusion.simulator_check`):
+    the summary's ``simulator``, the corrected scene's MJCF, and the causes withdrawn where the simulator or the
+    probes contradict them (the sentence, ``text`` of the summary, said again). Unchanged where no cause is stated
+    or the settings turn the check off."""
+    s = diag.summary
+    opts = s.options
+    if not opts.simulator_check or not s.verdict.effects or diag.problem is None or diag.leading is None:
+        return diag
+    raw = diag.raw if diag.raw is not None else diag.problem.log
+    p, base = against_table(raw, diag.problem)
+    model, theta = stated_part(diag.leading, s.verdict.effects)
+    shrink = s.cause_shrink
+    floor = opts.model_floor if opts.model_floor is not None else (s.model_floor or {}).get("rms")
+    checked = check_causes(
+        problem=diag.problem,
+        leading=diag.leading,
+        raw_problem=p,
+        base=base,
+        model=model,
+        theta=theta,
+        standing=diag.standing,
+        predicted_before=shrink.before_rms,
+        predicted_after=shrink.cause_rms,
+        predicted_share=shrink.cause_share_closed,
+        model_floor=floor,
+        min_share=opts.min_share,
+        alpha=opts.alpha,
+        scene=scene,
+        refit=opts.simulator_refit,
+        iterations=opts.refit_iterations,
+        nthread=nthread,
+    )
+    c = checked.check
+    by = [who for who, bad in (("simulator", c.simulator_contradicts), ("probes", c.probes_contradict)) if bad]
+    summary = replace(s, simulator=c, verdict=contradicted(s.verdict, by))
+    summary = replace(summary, sentence=text(summary))
+    return replace(diag, summary=summary, corrected_xml=checked.corrected_xml)

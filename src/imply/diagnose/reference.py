@@ -24,9 +24,16 @@ import numpy as np
 
 from imply.diagnose.analysis import Diagnosis, DiagnosisConfig, diagnose
 from imply.diagnose.conclusion.render import headline, reference_text
+from imply.diagnose.conclusion.simulator_check import stated_causes
 from imply.diagnose.inference.fit import Problem
 from imply.diagnose.inference.noise import estimate_noise
-from imply.diagnose.inference.sessions import ReferenceReport, StandingGap, against_reference, cause_shrink
+from imply.diagnose.inference.sessions import (
+    ReferenceReport,
+    StandingGap,
+    against_reference,
+    cause_shrink,
+    stated_part,
+)
 from imply.diagnose.inputs.pushlog import TRACK_OBSERVABLES, PushLog
 from imply.diagnose.physics.candidates import Candidate
 from imply.diagnose.physics.effect_tables import EffectTables
@@ -108,4 +115,7 @@ def diagnose_against(
         sentence=reference_text(summary),
         seconds=round(time.perf_counter() - t0, 3),
     )
-    return replace(since, summary=summary)
+    standing_causes = None
+    if s.verdict.effects and standing.leading is not None:
+        standing_causes = stated_causes(*stated_part(standing.leading, s.verdict.effects))
+    return replace(since, summary=summary, raw=pairing.raw, standing=standing_causes)

@@ -37,6 +37,7 @@ from imply.diagnose.analysis import Diagnosis, Summary
 from imply.diagnose.conclusion.next_probes import write_next_probes
 from imply.diagnose.conclusion.next_pushes import write_next_pushes
 from imply.diagnose.conclusion.render import OBSERVABLE_WORDS, probe_sentence
+from imply.diagnose.conclusion.simulator_check import CORRECTED_XML
 from imply.diagnose.conclusion.verdict import explanations
 from imply.diagnose.inference.estimates import AcceptedEffect, RankedCandidate
 from imply.diagnose.inference.localisation import FACTORS
@@ -54,6 +55,7 @@ REPORT_FILES = (
     "ranking.png",
     "hypotheses.png",
     "report.md",
+    CORRECTED_XML,
 )
 
 
@@ -88,6 +90,8 @@ def write_report(diag: Diagnosis, outdir: str | os.PathLike, *, plots: bool = Tr
     write_next_probes(out / "next_probes.csv", s.next_pushes.probe if s.next_pushes is not None else None)
     if plots:
         _plots(diag, out)
+    if diag.corrected_xml is not None:
+        write_text(out / CORRECTED_XML, diag.corrected_xml)
     write_text(out / "report.md", markdown(s, plots=plots))
 
 
@@ -351,6 +355,98 @@ def _reference_lines(s: Summary) -> list[str]:
     return lines
 
 
+def _simulator_lines(s: Summary) -> list[str]:
+    """The stated causes in the simulator: the corrected scene, the shrink re-simulated, the refit, the probes."""
+    c = s.simulator
+    if c is None:
+        return []
+    lines = [
+        "## The causes in the simulator",
+        "",
+        f"`{c.corrected_xml}` is the {'built-in scene' if c.scene == 'built-in' else f'scene `{c.scene}`'} with "
+        "the causes written in through `MjSpec` (as `mujoco.sysid` parameters); it loads with "
+        "`mujoco.MjModel.from_xml_path`, and `imply sim pushes PUSHES.csv --model " + c.corrected_xml + "` runs "
+        "pushes in it (pushes along its +x, the table frame's direction 0).",
+        "",
+        "| cause | value | written as | from |",
+        "|---|---|---|---|",
+    ]
+    for cause in c.causes:
+        value = ", ".join(_fmt(x) for x in cause.value)
+        lines.append(f"| {cause.cause} | {value} | {cause.mechanism} | {cause.source} |")
+    if c.not_in_scene:
+        lines += [
+            "",
+            f"Not in the scene: the leading hypothesis's {' and '.join(c.not_in_scene)} (a smooth correction of the "
+            "table, with no MJCF form); the re-simulation below checks the stated causes alone, as the predicted "
+            "shrink does.",
+        ]
+    share = _fmt(c.share_closed, ".2f")
+    lines += [
+        "",
+        f"The log's {c.n_pushes} pushes re-simulated: RMS log d gap {_fmt(c.before_rms)} in the uncorrected scene "
+        f"(each box as the table alone fits it), {_fmt(c.after_rms)} in the corrected scene (each box as the stated "
+        f"causes fit it); noise floor {_fmt(c.noise_floor_rms)}. Share of the gap above the floor closed: "
+        f"**{share} re-simulated**, {_fmt(c.predicted_share_closed, '.2f')} predicted by the tables "
+        f"({_fmt(c.predicted_before_rms)} to {_fmt(c.predicted_after_rms)}). Gap left: {c.gap_left_sd:.2f} noise sds"
+        + (f"; {c.n_failed} pushes failed the simulator's checks and are left out" if c.n_failed else "")
+        + ".",
+    ]
+    if c.disagrees:
+        lines += [
+            "",
+            f"**The simulator and the tables disagree** on the shrink by more than the tables' own error allows "
+            f"(tolerance {_fmt(c.tolerance, '.2f')} of the share, from their model floor)"
+            + (
+                ": the simulator contradicts the stated causes, which are withdrawn."
+                if c.simulator_contradicts
+                else "."
+            ),
+        ]
+    if c.refit is not None:
+        r = c.refit
+        lines += [
+            "",
+            f"Refitted in the simulator (`mujoco.sysid.optimize`, {r.n_parameters} parameters: the causes and every "
+            f"free box mass and friction; {r.pushes_simulated} pushes simulated, {r.seconds:.1f} s; chi-square "
+            f"{r.chi2_start:.1f} at the tables' estimates, {r.chi2_end:.1f} after):",
+            "",
+            "| cause | tables' estimate | simulator's | simulator's 95% interval |",
+            "|---|---|---|---|",
+        ]
+        for name, vals in r.simulator.items():
+            lines.append(
+                f"| {name} | {', '.join(_fmt(x) for x in r.tables[name])} | {', '.join(_fmt(x) for x in vals)} | "
+                + ", ".join(f"[{_fmt(a)}, {_fmt(b)}]" for a, b in r.simulator_ci95[name])
+                + " |"
+            )
+        lines += [
+            "",
+            "The simulator's interval "
+            + ("holds" if r.holds_tables else "**does not hold**")
+            + " the tables' estimate, and "
+            + (
+                "leaves out 0 (the simulator needs the cause)."
+                if r.excludes_zero
+                else "**holds 0** (the simulator does not need the cause on these pushes)."
+            ),
+        ]
+    if c.probes:
+        lines += [
+            "",
+            "The log's calibration probes under the leading hypothesis (whitened chi-square; "
+            f"{'they contradict it, and the causes are withdrawn' if c.probes_contradict else 'none contradicts it'}):",
+            "",
+            "| probes | n | chi-square | p | worst (sds) |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {k.kind.replace('_', ' ')} | {k.n} | {k.chi2:.3g} | {k.p_value:.3g} | {k.worst_sd:.3g} |"
+            for k in c.probes
+        ]
+    return lines + [""]
+
+
 def markdown(s: Summary, *, plots: bool = True) -> str:
     """The human report; ``plots``: whether the folder holds the plots (their image lines are left out otherwise)."""
     v, sh, noise = s.verdict, s.shrinkage, s.noise
@@ -410,6 +506,8 @@ def markdown(s: Summary, *, plots: bool = True) -> str:
     if notes:
         lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
     lines += _discrepancy_lines(s)
+    if s.simulator is not None:
+        lines += [""] + _simulator_lines(s)[:-1]
     lines += [
         "",
         f"Held-out RMS gap in log d: {_fmt(sh.before_rms)} with the table alone, {_fmt(sh.after_rms)} with "

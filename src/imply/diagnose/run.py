@@ -19,7 +19,9 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from imply.diagnose.analysis import DiagnosisConfig, Summary, diagnose
+from imply.diagnose.analysis import DiagnosisConfig, Summary, check_in_simulator, diagnose
+from imply.diagnose.conclusion.render import reference_text, verdict_text
+from imply.diagnose.conclusion.simulator_check import Scene
 from imply.diagnose.inference.fit import Problem
 from imply.diagnose.inputs.probes import probes_beside, read_probes
 from imply.diagnose.inputs.pushlog import PushLog, read_pushlog
@@ -54,6 +56,8 @@ class DiagnoseRequest:
     grid: CoarseGrid
     cache_dir: Path | None
     threads: int = 0
+    # the scene the stated causes are written into and re-simulated in (None: the table's built-in scene)
+    scene: Scene | None = None
     force: bool = False  # replace the files an earlier report wrote in a report folder
     plots: bool = True  # the reports' figures (a benchmark's reports are read as data)
     reports: tuple[Report, ...] = ()
@@ -68,6 +72,30 @@ class Session:
     options: DiagnosisConfig
     effect_tables: EffectTables
     plots: bool = True
+    scene: Scene | None = None  # the scene the stated causes are put into (table_scene(table) where not given)
+    threads: int = 0
+
+
+def table_scene(table: PushTable) -> Scene:
+    """The table's own push scene (its built-in MJCF at the scene settings it was built with)."""
+    from imply.sim.scene import SceneConfig, build_xml
+
+    return Scene(xml=build_xml(SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")), name="built-in")
+
+
+def user_scene(path: str | os.PathLike) -> Scene:
+    """A user's push scene (MJCF file), checked as ``imply sim pushes --model`` checks it (ValueError naming it)."""
+    from imply.sim.push_file import load_push_model
+    from imply.sim.pushes import PushJoints, PushStepping
+
+    model = load_push_model(path)
+    try:
+        PushJoints.of(model)
+        PushStepping.of(model)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    path = Path(path)
+    return Scene(xml=path.read_text(), name=str(path), model_dir=str(path.resolve().parent))
 
 
 def effect_tables(
@@ -110,7 +138,15 @@ def prepare(request: DiagnoseRequest, *, progress: bool = True) -> Session:
         options = options.replace(model_floor=floor.get("rms"))
     if options.stop_time_floor is None and floor.get("stop_time"):
         options = options.replace(stop_time_floor=floor["stop_time"]["rms"])
-    return Session(request.table, request.candidates, options, etables, plots=request.plots)
+    return Session(
+        request.table,
+        request.candidates,
+        options,
+        etables,
+        plots=request.plots,
+        scene=request.scene or table_scene(request.table),
+        threads=request.threads,
+    )
 
 
 def read_checked_pushlog(path: str | os.PathLike, table: PushTable, track: str | os.PathLike | None = None) -> PushLog:
@@ -161,6 +197,9 @@ def diagnose_report(report: Report, session: Session, *, force: bool = False) ->
             observables=opts.observables(),
         )
         diag = diagnose(problem, list(session.candidates), opts)
+    scene = session.scene or table_scene(session.table)
+    text = reference_text if report.reference is not None else verdict_text
+    diag = check_in_simulator(diag, scene, nthread=session.threads, text=text)
     write_folder(report.folder, lambda tmp: write_report(diag, tmp, plots=session.plots), force=force)
     v = diag.summary.verdict
     log.info("%s: %s, %s -> %s", report.pushlog.path, v.adequacy, v.identification, report.folder)

@@ -44,7 +44,7 @@ import numpy as np
 from mujoco import batch as mjbatch
 from tqdm.auto import tqdm
 
-from imply.sim.scene import SceneConfig, build_model, model_numeric
+from imply.sim.scene import COMMAND_OFFSET, SceneConfig, build_model, model_numeric
 
 log = logging.getLogger("imply.sim")
 
@@ -399,6 +399,10 @@ def run_pushes(
     stepping = PushStepping.of(model)
     joints = PushJoints.of(model)
     n = batch.nsim
+    # a corrected scene's command mapping: the servo is told the speed plus the offset
+    speeds = np.asarray(speeds, dtype=float) + model_numeric(model, COMMAND_OFFSET, 0.0)
+    if np.any(speeds <= 0):
+        raise ValueError(f"the scene's {COMMAND_OFFSET} leaves a commanded speed at or below 0 m/s")
     fine, coarse = stepping.fine_steps(speeds), stepping.timestep
     timesteps = _Timesteps(batch, models, fine)
     batch.reset()

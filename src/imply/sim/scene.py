@@ -18,7 +18,9 @@ scales with mass (MJCF ``mass=`` on the geom).
 The MJCF carries everything a push needs (``<custom>`` numerics ``stroke``,
 ``settle_speed``, ``max_time``, ``push_substeps``, ``release_window``, ``slide_steps``
 and ``slow_push_speed``), so a
-user-edited file is simulated exactly as the built-in scene is.
+user-edited file is simulated exactly as the built-in scene is. A scene may also carry
+``command_offset``: m/s added to every commanded pusher speed (how a corrected scene,
+:mod:`imply.sim.correction`, states a pusher that runs at another speed than it is told).
 Names the simulator relies on: body and geom ``box``, joint ``push``, actuator ``servo``.
 """
 
@@ -33,6 +35,8 @@ import numpy as np
 
 from imply.options import Config, option
 
+# a corrected scene's command mapping (imply.sim.correction): m/s the simulator adds to every commanded pusher speed
+COMMAND_OFFSET = "command_offset"
 # m/s^2: MuJoCo's default gravity, the scene's unless its extra options name another; a pull test's reading is its
 # force over the box's weight m times this
 GRAVITY = 9.81

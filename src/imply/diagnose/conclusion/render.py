@@ -174,6 +174,13 @@ def contender_words(summary: Summary, c: Contender) -> str:
     return f"{what} (weight {c.weight:.2f})"
 
 
+# who contradicts a stated explanation, in words (imply.diagnose.conclusion.simulator_check)
+CONTRADICTED_BY = {
+    "simulator": "the simulator (re-simulated, it closes too little of the gap; see the report)",
+    "probes": "the log's calibration probes (see the report)",
+}
+
+
 def _closes(share: float | None) -> str:
     if share is None or share >= 1.0:
         return "the whole gap, down to the noise"
@@ -235,6 +242,11 @@ def headline(summary: Summary) -> str:
                 else "leaves too much of the gap open"
             )
             + ": most likely a mechanism outside the library, so no cause is stated"
+        ),
+        Identification.CONTRADICTED: (
+            f"; the tables' best explanation, {phrases(v.withdrawn)}, is contradicted by "
+            + " and by ".join(CONTRADICTED_BY[b] for b in v.contradicted_by)
+            + ", so no cause is stated"
         ),
         Identification.UNDECIDED: (
             f", and the pushes cannot tell {len(v.contenders)} explanations apart: "

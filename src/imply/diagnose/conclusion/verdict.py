@@ -26,7 +26,11 @@ for more than the library holds). The identification is
   most likely a mechanism outside the library, and nothing is stated;
 - ``undecided``: contenders that disagree (the core is no contender), each with its
   weight (the next pushes, :mod:`imply.diagnose.conclusion.next_pushes`, are designed to separate
-  them). The core is stated where the gap is explained.
+  them). The core is stated where the gap is explained;
+- ``contradicted``: the causes the tables would state are contradicted by the simulator
+  (re-simulated, they close too little of the gap) or by the log's own calibration probes
+  (:mod:`imply.diagnose.conclusion.simulator_check`), so nothing is stated
+  (:func:`contradicted`).
 
 The box-table contact is kept apart from the effects: a hypothesis's *contact* is the
 discrepancy or a change of the contact's MJCF parameters (the library's ``CONTACT``
@@ -50,7 +54,7 @@ Two thresholds, both in config ``gap.diagnose`` with their docs: ``min_share`` a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 from imply.diagnose.inference.hypotheses import NO_EFFECT, Hypothesis
@@ -75,6 +79,7 @@ class Identification(StrEnum):
     NO_LIBRARY_CAUSE = "no_library_cause"
     OUTSIDE_LIBRARY = "outside_library"
     UNDECIDED = "undecided"
+    CONTRADICTED = "contradicted"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -128,6 +133,9 @@ class Verdict(Record):
     share_closed: float | None  # of the held-out gap above the noise floor, by the leading hypothesis
     leading: str  # the label of the hypothesis of largest weight
     tiers: list[CauseTier] = field(default_factory=list)  # each stated cause beyond the contact: how firmly
+    # the causes the tables stated before the simulator or the probes contradicted them (then none is stated)
+    withdrawn: list[str] = field(default_factory=list)
+    contradicted_by: list[str] = field(default_factory=list)  # "simulator", "probes"
 
     @property
     def is_none(self) -> bool:
@@ -283,3 +291,17 @@ def cause_tiers(
             )
         )
     return out
+
+
+def contradicted(verdict: Verdict, by: list[str]) -> Verdict:
+    """``verdict`` with its stated causes withdrawn, as the simulator or the probes (``by``) contradict them."""
+    if not by or not verdict.effects:
+        return verdict
+    return replace(
+        verdict,
+        identification=Identification.CONTRADICTED,
+        effects=[],
+        tiers=[],
+        withdrawn=list(verdict.effects),
+        contradicted_by=list(by),
+    )

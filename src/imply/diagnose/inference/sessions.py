@@ -341,6 +341,29 @@ def stated_part(fit: JointFit, causes: list[str]) -> tuple[Model, np.ndarray]:
     return model, theta
 
 
+def against_table(raw: PushLog, fitted: Problem, base: JointFit | None = None) -> tuple[Problem, JointFit]:
+    """The log ``raw`` against the table, under ``fitted``'s noise, weights and model error (``fitted`` itself where
+    its rows are ``raw``'s and its launch the table's), and the table alone fitted on it (``base`` where given and
+    ``fitted`` is that problem)."""
+    if raw is fitted.log and fitted.launch is None:
+        p = fitted
+    else:
+        p = Problem.of(raw, fitted.table, fitted.etables, grid=fitted.grid, observables=fitted.observables)
+        p = replace(
+            p,
+            noise_d=fitted.noise_d,
+            noise_t=fitted.noise_t,
+            model_err_d=fitted.model_err_d,
+            model_err_t=fitted.model_err_t,
+            w_d=fitted.w_d,
+            w_t=fitted.w_t,
+        )
+        base = None
+    if base is None:
+        base = p.fit(Model(), np.zeros(0), p.initial_fit())
+    return p, base
+
+
 def cause_shrink(
     raw: PushLog,
     fitted: Problem,
@@ -357,22 +380,7 @@ def cause_shrink(
     table alone fitted on ``fitted``, where the caller has it and ``fitted`` is ``raw``'s own problem (launch the
     table's): it is then the baseline, not fitted again."""
     none = np.zeros(0)
-    if raw is fitted.log and fitted.launch is None:
-        p = fitted
-    else:
-        p = Problem.of(raw, fitted.table, fitted.etables, grid=fitted.grid, observables=fitted.observables)
-        p = replace(
-            p,
-            noise_d=fitted.noise_d,
-            noise_t=fitted.noise_t,
-            model_err_d=fitted.model_err_d,
-            model_err_t=fitted.model_err_t,
-            w_d=fitted.w_d,
-            w_t=fitted.w_t,
-        )
-        base = None
-    if base is None:
-        base = p.fit(Model(), none, p.initial_fit())
+    p, base = against_table(raw, fitted, base)
 
     def resid(problem: Problem, model: Model, theta: np.ndarray, lm: np.ndarray, lu: np.ndarray) -> np.ndarray:
         return problem.row_residuals(problem.predict(model, theta, lm[problem.c_obj], lu[problem.c_obj]))[0]
