@@ -602,6 +602,12 @@ FORMATS: tuple[Format, ...] = (
     Format("The report of `imply evaluate`", "imply.evaluate.report", ("REPORT_FILES",)),
     Format("The report of `imply diagnose`", "imply.diagnose.report", ("REPORT_FILES",)),
     Format("The next pushes (`next_pushes.csv`)", "imply.diagnose.conclusion.next_pushes"),
+    Format(
+        "The corrected scene (`corrected.xml`)",
+        "imply.sim.correction",
+        ("CAUSES",),
+        "the scene a log was diagnosed against, with the stated causes written in",
+    ),
     Format("The push table (`results/table/table.npz`)", "imply.table"),
     Format("Result documents (`results/**/*.json`)", "imply.paper.results"),
     Format("Macros and numbers (`results/paper/macros.tex`, `numbers.json`)", "imply.paper.macros"),

@@ -250,6 +250,7 @@ def score_cases(
                 # the share of the gap the stated causes close against the true one (one-effect logs)
                 "true_share": true_cause_share({"all": size}) if group == "single" else None,
                 "stated_share": stated_cause_share(s),
+                "resimulated_share": resimulated_cause_share(s),
                 "anchored_share_closed": sh.anchored_share_closed if accepted else 0.0,
                 "before_rms": sh.before_rms,
                 "after_rms": sh.after_rms,
@@ -293,9 +294,12 @@ def score_cases(
     rel = mag["relative_error"].dropna().astype(float)
     az = mag["azimuth_error_deg"].dropna().astype(float)
     out_rows = frame["true_outliers"] > 0
-    shrink = shrink_scores(frame, single & frame["big"], float(config.targets.get("shrink_tolerance", 0.15)))
+    tolerance = float(config.targets.get("shrink_tolerance", 0.15))
+    shrink = shrink_scores(frame, single & frame["big"], tolerance)
+    resim = shrink_scores(frame, single & frame["big"], tolerance, column="resimulated_share", prefix="resim_shrink")
     return {
         **shrink,
+        **resim,
         "cases": rows,
         "magnitudes": mags,
         "confusion": {r: {c: int(confusion.loc[r, c]) for c in confusion.columns} for r in confusion.index},
@@ -444,6 +448,7 @@ SCORED_COLUMNS = (
     "wrong_effect_single",
     "true_share",
     "stated_share",
+    "resimulated_share",
 )
 
 
@@ -469,6 +474,14 @@ def stated_cause_share(summary: Summary) -> float:
     return 0.0 if share is None or not summary.verdict.effects else float(share)
 
 
+def resimulated_cause_share(summary: Summary) -> float:
+    """The share of the log's gap the stated causes close once re-simulated in the corrected scene
+    (:mod:`imply.diagnose.conclusion.simulator_check`; 0 where no cause is stated or nothing was re-simulated)."""
+    c = summary.simulator
+    share = c.share_closed if c is not None else None
+    return 0.0 if share is None or not summary.verdict.effects else float(share)
+
+
 def shrink_sizes(labels: dict[str, dict], table, groups: tuple[str, ...], *, progress: bool = True) -> dict[str, dict]:
     """:func:`visible_size` of the noise-free log with and without its effect (``all``, ``contact`` where the label
     has it) for the logs of ``groups``: what :func:`true_cause_share` reads."""
@@ -481,17 +494,20 @@ def shrink_sizes(labels: dict[str, dict], table, groups: tuple[str, ...], *, pro
     }
 
 
-def shrink_scores(frame: pd.DataFrame, mask: pd.Series, tolerance: float) -> dict:
-    """How close the stated share of the gap comes to the true one over the logs ``mask`` of ``frame`` (columns
-    ``true_share``, ``stated_share``): the share within ``tolerance``, the median and largest absolute difference."""
+def shrink_scores(
+    frame: pd.DataFrame, mask: pd.Series, tolerance: float, *, column: str = "stated_share", prefix: str = "shrink"
+) -> dict:
+    """How close the stated share of the gap (``column``: as the tables predict it, or ``resimulated_share``) comes to
+    the true one over the logs ``mask`` of ``frame`` (column ``true_share``): the share within ``tolerance``, the
+    median and largest absolute difference, under keys starting ``prefix``."""
     sub = frame.loc[mask & frame["true_share"].notna()] if "true_share" in frame else frame.iloc[:0]
-    err = (sub["stated_share"].astype(float) - sub["true_share"].astype(float)).abs() if len(sub) else pd.Series()
+    err = (sub[column].astype(float) - sub["true_share"].astype(float)).abs() if len(sub) else pd.Series()
     return {
-        "shrink_within": float((err <= tolerance).mean()) if len(err) else float("nan"),
-        "n_shrink_within": int(len(err)),
-        "shrink_error_median": float(err.median()) if len(err) else float("nan"),
-        "shrink_error_max": float(err.max()) if len(err) else float("nan"),
-        "shrink_tolerance": tolerance,
+        f"{prefix}_within": float((err <= tolerance).mean()) if len(err) else float("nan"),
+        f"n_{prefix}_within": int(len(err)),
+        f"{prefix}_error_median": float(err.median()) if len(err) else float("nan"),
+        f"{prefix}_error_max": float(err.max()) if len(err) else float("nan"),
+        f"{prefix}_tolerance": tolerance,
     }
 
 
@@ -579,6 +595,7 @@ def score_contact_cases(
             row.update(
                 true_share=true_share,
                 stated_share=stated_cause_share(s),
+                resimulated_share=resimulated_cause_share(s),
                 readable=bool(e["name"] not in SPEED_ERRORS or lab.get("probes")),
                 wrong_effect_single=bool(row["one_cause"] and not named_cls),
                 size=size,
@@ -631,6 +648,7 @@ def score_contact_cases(
     out["one_cause_right"], out["n_one_cause_right"] = share(single & frame["one_cause"], "one_cause_right")
     tolerance = float(targets.get("shrink_tolerance", 0.15))
     out.update(shrink_scores(frame, single, tolerance))
+    out.update(shrink_scores(frame, single, tolerance, column="resimulated_share", prefix="resim_shrink"))
     for engine in ("mujoco", "bullet", "sapien"):
         part = shrink_scores(frame, single & (frame["engine"] == engine), tolerance)
         out[f"shrink_within_{engine}"], out[f"n_shrink_within_{engine}"] = (

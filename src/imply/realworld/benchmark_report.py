@@ -589,6 +589,10 @@ def _shrink_rows(r: Mapping) -> list[str]:
         f"| stated share of the gap within {_f(tol, 'g')} of the true share, big one-effect logs | "
         f"{_f(r.get('shrink_within'))} | {r.get('n_shrink_within', 0)} |",
         f"| ... median and largest difference | {_f(r.get('shrink_error_median'))}, {_f(r.get('shrink_error_max'))} | |",
+        f"| the same share re-simulated in the corrected scene, within {_f(tol, 'g')} of the true share | "
+        f"{_f(r.get('resim_shrink_within'))} | {r.get('n_resim_shrink_within', 0)} |",
+        f"| ... median and largest difference | {_f(r.get('resim_shrink_error_median'))}, "
+        f"{_f(r.get('resim_shrink_error_max'))} | |",
     ]
 
 
