@@ -304,7 +304,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         'else "$PY" -m imply.cli "$@"; fi; }\n'
     )
     blocks = bash_blocks(DOCS / "tutorials" / "diagnose.md")
-    assert len(blocks) == 7
+    assert len(blocks) == 8
     proc = subprocess.run(["bash", "-c", prelude + "\n".join(blocks)], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((tmp_path / "gap-report" / "summary.json").read_text())
@@ -331,3 +331,9 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert since["reference"]["pushes_matched"] == since["n_pushes"]
     assert since["reference"]["standing"]["adequacy"] != "no_gap"
     assert (tmp_path / "gap-report-since" / "report.md").read_text().count("Since the reference, the gap") == 1
+    # the slope in the simulator: corrected.xml's gravity, re-simulated and refitted; the pushes re-run there
+    refit = json.loads((tmp_path / "gap-report-refit" / "summary.json").read_text())["simulator"]
+    assert refit["causes"][0]["cause"] == "tilt" and refit["refit"]["excludes_zero"]
+    assert refit["share_closed"] > 0.8 and not refit["simulator_contradicts"]
+    again_log = (tmp_path / "again.csv").read_text().splitlines()
+    assert len(again_log) == n_first
