@@ -141,11 +141,12 @@ def test_free_strokes_contradict_an_explanation_that_leaves_the_pusher_at_its_co
     "share, predicted, tolerance, expected",
     [
         (0.9, 0.92, 0.05, (False, False)),  # agree
-        (0.3, 0.9, 0.05, (True, True)),  # the simulator closes far less, and too little to call the gap explained
-        (0.85, 0.99, 0.05, (True, False)),  # disagree, but the simulator still explains the gap
+        (0.3, 0.9, 0.05, (True, True)),  # the simulator finds a third of the claimed shrink
+        (0.72, 0.83, 0.05, (True, False)),  # disagree by more than the tables' error, but most of the shrink is there
         (1.1, 0.8, 0.05, (True, False)),  # the simulator closes more
+        (-0.3, -0.2, 0.05, (True, False)),  # the tables claim no shrink for the causes alone
         (None, 0.9, 0.05, (False, False)),  # nothing to compare
     ],
 )
 def test_the_simulator_contradicts_only_a_shrink_it_cannot_reach(share, predicted, tolerance, expected):
-    assert compare_shares(share, predicted, tolerance, min_share=0.8) == expected
+    assert compare_shares(share, predicted, tolerance) == expected

@@ -491,7 +491,6 @@ def check_in_simulator(diag: Diagnosis, scene: Scene, *, nthread: int = 0, text=
         predicted_after=shrink.cause_rms,
         predicted_share=shrink.cause_share_closed,
         model_floor=floor,
-        min_share=opts.min_share,
         alpha=opts.alpha,
         scene=scene,
         refit=opts.simulator_refit,

@@ -176,7 +176,7 @@ def contender_words(summary: Summary, c: Contender) -> str:
 
 # who contradicts a stated explanation, in words (imply.diagnose.conclusion.simulator_check)
 CONTRADICTED_BY = {
-    "simulator": "the simulator (re-simulated, it closes too little of the gap; see the report)",
+    "simulator": "the simulator (put into it, the causes close less than half the gap the tables claim; see the report)",
     "probes": "the log's calibration probes (see the report)",
 }
 

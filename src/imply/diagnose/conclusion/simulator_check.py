@@ -30,9 +30,10 @@ shrink it predicts is off too. This step checks it on the simulator itself:
 4. **The probes**: the log's calibration probes under the leading hypothesis, each kind's
    whitened chi-square (friction measurements, added-mass pushes, free strokes).
 
-A stated explanation is *contradicted by the simulator* where the re-simulated share
-falls short of the predicted one by more than the tolerance and short of the share the
-verdict requires to call the gap explained (``min_share``); *contradicted by the probes*
+A stated explanation is *contradicted by the simulator* where, put into it, the causes
+close less than half (:data:`SHORTFALL`) of the share the tables claim for them (and the
+two disagree); a small shortfall is the tables' own error for effects combined, which
+they tabulate one at a time. It is *contradicted by the probes*
 where a kind's chi-square has p below ``alpha`` over the number of kinds. A contradicted
 explanation is not stated (:func:`imply.diagnose.conclusion.verdict.contradicted`). The
 refit informs (its interval beside the tables'); it does not decide the verdict.
@@ -65,6 +66,9 @@ CORRECTED_XML = "corrected.xml"
 # finite-difference steps of the refit's Jacobian: of a cause's library range, and of a log mass or log friction
 CAUSE_STEP = 0.01
 BOX_STEP = 0.01
+# the simulator contradicts stated causes that, put into it, close less than this share of the shrink the tables
+# claim for them: on the development sets the two differed by at most an eighth of the gap (docs/notes)
+SHORTFALL = 0.5
 
 
 @dataclass(frozen=True)
@@ -439,7 +443,6 @@ def check_causes(
     predicted_after: float,
     predicted_share: float | None,
     model_floor: float | None,
-    min_share: float,
     alpha: float,
     scene: Scene,
     refit: bool,
@@ -471,7 +474,7 @@ def check_causes(
     tol = None
     if model_floor is not None and floor is not None and predicted_before - floor > 1e-12:
         tol = float(model_floor / (predicted_before - floor))
-    disagrees, short = compare_shares(share, predicted_share, tol, min_share=min_share)
+    disagrees, short = compare_shares(share, predicted_share, tol)
     kinds = probe_kinds(problem, leading)
     probes_bad = any(pk.p_value < alpha / len(kinds) for pk in kinds)
     fitted = None
@@ -513,16 +516,15 @@ def check_causes(
     return Checked(check=check, corrected_xml=xml)
 
 
-def compare_shares(
-    share: float | None, predicted: float | None, tolerance: float | None, *, min_share: float
-) -> tuple[bool, bool]:
+def compare_shares(share: float | None, predicted: float | None, tolerance: float | None) -> tuple[bool, bool]:
     """(disagree, contradict): whether the re-simulated ``share`` and the ``predicted`` one differ by more than
-    ``tolerance``, and whether the simulator contradicts the stated causes (its share short of the predicted by more
-    than the tolerance, and short of ``min_share``, the share that calls a gap explained). Nothing to compare where
-    either share or the tolerance is None."""
+    ``tolerance``, and whether the simulator contradicts the stated causes: they disagree and, in the simulator, the
+    causes close less than :data:`SHORTFALL` of the share the tables say they close. Nothing to compare where either
+    share or the tolerance is None; no contradiction where the tables claim no shrink for the causes alone."""
     if share is None or predicted is None or tolerance is None:
         return False, False
-    return abs(share - predicted) > tolerance, share < predicted - tolerance and share < min_share
+    disagree = abs(share - predicted) > tolerance
+    return disagree, bool(disagree and predicted > 0 and share < SHORTFALL * predicted)
 
 
 def _refit_boxes(p: Problem, model: Model, theta: np.ndarray, base: JointFit) -> tuple[np.ndarray, np.ndarray]:
