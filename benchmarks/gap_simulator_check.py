@@ -107,6 +107,15 @@ def main() -> None:
             f"re-simulated against predicted share: median |difference| {diff.median():.3f}, largest {diff.max():.3f}, "
             f"beyond the tolerance in {int(checked['disagrees'].sum())} of {len(checked)}"
         )
+        short = checked["share_predicted"] - checked["share_resimulated"]
+        # where the two disagree beyond the tables' tolerance (a gap barely above the noise makes shares swing)
+        for kind, rows_ in (("right", checked["tables_wrong"] == 0), ("wrong", checked["tables_wrong"] > 0)):
+            rows_ = rows_ & checked["disagrees"]
+            if rows_.any():
+                print(
+                    f"largest shortfall (predicted - re-simulated share) where they disagree, logs whose causes are "
+                    f"all {kind}: {short[rows_].max():.3f} over {int(rows_.sum())} logs"
+                )
         print(
             f"seconds per checked log: median {checked['seconds'].median():.1f}, largest {checked['seconds'].max():.1f}"
         )

@@ -176,7 +176,8 @@ def contender_words(summary: Summary, c: Contender) -> str:
 
 # who contradicts a stated explanation, in words (imply.diagnose.conclusion.simulator_check)
 CONTRADICTED_BY = {
-    "simulator": "the simulator (put into it, the causes close less than half the gap the tables claim; see the report)",
+    "simulator": "the simulator (put into it, the causes leave open far more of the gap than the tables say; see the "
+    "report)",
     "probes": "the log's calibration probes (see the report)",
 }
 
