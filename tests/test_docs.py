@@ -331,6 +331,12 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
     assert since["reference"]["pushes_matched"] == since["n_pushes"]
     assert since["reference"]["standing"]["adequacy"] != "no_gap"
     assert (tmp_path / "gap-report-since" / "report.md").read_text().count("Since the reference, the gap") == 1
+    # against the reference, the corrected scene holds what changed and the standing gap's stated causes
+    sources = {c["cause"]: c["source"] for c in since["simulator"]["causes"]}
+    assert sources["tilt"] == "stated"
+    standing = set(since["reference"]["standing"]["effects"]) - {"tilt"}
+    assert {sources.get(e) for e in standing} <= {"standing"} and set(sources) == standing | {"tilt"}
+    assert (tmp_path / "gap-report-since" / "corrected.xml").is_file()
     # the slope in the simulator: corrected.xml's gravity, re-simulated and refitted; the pushes re-run there
     refit = json.loads((tmp_path / "gap-report-refit" / "summary.json").read_text())["simulator"]
     assert refit["causes"][0]["cause"] == "tilt" and refit["refit"]["excludes_zero"]

@@ -327,17 +327,23 @@ def refit_in_simulator(
 
     def residuals_at(xs: np.ndarray) -> np.ndarray:
         """(rows, K) whitened residuals at K parameter vectors (columns of ``xs``); a failed push reads 0 there."""
-        cols = []
-        # columns that share the causes share a scene: simulate them together
-        for j in range(xs.shape[1]):
-            c, m, u = split(xs[:, j])
-            d, t, ok = simulate_log(scene, c, pushes, m, u, stop_time=use_t, nthread=nthread)
-            simulated[0] += pushes.speed.size
-            r = [np.where(keep_d & ok[0], (problem.y - d[0]) / sd_d, 0.0)]
-            if use_t:
-                r.append(np.where(keep_t & ok[0] & np.isfinite(t[0]), (y_t - t[0]) / sd_t, 0.0))
-            cols.append(np.concatenate(r))
-        return np.stack(cols, axis=1)
+        parts = [split(xs[:, j]) for j in range(xs.shape[1])]
+        out = np.zeros(((2 if use_t else 1) * pushes.speed.size, xs.shape[1]))
+        # columns with the same causes share a scene: their boxes run in one batch
+        keys = [tuple(np.concatenate([np.atleast_1d(v) for v in c.values()]).round(15)) for c, _, _ in parts]
+        for key in dict.fromkeys(keys):
+            cols = [j for j, k in enumerate(keys) if k == key]
+            causes_j = parts[cols[0]][0]
+            m = np.stack([parts[j][1] for j in cols])
+            u = np.stack([parts[j][2] for j in cols])
+            d, t, ok = simulate_log(scene, causes_j, pushes, m, u, stop_time=use_t, nthread=nthread)
+            simulated[0] += pushes.speed.size * len(cols)
+            for i, j in enumerate(cols):
+                r = [np.where(keep_d & ok[i], (problem.y - d[i]) / sd_d, 0.0)]
+                if use_t:
+                    r.append(np.where(keep_t & ok[i] & np.isfinite(t[i]), (y_t - t[i]) / sd_t, 0.0))
+                out[:, j] = np.concatenate(r)
+        return out
 
     def residual_fn(x, _params):
         x = np.asarray(x, float)
