@@ -191,6 +191,15 @@ CASES = [
     ("diag-text-speed", DIAGNOSE, _pushlog("a,0.5,0.09", "a,fast,0.09"), "row 2 (line 3), column speed"),
     ("diag-zero-displacement", DIAGNOSE, _pushlog("b,0.5,0.07", "b,0.5,0"), "column displacement: is 0"),
     ("diag-negative-displacement", DIAGNOSE, _pushlog("b,0.5,0.07", "b,0.5,-0.07"), "-0.07 is negative"),
+    ("diag-model-missing", [*DIAGNOSE, "--model", "scene.xml"], {}, "--model scene.xml: no such file"),
+    (
+        "diag-model-without-box",
+        [*DIAGNOSE, "--model", "scene.xml"],
+        {
+            "scene.xml": '<mujoco><worldbody><body name="crate"><freejoint/><geom size="0.05"/></body></worldbody></mujoco>'
+        },
+        "has no body named 'box'",
+    ),
     ("diag-negative-speed", DIAGNOSE, _pushlog("b,0.5,0.07", "b,-0.5,0.07"), "column speed: -0.5 must be positive"),
     ("diag-speed-outside", DIAGNOSE, _pushlog("b,0.7,0.10", "b,1.7,0.10"), "row 6 (line 7), column speed: 1.7 is"),
     ("diag-direction-text", DIAGNOSE, _pushlog("a,0.7,0.14,3.14", "a,0.7,0.14,north"), "column direction"),
