@@ -200,3 +200,24 @@ def test_score_does_not_import_the_heavy_stacks(tiny_table_path, tmp_path):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert proc.stdout.strip() == "[]"
+
+
+def test_the_version_lives_in_one_place_and_the_citation_names_it(capsys):
+    """`imply --version` prints the package's version; pyproject reads it from imply.__version__ and CITATION.cff
+    states the same."""
+    import tomllib
+    from pathlib import Path
+
+    import yaml
+
+    import imply
+    from imply.cli import main
+
+    root = Path(__file__).resolve().parents[2]
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"imply {imply.__version__}"
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    assert "version" not in project and project["dynamic"] == ["version"]
+    assert str(yaml.safe_load((root / "CITATION.cff").read_text())["version"]) == imply.__version__

@@ -27,6 +27,7 @@ import signal
 import sys
 from typing import Any
 
+import imply
 from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
 
 GROUPS: list[str] = [
@@ -62,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="imply", description=DESCRIPTION)
     parser.add_argument("--log", help="also write the log to this file")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument("--version", action="version", version=f"imply {imply.__version__}")
     sub = parser.add_subparsers(dest="group", required=True, metavar="COMMAND")
     for name in GROUPS:
         importlib.import_module(f"imply.cli.{name}").register(sub)
