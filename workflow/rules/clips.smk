@@ -22,9 +22,7 @@ rule clips_render:
         scene=as_json(config["scene"]),
     # one thread: its files are the same with more, and a job asking for both cores waits until both are idle
     threads: 1
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=4000,
         runtime=30,
@@ -50,9 +48,7 @@ rule encoder_pretrain:
     # one thread: on two cores a job asking for both waits until both are idle at once, which the lab's long
     # generation (one core for a quarter of the run) would delay past the trainings
     threads: 1
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=4000,
         runtime=30,
@@ -77,9 +73,7 @@ rule encoder_encode:
         encoder=as_json(config["encoder"]),
         weights=encode_weights_option,
     threads: config["model"]["resources"]["encode_threads"]
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=config["model"]["resources"]["encode_mem_mb"],
         runtime=config["model"]["resources"]["encode_runtime"],
@@ -112,9 +106,7 @@ rule readout_fit:
         readout=as_json(config["readout"]),
         pretrain_episodes=config["clips"]["n_pretrain_episodes"],
     threads: 1
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=6000,
         runtime=20,

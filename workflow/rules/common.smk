@@ -21,6 +21,13 @@ validate_workflow_config(config, Path(workflow.current_basedir).parent / "schema
 
 # the software environment of every rule under `snakemake --use-conda` (pinned versions)
 IMPLY_ENV = "../../envs/imply.yaml"
+# Job priorities on two cores. Snakemake starts the set of ready jobs with the largest sum of priorities, so the table
+# (TABLE_PRIORITY, both cores) outweighs any two one-thread jobs; the training chain, the study's longest, goes before
+# the other jobs that wait on nothing (the gap stage's effect tables and the pixel model, OTHER_START_PRIORITY), and
+# the rest fills the other core.
+TABLE_PRIORITY = 50
+TRAINING_CHAIN_PRIORITY = 12
+OTHER_START_PRIORITY = 10
 
 # every job computes with the same numerical kernels on any x86-64 machine (imply.kernels):
 # jobs inherit this process's environment, here and on a cluster (each job reads the Snakefile)

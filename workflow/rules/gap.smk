@@ -21,7 +21,7 @@ rule gap_tables:
         library=gap_library_levels(),
     threads: 1
     # every diagnosis reads the effect tables: they go right after the training chain's jobs
-    priority: 10
+    priority: OTHER_START_PRIORITY
     resources:
         mem_mb=2000,
         runtime=15,

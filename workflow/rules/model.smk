@@ -23,9 +23,7 @@ rule model_readout:
     params:
         token_grid=token_grid_option,
     threads: 1
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=6000,
         runtime=20,
@@ -60,9 +58,7 @@ rule model_train:
         score=score_subset("grid", "readout_floor"),
         derangement_seed=config["model"]["derangement_seed"],
     threads: config["model"]["resources"]["train_threads"]
-    # the training chain is the study's longest: it goes before the other jobs that wait on nothing (the gap stage's
-    # effect tables, the pixel model: priority 10), the rest fills the other core
-    priority: 12
+    priority: TRAINING_CHAIN_PRIORITY
     resources:
         mem_mb=config["model"]["resources"]["train_mem_mb"],
         runtime=config["model"]["resources"]["train_runtime"],

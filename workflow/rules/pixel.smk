@@ -19,7 +19,7 @@ rule pixel_train:
         variant="calib|nocalib",
     # one thread: a job asking for both cores waits until both are idle at once (encoder_pretrain says why)
     threads: 1
-    priority: 10
+    priority: OTHER_START_PRIORITY
     resources:
         mem_mb=6000,
         runtime=30,

@@ -14,7 +14,7 @@ rule table:
     # only job asking for more than one thread (one asking for both waits until both are idle at once). Snakemake
     # starts the set of ready jobs with the largest sum of priorities, so the table's is above any two others'
     threads: config["threads"]
-    priority: 50
+    priority: TABLE_PRIORITY
     resources:
         mem_mb=2000,
         runtime=15,

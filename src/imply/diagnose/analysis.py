@@ -477,7 +477,6 @@ def check_in_simulator(diag: Diagnosis, scene: Scene, *, nthread: int = 0, text=
     raw = diag.raw if diag.raw is not None else diag.problem.log
     p, base = against_table(raw, diag.problem)
     model, theta = stated_part(diag.leading, s.verdict.effects)
-    shrink = s.cause_shrink
     floor = opts.model_floor if opts.model_floor is not None else (s.model_floor or {}).get("rms")
     checked = check_causes(
         problem=diag.problem,
@@ -487,9 +486,7 @@ def check_in_simulator(diag: Diagnosis, scene: Scene, *, nthread: int = 0, text=
         model=model,
         theta=theta,
         standing=diag.standing,
-        predicted_before=shrink.before_rms,
-        predicted_after=shrink.cause_rms,
-        predicted_share=shrink.cause_share_closed,
+        predicted=s.cause_shrink,
         model_floor=floor,
         alpha=opts.alpha,
         scene=scene,

@@ -444,7 +444,7 @@ def _simulator_lines(s: Summary) -> list[str]:
             f"| {k.kind.replace('_', ' ')} | {k.n} | {k.chi2:.3g} | {k.p_value:.3g} | {k.worst_sd:.3g} |"
             for k in c.probes
         ]
-    return lines + [""]
+    return lines
 
 
 def markdown(s: Summary, *, plots: bool = True) -> str:
@@ -507,7 +507,7 @@ def markdown(s: Summary, *, plots: bool = True) -> str:
         lines += ["", "Aliasing with the per-object fit: " + "; ".join(notes) + "."]
     lines += _discrepancy_lines(s)
     if s.simulator is not None:
-        lines += [""] + _simulator_lines(s)[:-1]
+        lines += [""] + _simulator_lines(s)
     lines += [
         "",
         f"Held-out RMS gap in log d: {_fmt(sh.before_rms)} with the table alone, {_fmt(sh.after_rms)} with "

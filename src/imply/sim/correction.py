@@ -76,21 +76,6 @@ MECHANISM = {
 NO_MJCF_FORM = frozenset({"anisotropic"})
 
 
-def _free_joint(spec: mujoco.MjSpec) -> mujoco.MjsJoint:
-    joint = spec.body("box").first_joint()
-    if joint is None:
-        raise ValueError("the push scene's body 'box' has no joint")
-    return joint
-
-
-def _viscous(spec: mujoco.MjSpec, b: float) -> None:
-    # joint damping on the free joint: its translational dofs feel -b v (the library's edit, on any joint name)
-    joint = _free_joint(spec)
-    damping = np.zeros(3)
-    damping[0] = b
-    joint.damping = damping
-
-
 def _speed_gain(spec: mujoco.MjSpec, g: float) -> None:
     # a velocity servo's force is gainprm[0] ctrl + biasprm[2] qvel: scaling the gain on the command alone makes it
     # settle at (1 + g) times the command, with the same response and force limit
@@ -136,7 +121,7 @@ def _modifier(cause: str, direction: float) -> Callable[[mujoco.MjSpec, object],
         return lambda spec, p: _numeric(spec, ANISOTROPY, [float(x) for x in p.value])
     if cause == "speed_offset":
         return lambda spec, p: _numeric(spec, COMMAND_OFFSET, [float(p.value[0]) / _servo_gain(spec)])
-    edit = {"viscous": _viscous, "speed_gain": _speed_gain}.get(cause) or SPEC_EDITS[cause]
+    edit = _speed_gain if cause == "speed_gain" else SPEC_EDITS[cause]
 
     def write(spec: mujoco.MjSpec, p) -> None:
         if p.value[0] != 0.0:  # the scene's own value is the cause at 0

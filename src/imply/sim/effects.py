@@ -89,8 +89,11 @@ def _rolling(spec: mujoco.MjSpec, x: float) -> None:
 
 
 def _viscous(spec: mujoco.MjSpec, x: float) -> None:
-    # joint damping: a force -b v on every dof of the box (its first coefficient is linear)
-    j = spec.joint("box")
+    # joint damping: a force -b v on every dof of the box (its first coefficient is linear); the box's free joint is
+    # its body's first joint, whatever a user's scene calls it
+    j = spec.body("box").first_joint()
+    if j is None:
+        raise ValueError("the push scene's body 'box' has no joint")
     d = np.zeros(3)
     d[0] = x
     j.damping = d

@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imply.diagnose.inference.fit import JointFit, Problem
+from imply.diagnose.inference.sessions import SessionShrink
 from imply.diagnose.inference.shrinkage import rms, share_closed
 from imply.diagnose.physics.candidates import Model
 from imply.diagnose.records import Record, json_field
@@ -445,9 +446,7 @@ def check_causes(
     model: Model,
     theta: np.ndarray,
     standing: dict[str, np.ndarray] | None,
-    predicted_before: float,
-    predicted_after: float,
-    predicted_share: float | None,
+    predicted: SessionShrink,
     model_floor: float | None,
     alpha: float,
     scene: Scene,
@@ -457,7 +456,8 @@ def check_causes(
 ) -> Checked:
     """The module's four steps for the stated causes (``model`` at ``theta``, fitted on ``raw_problem``, the log
     against the table, whose table-alone fit is ``base``); ``problem`` and ``leading``: the diagnosis's own problem
-    and leading fit (their probes). ``standing``: a reference session's stated causes, written into the scene too."""
+    and leading fit (their probes). ``standing``: a reference session's stated causes, written into the scene too.
+    ``predicted``: the tables' shrink of the same causes on the same log (the summary's ``cause_shrink``)."""
     t0 = time.perf_counter()
     causes = stated_causes(model, theta)
     in_scene = {**(standing or {}), **causes}
@@ -478,9 +478,9 @@ def check_causes(
     floor = p.noise_d * np.sqrt(max(n - k * n_obj, 0) / n) if n else None
     share = share_closed(before, after, floor)
     tol = None
-    if model_floor is not None and floor is not None and predicted_before - floor > 1e-12:
-        tol = float(model_floor / (predicted_before - floor))
-    disagrees, short = compare_shares(share, predicted_share, tol)
+    if model_floor is not None and floor is not None and predicted.before_rms - floor > 1e-12:
+        tol = float(model_floor / (predicted.before_rms - floor))
+    disagrees, short = compare_shares(share, predicted.cause_share_closed, tol)
     kinds = probe_kinds(problem, leading)
     probes_bad = any(pk.p_value < alpha / len(kinds) for pk in kinds)
     fitted = None
@@ -507,9 +507,9 @@ def check_causes(
         before_rms=before,
         after_rms=after,
         share_closed=share,
-        predicted_before_rms=float(predicted_before),
-        predicted_after_rms=float(predicted_after),
-        predicted_share_closed=predicted_share,
+        predicted_before_rms=float(predicted.before_rms),
+        predicted_after_rms=float(predicted.cause_rms),
+        predicted_share_closed=predicted.cause_share_closed,
         gap_left_sd=float(after / p.noise_d) if p.noise_d > 0 else float("nan"),
         tolerance=tol,
         disagrees=bool(disagrees),
