@@ -1,6 +1,6 @@
 """The effect tables' build time with the track summaries, against the build before them, in the same run.
 
-Builds the gap stage's effect tables (``imply gap tables``, the workflow's settings from
+Builds the gap stage's effect tables (``imply study gap tables``, the workflow's settings from
 config.yaml, into an empty cache each time) with this checkout's code and with the code of
 a baseline commit (a git worktree, imported ahead of the installed package), alternating
 the order over ``--repeats`` rounds, and prints each build's wall time and peak memory,
@@ -30,7 +30,7 @@ NEWER_OPTIONS = ("use_track", "track_noise_sd")
 
 
 def build(src: Path, table: Path, config: dict, threads: int, out: Path, *, baseline: bool) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MiB) of one ``imply gap tables`` with the package under ``src``."""
+    """Wall seconds and peak RSS (MiB) of one ``imply study gap tables`` with the package under ``src``."""
     gap = config["gap"]
     options = {k: v for k, v in gap["diagnose"].items() if not (baseline and k in NEWER_OPTIONS)}
     args = [

@@ -2,14 +2,14 @@
 evaluation sets.
 
 The development set has the design of config ``gap.contact_benchmark`` with another seed
-(default 7117; the evaluation set is the config's): ``imply gap generate`` writes it,
-``imply gap diagnose-many`` diagnoses it in two shards (one process per core), and
+(default 7117; the evaluation set is the config's): ``imply study gap generate`` writes it,
+``imply study gap diagnose-many`` diagnoses it in two shards (one process per core), and
 :func:`imply.realworld.benchmark.score_contact_cases` scores it exactly as the workflow scores
 the evaluation set. ``--main`` does the same for the main benchmark (config ``gap.benchmark``,
 development seed 1001; the evaluation set is the config's), scored by
 :func:`imply.realworld.benchmark.score_cases`. ``--set KEY=VALUE`` changes one diagnostic
 option (config ``gap.diagnose``); ``--ignore-measured`` leaves the logs' weighed masses out; ``--closed-loop``
-then runs the closed loop on the development logs with several contenders (``imply gap closed-loop``, two
+then runs the closed loop on the development logs with several contenders (``imply study gap closed-loop``, two
 shards) and scores it as the workflow does (:func:`imply.realworld.closed_loop.score_closed_loop`). The logs are
 generated once per folder and reused.
 

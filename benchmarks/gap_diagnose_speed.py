@@ -1,6 +1,6 @@
 """The gap diagnoses' time against a baseline commit's, in the same run, and whether they say the same.
 
-Diagnoses a sample of the gap benchmarks' logs (``imply gap diagnose-many``, the workflow's settings
+Diagnoses a sample of the gap benchmarks' logs (``imply study gap diagnose-many``, the workflow's settings
 from config.yaml: the default options, and with ``--observed`` the pusher's speed and the box's track
 too) with this checkout's code and with the code of a baseline commit (a git worktree, imported ahead of
 the installed package), alternating the order over ``--repeats`` rounds. Prints each run's wall time and
@@ -30,7 +30,7 @@ OBSERVED = {"use_pusher_speed": True, "use_track": True}
 
 
 def diagnose(src: Path, logs: list[Path], options: dict, config: dict, out: Path) -> float:
-    """Wall seconds of one ``imply gap diagnose-many`` of ``logs`` with the package under ``src``."""
+    """Wall seconds of one ``imply study gap diagnose-many`` of ``logs`` with the package under ``src``."""
     gap = config["gap"]
     args = [
         "gap",

@@ -1,7 +1,7 @@
 """What the simulator check did to a benchmark set's verdicts: the causes the tables would state, those the simulator
 or the probes withdrew, each against the set's truth, and the re-simulated share of the gap beside the predicted one.
 
-Reads a folder of reports (one folder per log, each with ``summary.json``, as ``imply gap diagnose-many`` writes
+Reads a folder of reports (one folder per log, each with ``summary.json``, as ``imply study gap diagnose-many`` writes
 them) and the set's ``labels.json`` (what each log's world injected). A cause is *right* where the log's world
 injected that library effect (its tilt components read as ``tilt``), *wrong* otherwise (every cause of a null log).
 

@@ -1,7 +1,7 @@
 """The lab benchmark's development set diagnosed under design variants: where the diagnostic's new parts are chosen.
 
 The development set (config ``gap.lab_benchmark``, ``development_seed``; MuJoCo contact variants and Bullet, never
-SAPIEN) is diagnosed by ``imply gap diagnose-many`` in two shards (one process per core) once per variant, and each
+SAPIEN) is diagnosed by ``imply study gap diagnose-many`` in two shards (one process per core) once per variant, and each
 variant is scored as the workflow scores the lab benchmark (:func:`imply.realworld.benchmark.score_contact_cases`),
 over all logs and over the logs with probes. The variants:
 
@@ -59,7 +59,7 @@ def diagnose(variant: str, logs: list[Path], args, config: dict) -> Path:
     cmds = []
     for k in range(2):
         shard = [str(p) for p in logs[k::2]]
-        cmd = ["imply", "gap", "diagnose-many", *shard, "--table", args.table, "--effect-grid-json", grid]
+        cmd = ["imply", "study", "gap", "diagnose-many", *shard, "--table", args.table, "--effect-grid-json", grid]
         cmd += ["--options-json", opts, "--cache-dir", args.cache_dir, "--threads", "1", "--no-plots"]
         cmd += ["-o", str(out / f"shard{k}")]
         if effects is not None:

@@ -138,7 +138,16 @@ def train_and_roll(
         return record
     contexts = "own,swap,none" if variant == "calib" else "none"
     subprocess.run(
-        ["imply", "model", "rollout", "--model", f"{target}/model.pt", "--features", "results/features/validation.npz"]
+        [
+            "imply",
+            "study",
+            "model",
+            "rollout",
+            "--model",
+            f"{target}/model.pt",
+            "--features",
+            "results/features/validation.npz",
+        ]
         + ["--clips", "results/clips/validation.csv", "--readout", "results/model/readout_ln.npz"]
         + ["--contexts", contexts, "--derangement-seed", str(model["derangement_seed"]), "--threads", str(threads)]
         + ["-o", f"{target}/validation_rollouts.csv"],

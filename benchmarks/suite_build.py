@@ -5,7 +5,7 @@ Run: MUJOCO_GL=egl python benchmarks/suite_build.py [--config config.yaml] [--th
 Builds the suite of ``--config`` (sections suite, clips, scene, score) in a temporary
 folder with ``imply.evaluate.suite.build_suite`` and prints its seconds, pushes and
 frames drawn; then renders a training split of as many pushes (every frame of every clip,
-as ``imply clips render`` does) with ``imply.data.clips.render_split``, and prints the
+as ``imply study clips render`` does) with ``imply.data.clips.render_split``, and prints the
 ratio of the two. The issue's target: the default suite in at most 2 minutes on 2 cores.
 ``--table`` defaults to results/table/table.npz (the suite only copies it).
 Benchmarks measure; they assert nothing.

@@ -53,7 +53,7 @@ def build_eight_frame_suite(out_dir: Path, table_path: Path, **changes) -> Path:
 
 
 def write_tiny_encoder(path: Path) -> Path:
-    """A random CPU encoder file (seeded) in the format ``imply encoder pretrain`` writes."""
+    """A random CPU encoder file (seeded) in the format ``imply study encoder pretrain`` writes."""
     import torch
 
     from imply.models.config import ViTConfig

@@ -100,7 +100,7 @@ def test_the_cli_reference_lists_every_command_and_option():
 
     page = docs_pages.cli_reference()
     commands = parser_commands(build_parser())
-    assert {"imply evaluate", "imply diagnose", "imply sim pushes", "imply paper merge"} <= set(commands)
+    assert {"imply evaluate", "imply diagnose", "imply sim pushes", "imply study paper merge"} <= set(commands)
     for name, options in commands.items():
         text = section(page, f"`{name}`")
         for option in options:
@@ -280,7 +280,7 @@ def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_pat
 GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4}'
 
 
-def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path):
+def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path, effect_cache):
     """Every command of the diagnose tutorial, in order, on the tiny table (the diagnosis on three candidate effects and
     a coarse effect grid, so that it takes seconds)."""
     (tmp_path / "results" / "table").mkdir(parents=True)
@@ -292,7 +292,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         "--effect-grid-json",
         GRID,
         "--cache-dir",
-        str(tmp_path / "cache"),
+        str(effect_cache),
         "--threads",
         "2",
     ]

@@ -105,11 +105,11 @@ def test_cli_flags_default_to_the_study_values():
         return {a.dest: a.default for a in sub._actions}
 
     model = ModelConfig()
-    assert defaults("model", "rollout")["derangement_seed"] == model.derangement_seed == 11
-    assert defaults("model", "rollout")["batch_size"] == model.rollout_batch
-    assert defaults("model", "train")["rest_state"] == model.rest_state
-    assert defaults("model", "train")["device"] == model.device
-    assert defaults("section5")["selection_seed"] == model.selection_seed == 12
+    assert defaults("study", "model", "rollout")["derangement_seed"] == model.derangement_seed == 11
+    assert defaults("study", "model", "rollout")["batch_size"] == model.rollout_batch
+    assert defaults("study", "model", "train")["rest_state"] == model.rest_state
+    assert defaults("study", "model", "train")["device"] == model.device
+    assert defaults("study", "section5")["selection_seed"] == model.selection_seed == 12
     score = defaults("score")
     assert (score["grid"], score["floor"]) == (ScoreConfig().grid, ScoreConfig().readout_floor)
 

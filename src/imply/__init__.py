@@ -5,4 +5,4 @@ imply (by inverting a MuJoCo table f(v, m, mu) -> log d) and scores a set of
 rollouts by how well one object explains all of them, anchored to observed pushes.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

@@ -8,6 +8,7 @@ so ``"a "`` and ``"a"`` name the same object in every command.
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,8 @@ def read_table_lines(
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a table")
     lines = None
+    if parquet and importlib.util.find_spec("pyarrow") is None:
+        raise ModuleNotFoundError(f"{path}: reading parquet needs pyarrow", name="pyarrow")
     try:
         if parquet:
             frame = pd.read_parquet(path)

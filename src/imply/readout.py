@@ -143,7 +143,7 @@ class RidgeReadout:
 
 
 def load_readout(path: str | os.PathLike) -> RidgeReadout:
-    """The fitted ridge readout written by ``imply readout fit`` (results/readout/ridge.npz)."""
+    """The fitted ridge readout written by ``imply study readout fit`` (results/readout/ridge.npz)."""
     path = Path(path)
     with np.load(path) as z:
         if "format" not in z or str(z["format"]) != RIDGE_FORMAT:

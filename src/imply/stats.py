@@ -1,4 +1,5 @@
-"""The statistics every layer shares (models, study, paper): separation, correlation, recovery, error, miss.
+"""The statistics every layer shares (models, study, paper): separation, correlation, recovery, error, miss, and the
+swap condition's derangement.
 
 It imports nothing of :mod:`imply` beyond itself, so a model's validation, the study's
 scoring and the paper's figures compute a correlation the same way.
@@ -135,3 +136,16 @@ def paired_bootstrap_difference(a, b, *, resamples: int, seed: int, level: float
     tail = 100.0 * (1.0 - level) / 2.0
     low, high = np.percentile(d[index].mean(axis=1), [tail, 100.0 - tail])
     return PairedDifference(float(d.mean()), float(low), float(high))
+
+
+def derangement(n: int, seed: int) -> np.ndarray:
+    """A permutation with no fixed point: object i takes object partner[i]'s calibration.
+
+    A random cyclic order (from ``seed``), each object paired with the next one in it.
+    """
+    if n < 2:
+        raise ValueError("a swap needs at least 2 objects")
+    order = np.random.default_rng(seed).permutation(n)
+    partner = np.empty(n, dtype=np.int64)
+    partner[order] = np.roll(order, -1)
+    return partner

@@ -353,22 +353,22 @@ CASES = [
     ("check-table-text", ["table", "check", "notes.txt"], {}, "TABLE: notes.txt is not a push table"),
     ("check-output-is-table", ["table", "check", "table.npz", "-o", "table.npz"], {}, "-o table.npz is also an input"),
     ("check-cells", ["table", "check", "table.npz", "--cells", "0"], {}, "argument --cells: 0 is out of range"),
-    # -- imply gap diagnose-many (the workflow's batch of diagnoses) ------------------------
+    # -- imply study gap diagnose-many (the workflow's batch of diagnoses) ------------------------
     (
         "many-same-stem",
-        ["gap", "diagnose-many", "log.csv", "sub/log.csv", "--table", "table.npz", "-o", "out"],
+        ["study", "gap", "diagnose-many", "log.csv", "sub/log.csv", "--table", "table.npz", "-o", "out"],
         {"sub/log.csv": PUSHLOG},
         "would share the report folder out/log",
     ),
     (
         "many-bad-log",
-        ["gap", "diagnose-many", "log.csv", "bad.csv", "--table", "table.npz", "-o", "out"],
+        ["study", "gap", "diagnose-many", "log.csv", "bad.csv", "--table", "table.npz", "-o", "out"],
         {"bad.csv": PUSHLOG.replace("b,0.5,0.07", "b,0.5,-1")},
         "bad.csv: row 5 (line 6), column displacement",
     ),
     (
         "many-output-file",
-        ["gap", "diagnose-many", "log.csv", "--table", "table.npz", "-o", "notes.txt"],
+        ["study", "gap", "diagnose-many", "log.csv", "--table", "table.npz", "-o", "notes.txt"],
         {},
         "-o notes.txt is a file",
     ),

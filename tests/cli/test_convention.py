@@ -61,7 +61,7 @@ def _refusal(argv: list[str], capsys) -> tuple[int, str]:
     ("argv", "prefix"),
     [
         ([], "imply: error:"),
-        (["gap"], "imply gap: error:"),
+        (["study", "gap"], "imply study gap: error:"),
         (["suite", "export"], "imply suite export: error:"),
         (["evaluate", "--suite", "/nonexistent", "-o", "REPORT", "--rollouts", "x.npz"], "imply evaluate: error:"),
         (["diagnose", "/nonexistent.csv", "-o", "REPORT", "--table", "/nonexistent.npz"], "imply diagnose: error:"),
@@ -96,3 +96,21 @@ def test_a_report_command_s_help_names_every_file_it_writes(command, module):
     for name in importlib.import_module(module).REPORT_FILES:
         stem, _, ext = name.rpartition(".")
         assert name in text or f"{stem}.png/.{ext}" in text or f"{stem}.png/.pdf" in text, name
+
+
+def test_a_study_step_without_study_names_the_command_to_run(capsys):
+    code, err = _refusal(["--log", "run.log", "gap", "tables", "--table", "t.npz"], capsys)
+    assert code == 2
+    assert (
+        err.strip()
+        == "imply: error: 'gap' is a step of the study: run 'imply study gap ...' (see 'imply study --help')"
+    )
+
+
+def test_the_top_level_help_lists_the_user_s_commands_and_one_study_group():
+    from imply.cli import GROUPS
+    from imply.cli.study import STUDY_GROUPS
+
+    top = {words[1] for words, _, _ in COMMANDS if len(words) == 2}
+    assert top == set(GROUPS) == {"score", "table", "sim", "diagnose", "suite", "evaluate", "study"}
+    assert {words[2] for words, _, _ in COMMANDS if len(words) >= 3 and words[1] == "study"} == set(STUDY_GROUPS)

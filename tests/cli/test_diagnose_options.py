@@ -1,4 +1,4 @@
-"""``imply diagnose`` and ``imply gap diagnose-many`` share one set of options, checked once into one request;
+"""``imply diagnose`` and ``imply study gap diagnose-many`` share one set of options, checked once into one request;
 command groups import nothing from each other but ``imply.cli.common``."""
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def _options(args) -> dict:
 def test_diagnose_and_diagnose_many_take_the_same_options():
     parser = build_parser()
     one = parser.parse_args(["diagnose", "log.csv", "-o", "r", *SHARED])
-    many = parser.parse_args(["gap", "diagnose-many", "a.csv", "b.csv", "-o", "r", *SHARED])
+    many = parser.parse_args(["study", "gap", "diagnose-many", "a.csv", "b.csv", "-o", "r", *SHARED])
     assert _options(one) == _options(many)
     assert many.noise_sd == 0.03 and many.ignore_measured and many.options_json == {"alpha": 0.01}
 
@@ -79,7 +79,9 @@ def test_user_errors_become_one_line_with_their_context():
 
 def test_command_groups_import_only_common():
     folder = Path(imply.cli.__file__).parent
-    groups = [folder / f"{name}.py" for name in imply.cli.GROUPS]
+    from imply.cli.study import STUDY_GROUPS
+
+    groups = [folder / f"{name}.py" for name in [*imply.cli.GROUPS, *STUDY_GROUPS]]
     assert len(groups) > 10 and all(p.is_file() for p in groups)
     for path in [*groups, folder / "common.py"]:
         tree = ast.parse(path.read_text())

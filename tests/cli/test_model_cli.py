@@ -1,4 +1,4 @@
-"""``imply model train|readout|rollout`` on synthetic features, and ``imply section5`` on ``imply evaluate`` reports, then the paper part."""
+"""``imply study model train|readout|rollout`` on synthetic features, and ``imply study section5`` on ``imply evaluate`` reports, then the paper part."""
 
 from __future__ import annotations
 
@@ -37,6 +37,7 @@ def test_cli_train_validates_every_epoch_and_rolls_out(synth, tmp_path, tiny_tab
     assert (
         main(
             [
+                "study",
                 "model",
                 "readout",
                 "--features",
@@ -65,6 +66,7 @@ def test_cli_train_validates_every_epoch_and_rolls_out(synth, tmp_path, tiny_tab
         assert (
             main(
                 [
+                    "study",
                     "model",
                     "train",
                     "--features",
@@ -112,12 +114,13 @@ def test_cli_train_validates_every_epoch_and_rolls_out(synth, tmp_path, tiny_tab
         assert all(np.isfinite(h[k]) for h in history for k in keys)
         assert 0 <= history[-1].get("own_lt_swap_anchored", 0) <= 100
     histories = [str(tmp_path / v / "seed0" / "training.json") for v in ("calib", "nocalib")]
-    assert main(["model", "plot", *histories, "-o", str(tmp_path / "training.png")]) == 0
+    assert main(["study", "model", "plot", *histories, "-o", str(tmp_path / "training.png")]) == 0
     assert (tmp_path / "training.png").stat().st_size > 1000
     out = tmp_path / "calib" / "seed0"
     assert (
         main(
             [
+                "study",
                 "model",
                 "rollout",
                 "--model",
@@ -148,6 +151,7 @@ def test_cli_train_validates_every_epoch_and_rolls_out(synth, tmp_path, tiny_tab
     # validation needs its instruments: refused before any training, nothing written
     rc = main(
         [
+            "study",
             "model",
             "train",
             "--features",
@@ -233,6 +237,7 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
     score = json.dumps({"grid": 21, "readout_floor": 1e-4})
     metrics, part, paper = tmp_path / "s5" / "metrics.json", tmp_path / "parts" / "section5.json", tmp_path / "paper"
     args = [
+        "study",
         "section5",
         *specs,
         *suites,
@@ -252,7 +257,7 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
     assert main(args) == 0
     doc = json.loads(metrics.read_text())
     assert doc["result"]["seeds"][0]["readouts"]["calib"]["name"] == "as given"
-    assert main(["paper", "part", "section5", str(metrics), "-o", str(part)]) == 0
+    assert main(["study", "paper", "part", "section5", str(metrics), "-o", str(part)]) == 0
     numbers = json.loads(part.read_text())["numbers"]
     # the report names the instrument behind every number: each model's readout
     read_by = json.loads(part.read_text())["read_by"]
@@ -261,6 +266,7 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
     assert (
         main(
             [
+                "study",
                 "paper",
                 "merge",
                 str(part),
@@ -307,12 +313,13 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
         "s5-targets-seed1",
     }
     assert all(isinstance(c["holds"], bool) for c in claims)
-    assert main(["paper", "tables", "--part", str(part), "--table3", str(paper / "table3.tex")]) == 0
+    assert main(["study", "paper", "tables", "--part", str(part), "--table3", str(paper / "table3.tex")]) == 0
     tex = (paper / "table3.tex").read_text()
     assert r"\toprule" in tex and tex.count(r"\\") >= 8 and "object-blind baseline" in tex
     assert (
         main(
             [
+                "study",
                 "paper",
                 "figure2",
                 "--per-object",
@@ -330,13 +337,14 @@ def test_cli_section5_reads_evaluate_reports(synth, tiny_suite, tmp_path, tiny_t
     assert main(args) == 0
     assert metrics.read_bytes() == first
     # a report scored on another suite, or a missing model, is refused
-    assert main([*args[:1], *specs[:2], *suites, *args[len(specs) + len(suites) + 1 :]]) == 2
+    assert main([*args[:2], *specs[:2], *suites, *args[len(specs) + len(suites) + 2 :]]) == 2
 
 
 def test_cli_rejects_bad_options(synth, tmp_path, capsys):
     d = synth
     rc = main(
         [
+            "study",
             "model",
             "train",
             "--features",
@@ -360,6 +368,7 @@ def test_cli_rejects_bad_options(synth, tmp_path, capsys):
     assert not (tmp_path / "m.pt").exists()
     rc = main(
         [
+            "study",
             "model",
             "train",
             "--features",
@@ -386,6 +395,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
     assert (
         main(
             [
+                "study",
                 "model",
                 "readout",
                 "--features",
@@ -403,6 +413,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
     assert (
         main(
             [
+                "study",
                 "model",
                 "train",
                 "--features",
@@ -431,6 +442,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
     capsys.readouterr()
     rc = main(
         [
+            "study",
             "model",
             "rollout",
             "--model",
@@ -452,6 +464,7 @@ def test_cli_rollout_refuses_a_readout_of_other_tokens(synth, tmp_path, capsys):
     assert not (tmp_path / "r.csv").exists()
     rc = main(
         [
+            "study",
             "model",
             "train",
             "--features",
@@ -481,6 +494,7 @@ def test_cli_train_checks_every_output_before_training(synth, tmp_path, capsys):
     (tmp_path / "a_folder").mkdir()
     rc = main(
         [
+            "study",
             "model",
             "train",
             "--features",

@@ -1,4 +1,4 @@
-"""``imply pixel train`` on a tiny clip split: it writes a checkpoint and a history, and refuses bad input in one
+"""``imply study pixel train`` on a tiny clip split: it writes a checkpoint and a history, and refuses bad input in one
 line, naming the option, without writing anything."""
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ def test_train_writes_the_checkpoint_and_history(clips, tmp_path):
     assert (
         main(
             [
+                "study",
                 "pixel",
                 "train",
                 "--clips",
@@ -79,6 +80,7 @@ def test_train_refuses_a_bad_recipe_naming_it_and_writes_nothing(clips, tmp_path
     assert (
         main(
             [
+                "study",
                 "pixel",
                 "train",
                 "--clips",
@@ -97,7 +99,7 @@ def test_train_refuses_a_bad_recipe_naming_it_and_writes_nothing(clips, tmp_path
         == 2
     )
     err = capsys.readouterr().err
-    assert err.startswith("imply pixel train: error:") and message in err and err.count("\n") == 1
+    assert err.startswith("imply study pixel train: error:") and message in err and err.count("\n") == 1
     assert list(tmp_path.iterdir()) == []
 
 
@@ -106,6 +108,7 @@ def test_score_refuses_a_folder_that_is_not_a_report(tmp_path, capsys):
     assert (
         main(
             [
+                "study",
                 "pixel",
                 "score",
                 "--calib",

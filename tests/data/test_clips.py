@@ -118,12 +118,15 @@ def test_cli_refuses_bad_input_with_one_line(tmp_path, capsys):
     from imply.cli import main
 
     out = tmp_path / "x.npz"
-    rc = main(["clips", "render", "--split", "bogus", "--clips-json", "{}", "--score-json", "{}", "-o", str(out)])
+    rc = main(
+        ["study", "clips", "render", "--split", "bogus", "--clips-json", "{}", "--score-json", "{}", "-o", str(out)]
+    )
     assert rc == 2 and "--split" in capsys.readouterr().err and not out.exists()
     frames = tmp_path / "f.npz"
     np.savez(frames, frames=np.zeros((1, 2, 16, 16, 3), np.uint8), clip_id=np.zeros(1, np.int64))
     rc = main(
         [
+            "study",
             "encoder",
             "encode",
             "--clips",

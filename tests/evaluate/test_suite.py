@@ -19,9 +19,9 @@ from imply.evaluate.suite import (
     load_truth,
     suite_table_path,
 )
-from imply.models.examples import derangement
 from imply.score import ScoreConfig
 from imply.sim import SceneConfig
+from imply.stats import derangement
 from suite_helpers import TINY_SUITE, TINY_SUITE_CLIPS, build_tiny_suite
 
 FILES = ("manifest.json", "suite.npz", "truth.npz", "table.npz", "README.md")
@@ -61,7 +61,7 @@ def test_layout_shapes_and_the_studys_objects(tiny_suite, tiny_table_path):
 
 
 def test_frames_equal_the_clips_renderers(tiny_table_path, tmp_path):
-    """Same objects, physics and renderer as `imply clips render`: the same pixels and slides."""
+    """Same objects, physics and renderer as `imply study clips render`: the same pixels and slides."""
     clips = ClipsConfig.from_dict({**TINY_SUITE_CLIPS, "n_heldout_calib": 2, "n_train_episodes": 3, "batch": 5})
     scene, speeds = SceneConfig(), ScoreConfig()
     cfg = SuiteConfig.from_dict({"n_objects": 2, "n_readout_train": 2, "n_readout_check": 1, "context_frames": 2})

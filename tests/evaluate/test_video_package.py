@@ -11,7 +11,7 @@ import pytest
 
 from imply.cli import main
 from imply.evaluate.config import EvaluateConfig
-from imply.evaluate.harness import evaluate, make_request
+from imply.evaluate.harness import evaluate
 from imply.evaluate.standins import blind, oracle
 from imply.evaluate.suite import load_suite, load_truth
 from imply.evaluate.video_package import (
@@ -23,37 +23,9 @@ from imply.evaluate.video_package import (
     read_videos,
     write_mp4,
 )
+from video_helpers import CONDITIONS, generate_videos
 
 FAST = EvaluateConfig(bootstrap=50)
-CONDITIONS = ("own", "other", "none")
-
-
-def _png(path, frame):
-    from PIL import Image
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(frame).save(path)
-
-
-def _generate(
-    suite, model, folder, *, mp4: bool = False, fps: float = 10.0, skip: tuple[str, ...] = (), scale: int = 1
-):
-    """What a model elsewhere would write: each case's context frames, then its rollout, one video per case
-    (``scale`` times the camera's size, each pixel repeated)."""
-    C = suite.context_frames.shape[2]
-    index = np.arange(suite.n_objects)
-    for condition in CONDITIONS:
-        frames = model.rollout(make_request(suite, index, condition=condition, sample=0))
-        for case in case_list(suite, (condition,)):
-            if case.case_id in skip:
-                continue
-            video = np.concatenate([suite.context_frames[case.n, case.k, :C], frames[case.n, case.k]])
-            video = video.repeat(scale, axis=1).repeat(scale, axis=2)
-            if mp4:
-                write_mp4(folder / f"{case.case_id}.mp4", video, fps)
-            else:
-                for t, f in enumerate(video):
-                    _png(folder / case.case_id / f"frame_{t:03d}.png", f)
 
 
 def test_the_package_has_every_case_and_no_truth(tiny_suite, tmp_path):
@@ -88,7 +60,7 @@ def test_lossless_frames_score_exactly_as_in_process(tiny_suite, tmp_path):
     model = oracle(suite)
     (direct,) = evaluate([model], suite=suite, settings=FAST)
     folder = tmp_path / model.name
-    _generate(suite, model, folder)
+    generate_videos(suite, model, folder)
     (from_files,) = evaluate(suite=suite, rollouts=[read_videos(folder, suite, CONDITIONS)], settings=FAST)
     assert from_files.model == "oracle"
     assert json.dumps(from_files.to_dict(), sort_keys=True) == json.dumps(direct.to_dict(), sort_keys=True)
@@ -100,11 +72,11 @@ def test_videos_at_another_size_and_through_h264_read_back_close(tiny_suite, tmp
     (direct,) = evaluate([model], suite=suite, settings=FAST)
     d0 = direct.readings.displacement
     # H.264 at 4x the camera (64 x 256), read back by an area average: the codec moves pixels, the slides little
-    _generate(suite, model, tmp_path / "blind", mp4=True, scale=4)
+    generate_videos(suite, model, tmp_path / "blind", mp4=True, scale=4)
     (read,) = evaluate(suite=suite, rollouts=[read_videos(tmp_path / "blind", suite, CONDITIONS)], settings=FAST)
     assert np.median(np.abs(np.log(read.readings.displacement / d0))) < 0.1
     # at the tiny camera's own 16 x 64, chroma subsampling smears the box: what the codec check is for
-    _generate(suite, model, tmp_path / "tiny", mp4=True)
+    generate_videos(suite, model, tmp_path / "tiny", mp4=True)
     (tiny,) = evaluate(suite=suite, rollouts=[read_videos(tmp_path / "tiny", suite, CONDITIONS)], settings=FAST)
     assert np.median(np.abs(np.log(tiny.readings.displacement / d0))) > np.median(
         np.abs(np.log(read.readings.displacement / d0))
@@ -120,7 +92,7 @@ def test_a_bad_folder_is_refused_with_one_line_per_problem_and_nothing_scored(ti
     model = oracle(suite)
     cases = case_list(suite, CONDITIONS)
     folder = tmp_path / "bad"
-    _generate(suite, model, folder, mp4=True, skip=(cases[0].case_id,))
+    generate_videos(suite, model, folder, mp4=True, skip=(cases[0].case_id,))
     (folder / f"{cases[1].case_id}.mp4").write_bytes(b"not a video")
     write_mp4(folder / f"{cases[2].case_id}.mp4", suite.context_frames[0, 0, :1].repeat(4, 0), 25.0)  # another fps
     (folder / "notes.txt").write_text("mine")
@@ -144,7 +116,7 @@ def test_a_bad_folder_is_refused_with_one_line_per_problem_and_nothing_scored(ti
     assert main(args) == 2 and not report.exists()
     # a clip of the context frames alone has nothing after them
     short = tmp_path / "short"
-    _generate(suite, model, short, mp4=True)
+    generate_videos(suite, model, short, mp4=True)
     C = suite.context_frames.shape[2]
     write_mp4(short / f"{cases[3].case_id}.mp4", suite.context_frames[0, 0, :C], 10.0)
     with pytest.raises(VideoFolderError, match=rf"no frame after the {C} context frames: 1"):
@@ -159,7 +131,7 @@ def test_export_and_evaluate_from_the_command_line(tiny_suite, tmp_path):
     assert main(["suite", "export", str(tiny_suite), "-o", str(tmp_path / "odd"), "--size", "33x128"]) == 2
     suite = load_suite(tiny_suite)
     folder = tmp_path / "oracle"
-    _generate(suite, oracle(suite), folder)
+    generate_videos(suite, oracle(suite), folder)
     assert main(["evaluate", "--videos", str(folder), "--suite", str(tiny_suite), "--check"]) == 0
     out = tmp_path / "report"
     assert (

@@ -8,9 +8,10 @@ import torch
 from test_ac_predictor import TINY, tiny_model
 
 from imply.models.config import Layout, PredictorConfig, TrainConfig
-from imply.models.examples import derangement, training_sequences
+from imply.models.examples import training_sequences
 from imply.models.features import load_feature_split
 from imply.models.train import load_model, losses, train
+from imply.stats import derangement
 from synthetic_features import synth_split
 
 # tiny tensors: extra torch threads only contend with the rest of the suite

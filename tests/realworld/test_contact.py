@@ -187,6 +187,7 @@ def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_pat
         "accuracy": {"pushes": 1, "nominal": 1},
     }
     args = [
+        "study",
         "gap",
         "generate",
         "--table",
@@ -225,6 +226,7 @@ def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_pat
 )
 def test_bad_contact_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message):
     args = [
+        "study",
         "gap",
         "generate",
         "--table",

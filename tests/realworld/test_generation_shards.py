@@ -56,6 +56,7 @@ def _marks(path: Path, design: LabBenchmarkConfig) -> str:
 
 def _lab_args(tmp_path: Path, table: Path, name: str, *shard: str) -> list[str]:
     return [
+        "study",
         "gap",
         "lab-generate",
         "--lab-json",
@@ -78,7 +79,7 @@ def _lab_args(tmp_path: Path, table: Path, name: str, *shard: str) -> list[str]:
 
 @pytest.fixture(scope="module")
 def lab_set(tiny_table_path, tmp_path_factory) -> Path:
-    """The LAB set, written by one unsharded 'imply gap lab-generate' into a folder (logs/, labels.json, timing.json)."""
+    """The LAB set, written by one unsharded 'imply study gap lab-generate' into a folder (logs/, labels.json, timing.json)."""
     root = tmp_path_factory.mktemp("lab")
     assert main(_lab_args(root, tiny_table_path, "one")) == 0
     return root / "one"
@@ -116,6 +117,7 @@ def test_a_sharded_lab_set_merges_into_the_unsharded_one(lab_set, tmp_path, tiny
     timings = [str(tmp_path / f"timing{k}.json") for k in (0, 1)]
     merged, merged_timing = tmp_path / "labels.json", tmp_path / "timing.json"
     args = [
+        "study",
         "gap",
         "merge-labels",
         *parts,
@@ -136,6 +138,7 @@ def test_a_sharded_lab_set_merges_into_the_unsharded_one(lab_set, tmp_path, tiny
 
 def _generate_args(tmp_path: Path, table: Path, name: str, *extra: str) -> list[str]:
     return [
+        "study",
         "gap",
         "generate",
         "--table",
@@ -160,7 +163,7 @@ def test_sharded_benchmark_logs_merge_into_the_unsharded_ones(tmp_path, tiny_tab
         assert main(_generate_args(tmp_path, tiny_table_path, "two", "--shard", str(k), "--shards", "2", *extra)) == 0
         (tmp_path / "two" / "labels.json").rename(tmp_path / "two" / f"labels{k}.json")
     parts = [str(tmp_path / "two" / f"labels{k}.json") for k in (0, 1)]
-    assert main(["gap", "merge-labels", *parts, "-o", str(tmp_path / "two" / "labels.json")]) == 0
+    assert main(["study", "gap", "merge-labels", *parts, "-o", str(tmp_path / "two" / "labels.json")]) == 0
     for name in ("labels.json", "a.json"):
         assert filecmp.cmp(tmp_path / "two" / name, tmp_path / "one" / name, shallow=False), name
     _same_files(tmp_path / "two" / "logs", tmp_path / "one" / "logs")

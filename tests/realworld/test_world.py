@@ -156,6 +156,7 @@ def test_logs_are_drawn_reproducibly_and_say_nothing_of_their_labels(scene):
 )
 def test_bad_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message):
     args = [
+        "study",
         "gap",
         "generate",
         "--table",

@@ -1,7 +1,7 @@
 """Interrupting the workflow mid-training: nothing partial is left, and the next run resumes.
 
 Through Snakemake, on planted synthetic features: Ctrl-C (SIGINT to the process group,
-as a terminal sends it) during `imply model train`, then a plain rerun that is killed
+as a terminal sends it) during `imply study model train`, then a plain rerun that is killed
 hard (SIGKILL, as a crash or the OOM killer would), then `--unlock` and
 `--rerun-incomplete` as docs/how-to/resume.md says. Each run picks up at the last finished epoch.
 """

@@ -31,7 +31,7 @@ rule clips_render:
     benchmark:
         "results/benchmarks/clips_render/{clip_split}.tsv"
     shell:
-        "imply clips render --split {wildcards.clip_split} --clips-json {params.clips} --score-json {params.score}"
+        "imply study clips render --split {wildcards.clip_split} --clips-json {params.clips} --score-json {params.score}"
         " --scene-json {params.scene} --threads {threads} -o {output.npz}"
         " > {log} 2>&1"
 
@@ -57,7 +57,7 @@ rule encoder_pretrain:
     benchmark:
         "results/benchmarks/encoder_pretrain/all.tsv"
     shell:
-        "OMP_WAIT_POLICY=PASSIVE imply encoder pretrain --clips {input} --encoder-json {params.encoder}"
+        "OMP_WAIT_POLICY=PASSIVE imply study encoder pretrain --clips {input} --encoder-json {params.encoder}"
         " --threads {threads} -o {output} > {log} 2>&1"
 
 
@@ -83,7 +83,7 @@ rule encoder_encode:
     benchmark:
         "results/benchmarks/encoder_encode/{feature_split}.tsv"
     shell:
-        "OMP_WAIT_POLICY=PASSIVE imply encoder encode --clips {input.clips} --encoder-json {params.encoder}"
+        "OMP_WAIT_POLICY=PASSIVE imply study encoder encode --clips {input.clips} --encoder-json {params.encoder}"
         " {params.weights} --threads {threads} -o {output} > {log} 2>&1"
 
 
@@ -115,6 +115,6 @@ rule readout_fit:
     benchmark:
         "results/benchmarks/readout_fit/all.tsv"
     shell:
-        "imply readout fit --train {input.train} --heldout {input.heldout_calib} --heldout {input.heldout_nocalib}"
+        "imply study readout fit --train {input.train} --heldout {input.heldout_calib} --heldout {input.heldout_nocalib}"
         " --readout-json {params.readout} --pretrain-episodes {params.pretrain_episodes}"
         " -o {output.ridge} --metrics {output.metrics} > {log} 2>&1"

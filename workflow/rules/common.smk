@@ -89,7 +89,7 @@ def encode_weights_option(wildcards, input):
 
 
 def split_files(split):
-    """A clip split's frames, metadata and encoder features, in the order `imply readout fit` takes them."""
+    """A clip split's frames, metadata and encoder features, in the order `imply study readout fit` takes them."""
     return [f"results/clips/{split}.npz", f"results/clips/{split}.csv", f"results/features/{split}.npz"]
 
 
@@ -153,7 +153,7 @@ def section5_suites():
 
 
 def evaluation_options(wildcards, input):
-    """`imply section5 --evaluation MODEL:SEED:FOLDER ... --suite MODEL:FOLDER` from the rule's input."""
+    """`imply study section5 --evaluation MODEL:SEED:FOLDER ... --suite MODEL:FOLDER` from the rule's input."""
     pairs = [(v, s) for v in MODEL_VARIANTS for s in MODEL_SEEDS]
     evaluations = [
         f"--evaluation {v}:{s}:{Path(path).parent}" for (v, s), path in zip(pairs, input.evaluations, strict=True)
@@ -211,7 +211,7 @@ def shard_logs(folder, cases):
 
 
 def shard_tracks(folder, cases):
-    """A getter of the tracks of shard ``{shard}``'s logs (beside them, where `imply gap diagnose-many` finds them)."""
+    """A getter of the tracks of shard ``{shard}``'s logs (beside them, where `imply study gap diagnose-many` finds them)."""
     logs = shard_logs(folder, cases)
     return lambda wildcards: [log.removesuffix(".csv") + ".track.csv" for log in logs(wildcards)]
 

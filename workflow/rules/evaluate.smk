@@ -69,5 +69,5 @@ rule evaluate_standins:
     benchmark:
         "results/benchmarks/evaluate_standins/all.tsv"
     shell:
-        "imply section4 through-evaluate --suite {params.suite} --report {params.report} -o {output.summary}"
+        "imply study section4 through-evaluate --suite {params.suite} --report {params.report} -o {output.summary}"
         " --evaluate-json {params.evaluate} --score-json {params.score} --no-progress > {log} 2>&1"

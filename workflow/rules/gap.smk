@@ -30,7 +30,7 @@ rule gap_tables:
     benchmark:
         "results/benchmarks/gap_tables/all.tsv"
     shell:
-        "imply gap tables --table {input.table} --effect-grid-json {params.grid} --options-json {params.options}"
+        "imply study gap tables --table {input.table} --effect-grid-json {params.grid} --options-json {params.options}"
         " {params.effects} --threads {threads} -o {output} > {log} 2>&1"
 
 
@@ -57,7 +57,7 @@ rule gap_generate:
     benchmark:
         "results/benchmarks/gap_generate/all.tsv"
     shell:
-        "imply gap generate --table {input.table} --bench-json {params.bench} --logs {params.folder}"
+        "imply study gap generate --table {input.table} --bench-json {params.bench} --logs {params.folder}"
         " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
 
 
@@ -84,7 +84,7 @@ rule gap_diagnose:
     benchmark:
         "results/benchmarks/gap_diagnose/{shard}.tsv"
     shell:
-        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        "imply study gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
@@ -111,7 +111,7 @@ rule gap_contact_generate:
     benchmark:
         "results/benchmarks/gap_contact_generate/all.tsv"
     shell:
-        "imply gap generate --table {input.table} --contact-bench-json {params.bench} --logs {params.folder}"
+        "imply study gap generate --table {input.table} --contact-bench-json {params.bench} --logs {params.folder}"
         " --sealed {output.sealed} --accuracy {output.accuracy} --threads {threads} > {log} 2>&1"
 
 
@@ -138,7 +138,7 @@ rule gap_contact_diagnose:
     benchmark:
         "results/benchmarks/gap_contact_diagnose/{shard}.tsv"
     shell:
-        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        "imply study gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
@@ -167,7 +167,7 @@ rule gap_contact_closed_loop:
     benchmark:
         "results/benchmarks/gap_contact_closed_loop/{shard}.tsv"
     shell:
-        "imply gap closed-loop --contact-bench-json {params.bench} --logs {params.folder} --reports {input.reports}"
+        "imply study gap closed-loop --contact-bench-json {params.bench} --logs {params.folder} --reports {input.reports}"
         " --table {input.table} --effect-grid-json {params.grid} {params.effects} --options-json {params.options}"
         " --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
@@ -209,7 +209,7 @@ rule gap_benchmark:
     benchmark:
         "results/benchmarks/gap_benchmark/all.tsv"
     shell:
-        "imply gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
+        "imply study gap benchmark --table {input.table} --bench-json {params.bench} --sealed {input.sealed}"
         " --accuracy {input.accuracy} --reports {input.reports} -o {output.result} --markdown {output.markdown}"
         " --contact-bench-json {params.contact} --contact-sealed {input.contact_sealed}"
         " --contact-reports {input.contact_reports} --closed-loop {input.closed_loop} {params.observed} > {log} 2>&1"
@@ -245,7 +245,7 @@ rule gap_lab_generate:
     benchmark:
         "results/benchmarks/gap_lab_generate/{set}.tsv"
     shell:
-        "imply gap lab-generate --lab-json {params.lab} --set {wildcards.set} --table {input.table}"
+        "imply study gap lab-generate --lab-json {params.lab} --set {wildcards.set} --table {input.table}"
         " --logs {output.logs} --references {output.references} --labels {output.labels} --timing {output.timing}"
         " --threads {threads} > {log} 2>&1"
 
@@ -276,7 +276,7 @@ rule gap_lab_separability:
     benchmark:
         "results/benchmarks/gap_lab_separability/all.tsv"
     shell:
-        "imply gap separability --lab-json {params.lab} --labels {params.set}={input.labels}"
+        "imply study gap separability --lab-json {params.lab} --labels {params.set}={input.labels}"
         " --timing {params.set}={input.timing} -o {output.result} --markdown {output.markdown} > {log} 2>&1"
 
 
@@ -308,7 +308,7 @@ rule gap_lab_diagnose:
     benchmark:
         "results/benchmarks/gap_lab_diagnose/{set}_{variant}.tsv"
     shell:
-        "imply gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
+        "imply study gap diagnose-many {input.logs} --table {input.table} --effect-grid-json {params.grid} {params.effects}"
         " --options-json {params.options} --cache-dir {input.tables} --threads 1 --no-plots -o {output} > {log} 2>&1"
 
 
@@ -339,7 +339,7 @@ rule gap_lab_diagnose_reference:
     benchmark:
         "results/benchmarks/gap_lab_diagnose_reference/{set}.tsv"
     shell:
-        "imply gap diagnose-many {input.logs} --references {input.references} --table {input.table}"
+        "imply study gap diagnose-many {input.logs} --references {input.references} --table {input.table}"
         " --effect-grid-json {params.grid} {params.effects} --options-json {params.options} --cache-dir {input.tables}"
         " --threads 1 --no-plots -o {output} > {log} 2>&1"
 
@@ -374,7 +374,7 @@ rule gap_lab_closed_loop:
     benchmark:
         "results/benchmarks/gap_lab_closed_loop/{set}.tsv"
     shell:
-        "imply gap closed-loop --lab-json {params.lab} --set {wildcards.set} --logs {input.logs}"
+        "imply study gap closed-loop --lab-json {params.lab} --set {wildcards.set} --logs {input.logs}"
         " --reports {input.reports} --references {input.references} --table {input.table}"
         " --effect-grid-json {params.grid} {params.effects} --options-json {params.options} --cache-dir {input.tables}"
         " --threads 1 --no-plots -o {output} > {log} 2>&1"
@@ -410,7 +410,7 @@ rule gap_lab_score:
     benchmark:
         "results/benchmarks/gap_lab_score/{set}.tsv"
     shell:
-        "imply gap lab-score --lab-json {params.lab} --set {wildcards.set} --labels {input.labels}"
+        "imply study gap lab-score --lab-json {params.lab} --set {wildcards.set} --labels {input.labels}"
         " --reports-probes {input.probes} --reports-no-probes {input.no_probes} --reports-reference {input.reference}"
         " --closed-loop {input.closed_loop} --table {input.table}"
         " -o {output.result} --markdown {output.markdown} > {log} 2>&1"

@@ -32,7 +32,7 @@ rule model_readout:
     benchmark:
         "results/benchmarks/model_readout/all.tsv"
     shell:
-        "imply model readout --features {input.features} --clips {input.clips} --heldout {input.calib}"
+        "imply study model readout --features {input.features} --clips {input.clips} --heldout {input.calib}"
         " --heldout {input.nocalib} {params.token_grid} -o {output.readout} --report {output.report} > {log} 2>&1"
 
 
@@ -69,7 +69,7 @@ rule model_train:
         "results/benchmarks/model_train/{variant}-{seed}.tsv"
     shell:
         # a killed run leaves checkpoint.pt beside the model; rerunning resumes from it
-        "imply model train --features {input.features} --clips {input.clips} --readout {input.readout}"
+        "imply study model train --features {input.features} --clips {input.clips} --readout {input.readout}"
         " --validation {input.validation} --table {input.table} --score-json {params.score}"
         " --derangement-seed {params.derangement_seed}"
         " --preset-json {params.preset} {params.token_grid} --variant-json {params.variant}"
@@ -98,4 +98,4 @@ rule model_training_plot:
     benchmark:
         "results/benchmarks/model_training_plot/all.tsv"
     shell:
-        "imply model plot {input} -o {output} > {log} 2>&1"
+        "imply study model plot {input} -o {output} > {log} 2>&1"

@@ -19,7 +19,7 @@ rule paper_part:
     benchmark:
         "results/benchmarks/paper_part/{stage}.tsv"
     shell:
-        "imply paper part {wildcards.stage} {input} -o {output} > {log} 2>&1"
+        "imply study paper part {wildcards.stage} {input} -o {output} > {log} 2>&1"
 
 
 rule paper_tables_section4:
@@ -48,7 +48,7 @@ rule paper_tables_section4:
     benchmark:
         "results/benchmarks/paper_tables_section4/all.tsv"
     shell:
-        "imply paper tables --part {input.part} --table1 {output.table1} --table2 {output.table2} > {log} 2>&1"
+        "imply study paper tables --part {input.part} --table1 {output.table1} --table2 {output.table2} > {log} 2>&1"
 
 
 rule paper_table3:
@@ -71,7 +71,7 @@ rule paper_table3:
     benchmark:
         "results/benchmarks/paper_table3/all.tsv"
     shell:
-        "imply paper tables --part {input.part} --table3 {output} > {log} 2>&1"
+        "imply study paper tables --part {input.part} --table3 {output} > {log} 2>&1"
 
 
 rule paper_figure1:
@@ -96,7 +96,7 @@ rule paper_figure1:
     benchmark:
         "results/benchmarks/paper_figure1/all.tsv"
     shell:
-        "imply paper figure1 --scores {input.scores} --noise {input.noise} --pdf {output.pdf} --png {output.png}"
+        "imply study paper figure1 --scores {input.scores} --noise {input.noise} --pdf {output.pdf} --png {output.png}"
         " > {log} 2>&1"
 
 
@@ -121,7 +121,7 @@ rule paper_figure2:
     benchmark:
         "results/benchmarks/paper_figure2/all.tsv"
     shell:
-        "imply paper figure2 --per-object {input.per_object} --pdf {output.pdf} --png {output.png} > {log} 2>&1"
+        "imply study paper figure2 --per-object {input.per_object} --pdf {output.pdf} --png {output.png} > {log} 2>&1"
 
 
 rule paper_merge:
@@ -171,7 +171,7 @@ rule paper_merge:
     benchmark:
         "results/benchmarks/paper_merge/all.tsv"
     shell:
-        "imply paper merge {input} --macros {output.macros} --numbers {output.numbers}"
+        "imply study paper merge {input} --macros {output.macros} --numbers {output.numbers}"
         " --report-md {output.report_md} --report-csv {output.report_csv} --report-html {output.report_html}"
         " --benchmarks {params.benchmarks} > {log} 2>&1"
 
@@ -193,4 +193,4 @@ rule snapshot:
     log:
         "results/logs/snapshot.log",
     shell:
-        "imply paper snapshot --root . --kernels {params.kernels} -o {params.folder} > {log} 2>&1"
+        "imply study paper snapshot --root . --kernels {params.kernels} -o {params.folder} > {log} 2>&1"

@@ -28,7 +28,7 @@ rule pixel_train:
     benchmark:
         "results/benchmarks/pixel_train/{variant}.tsv"
     shell:
-        "imply pixel train --clips {input.clips} --recipe-json {params.recipe} --variant {wildcards.variant}"
+        "imply study pixel train --clips {input.clips} --recipe-json {params.recipe} --variant {wildcards.variant}"
         " --threads {threads} -o {output.model} --history {output.history} --no-progress > {log} 2>&1"
 
 
@@ -94,7 +94,7 @@ rule pixel_score:
     benchmark:
         "results/benchmarks/pixel_score/all.tsv"
     shell:
-        "imply pixel score --calib {params.calib} --nocalib {params.nocalib} --calib-history {input.calib_history}"
+        "imply study pixel score --calib {params.calib} --nocalib {params.nocalib} --calib-history {input.calib_history}"
         " --nocalib-history {input.nocalib_history} -o {output} > {log} 2>&1"
 
 
@@ -124,5 +124,5 @@ rule paper_figure3:
     benchmark:
         "results/benchmarks/paper_figure3/all.tsv"
     shell:
-        "imply pixel figure --metrics {input.metrics} --calib-model {input.calib_model} --calib {input.calib}"
+        "imply study pixel figure --metrics {input.metrics} --calib-model {input.calib_model} --calib {input.calib}"
         " --nocalib {input.nocalib} --suite {params.suite} --pdf {output.pdf} --png {output.png} > {log} 2>&1"

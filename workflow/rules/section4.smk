@@ -23,7 +23,7 @@ rule s4_objects:
     benchmark:
         "results/benchmarks/s4_objects/all.tsv"
     shell:
-        "imply section4 objects --table {input.table} --seed {params.seed} --objects-json {params.objects}"
+        "imply study section4 objects --table {input.table} --seed {params.seed} --objects-json {params.objects}"
         " --scene-json {params.scene} -o {output} > {log} 2>&1"
 
 
@@ -47,7 +47,7 @@ rule s4_truth:
     benchmark:
         "results/benchmarks/s4_truth/all.tsv"
     shell:
-        "imply section4 truth --objects {input.objects} --score-json {params.score} --scene-json {params.scene}"
+        "imply study section4 truth --objects {input.objects} --score-json {params.score} --scene-json {params.scene}"
         " --threads {threads} -o {output} > {log} 2>&1"
 
 
@@ -75,7 +75,7 @@ rule s4_standins:
     benchmark:
         "results/benchmarks/s4_standins/all.tsv"
     shell:
-        "imply section4 standins --objects {input.objects} --truth {input.truth} --table {input.table}"
+        "imply study section4 standins --objects {input.objects} --truth {input.truth} --table {input.table}"
         " --seed {params.seed} --standins-json {params.standins} --score-json {params.score}"
         " --scene-json {params.scene} --threads {threads} -o {output} > {log} 2>&1"
 
@@ -100,7 +100,7 @@ rule s4_scores:
     benchmark:
         "results/benchmarks/s4_scores/all.tsv"
     shell:
-        "imply section4 scores --objects {input.objects} --truth {input.truth} --rollouts {input.rollouts}"
+        "imply study section4 scores --objects {input.objects} --truth {input.truth} --rollouts {input.rollouts}"
         " --table {input.table} --score-json {params.score} -o {output} > {log} 2>&1"
 
 
@@ -128,7 +128,7 @@ rule s4_metrics:
     benchmark:
         "results/benchmarks/s4_metrics/all.tsv"
     shell:
-        "imply section4 metrics --scores {input.scores} --table {input.table} --standins-json {params.standins}"
+        "imply study section4 metrics --scores {input.scores} --table {input.table} --standins-json {params.standins}"
         " --score-json {params.score} -o {output} > {log} 2>&1"
 
 
@@ -158,7 +158,7 @@ rule s4_noise:
     benchmark:
         "results/benchmarks/s4_noise/all.tsv"
     shell:
-        "imply section4 noise --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
+        "imply study section4 noise --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
         " --seed {params.seed} --noise-json {params.noise} --score-json {params.score} -o {output} > {log} 2>&1"
 
 
@@ -189,6 +189,6 @@ rule s4_selection:
     benchmark:
         "results/benchmarks/s4_selection/all.tsv"
     shell:
-        "imply section4 selection --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
+        "imply study section4 selection --truth {input.truth} --rollouts {input.rollouts} --table {input.table}"
         " --seed {params.seed} --selection-json {params.selection} --score-json {params.score}"
         " -o {output.summary} --choices {output.choices} > {log} 2>&1"

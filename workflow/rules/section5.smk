@@ -106,7 +106,7 @@ rule section5:
     benchmark:
         "results/benchmarks/section5/all.tsv"
     shell:
-        "imply section5 {params.evaluations} --table {input.table} --train-clips {input.train_clips}"
+        "imply study section5 {params.evaluations} --table {input.table} --train-clips {input.train_clips}"
         " --score-json {params.score}"
         " --selection-seed {params.selection_seed} --metrics {output.metrics} --per-object {output.per_object}"
         " > {log} 2>&1"

@@ -1,8 +1,9 @@
 """The ``imply`` command line: one module per top-level command group, each handler a thin wrapper.
 
 Groups (modules of this package, each with ``register(subparsers)``): ``score``,
-``table``, ``sim``, ``diagnose``, ``suite``, ``evaluate`` (what a user runs), and the
-study's steps, one group per stage of the workflow: ``section4``, ``clips``, ``encoder``,
+``table``, ``sim``, ``diagnose``, ``suite``, ``evaluate`` (what a user runs), and under
+``imply study`` (:mod:`imply.cli.study`) the study's steps, one group per stage of the
+workflow, which the workflow's rules call: ``section4``, ``clips``, ``encoder``,
 ``readout``, ``model``, ``section5``, ``gap``, ``pixel`` (the pixel-space model beyond the
 paper), ``paper``. A handler parses its options, calls one library function and writes
 its outputs; the logic lives in the library.
@@ -30,32 +31,16 @@ from typing import Any
 import imply
 from imply.cli.common import EXIT_INTERRUPTED, EXIT_USER_ERROR, Parser, UserError, one_line
 
-GROUPS: list[str] = [
-    "score",
-    "table",
-    "sim",
-    "diagnose",
-    "suite",
-    "evaluate",
-    "section4",
-    "clips",
-    "encoder",
-    "readout",
-    "model",
-    "section5",
-    "gap",
-    "pixel",
-    "paper",
-]
+GROUPS: list[str] = ["score", "table", "sim", "diagnose", "suite", "evaluate", "study"]
 
 
 DESCRIPTION = (
     "Vet world-model rollouts against physics, and diagnose the gap between a push simulator and a robot. "
     "What you run: 'imply score' (a rollouts file's anchored disagreement), 'imply evaluate' (a world model on "
     "the frozen suite), 'imply diagnose' (a robot's push log against the push table), 'imply sim' (pushes "
-    "simulated on the built-in scene or your MJCF), 'imply table' and 'imply suite' (what those read). The other "
-    "commands are the study's workflow steps, run by 'snakemake --cores 2'. 'imply COMMAND --help' says what each "
-    "reads and writes."
+    "simulated on the built-in scene or your MJCF), 'imply table' and 'imply suite' (what those read). 'imply "
+    "study' holds the study's workflow steps, which 'snakemake --cores 2' runs. 'imply COMMAND --help' says what "
+    "each reads and writes."
 )
 
 
@@ -84,6 +69,30 @@ def _describe(parser: argparse.ArgumentParser) -> None:
                 _describe(sub)
 
 
+def command_name(args: argparse.Namespace) -> str:
+    """The words of the command ``args`` were parsed for ('study gap diagnose-many'): each group's chosen
+    subcommand sits in the namespace under ``<group>_command``."""
+    words = [args.group]
+    while (word := getattr(args, f"{words[-1]}_command", None)) is not None:
+        words.append(word)
+    return " ".join(words)
+
+
+def _refuse_study_step_at_the_top(argv: list[str]) -> None:
+    """A study step asked for without ``study`` (as the command lines before ``imply study`` read) is refused in
+    one line that gives the command to run instead."""
+    from imply.cli.study import STUDY_GROUPS
+
+    words = [w for i, w in enumerate(argv) if not w.startswith("-") and (i == 0 or argv[i - 1] != "--log")]
+    if words and words[0] in STUDY_GROUPS:
+        print(
+            f"imply: error: '{words[0]}' is a step of the study: run 'imply study {words[0]} ...' "
+            "(see 'imply study --help')",
+            file=sys.stderr,
+        )
+        raise SystemExit(EXIT_USER_ERROR)
+
+
 def _terminate(signum: int, frame: Any) -> None:
     # a terminated job unwinds like Ctrl-C, so atomic writers remove their temporary files
     raise KeyboardInterrupt
@@ -93,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     from imply.io import setup_logging
 
     parser = build_parser()
+    _refuse_study_step_at_the_top(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     setup_logging(args.log, logging.DEBUG if args.verbose else logging.INFO)
     if argv is None and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
@@ -101,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     np.seterr(all="ignore")
-    name = " ".join(x for x in (args.group, getattr(args, f"{args.group}_command", None)) if x)
+    name = command_name(args)
     prefix = f"imply {name}: error:"
     try:
         return int(args.func(args) or 0)
@@ -111,6 +121,12 @@ def main(argv: list[str] | None = None) -> int:
         # files the user named: unreadable, unwritable, a folder where a file belongs
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"{prefix} {one_line(where + (exc.strerror or str(exc)))}", file=sys.stderr)
+    except ImportError as exc:
+        from imply.extras import missing_extra
+
+        if (message := missing_extra(exc)) is None:
+            raise
+        print(f"{prefix} {message}", file=sys.stderr)
     except MemoryError:
         print(f"{prefix} out of memory: the input or the options need more memory than is available", file=sys.stderr)
     except KeyboardInterrupt:

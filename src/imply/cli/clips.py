@@ -1,4 +1,4 @@
-"""``imply clips render``: one split of rendered push clips (frames and metadata) for the Section 5 study."""
+"""``imply study clips render``: one split of rendered push clips (frames and metadata) for the Section 5 study."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ A user error (bad input, bad option, an output that would overwrite an input) is
 as :class:`UserError`, directly or by :func:`user_errors` from the library's own error
 types, and printed by :func:`imply.cli.main` as one line with exit status 2, leaving no
 output file. This is the only module the command groups import from each other:
-``imply diagnose`` and ``imply gap diagnose-many`` declare their shared options with
+``imply diagnose`` and ``imply study gap diagnose-many`` declare their shared options with
 :func:`add_diagnose_options` and check them once into a
 :class:`imply.diagnose.run.DiagnoseRequest` with :func:`diagnose_request`.
 """
@@ -206,7 +206,7 @@ def scene_from_args(args: argparse.Namespace, compile_model: bool = False):
         raise UserError(str(exc)) from exc
 
 
-# -- a run of diagnoses: imply diagnose, imply gap diagnose-many ------------------------
+# -- a run of diagnoses: imply diagnose, imply study gap diagnose-many ------------------------
 
 DEFAULT_TABLE = "results/table/table.npz"
 

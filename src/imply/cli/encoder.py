@@ -1,4 +1,4 @@
-"""``imply encoder pretrain|encode``: the frozen frame encoder (the CPU default pretrained here, or released weights)."""
+"""``imply study encoder pretrain|encode``: the frozen frame encoder (the CPU default pretrained here, or released weights)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``imply gap tables|generate|lab-generate|merge-labels|diagnose-many|closed-loop|separability|lab-score|benchmark``.
+"""``imply study gap tables|generate|lab-generate|merge-labels|diagnose-many|closed-loop|separability|lab-score|benchmark``.
 
 The workflow's gap stage (``workflow/rules/gap.smk``): ``tables`` builds the effect
 tables into a folder, ``generate`` writes synthetic push logs with each one's label
@@ -146,7 +146,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     ml = gsub.add_parser(
         "merge-labels",
-        help="join the labels (and the lab's timings) that the shards of 'imply gap generate' or 'imply gap "
+        help="join the labels (and the lab's timings) that the shards of 'imply study gap generate' or 'imply study gap "
         "lab-generate' wrote into what one unsharded run writes",
     )
     ml.add_argument("parts", nargs="+", help="the shards' labels files")
@@ -181,12 +181,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     ls.add_argument("--table", default=DEFAULT_TABLE, help="the push table (the true share of each log's gap)")
     ls.add_argument("--lab-json", type=json_arg, required=True, help="config gap.lab_benchmark (its targets)")
     ls.add_argument("--set", required=True, choices=("development", "sealed"), help="which set")
-    ls.add_argument("--labels", required=True, help="the set's labels ('imply gap lab-generate')")
+    ls.add_argument("--labels", required=True, help="the set's labels ('imply study gap lab-generate')")
     ls.add_argument("--reports-probes", required=True, help="the folder of its report folders, diagnosed with probes")
     ls.add_argument("--reports-no-probes", required=True, help="the same diagnosed without them")
     ls.add_argument("--reports-reference", help="the same diagnosed against their reference sessions")
     ls.add_argument(
-        "--closed-loop", nargs="*", default=[], help="folders written by 'imply gap closed-loop --lab-json' on this set"
+        "--closed-loop",
+        nargs="*",
+        default=[],
+        help="folders written by 'imply study gap closed-loop --lab-json' on this set",
     )
     ls.add_argument("-o", "--output", required=True, help="the result document (JSON)")
     ls.add_argument("--markdown", required=True, help="the report (Markdown)")
@@ -195,7 +198,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     b = gsub.add_parser("benchmark", help="score diagnoses against the sealed labels (a result document)")
     b.add_argument("--table", default=DEFAULT_TABLE, help="the push table (default results/table/table.npz)")
     b.add_argument("--bench-json", type=json_arg, required=True, help="config gap.benchmark (its targets)")
-    b.add_argument("--sealed", required=True, help="the sealed labels of 'imply gap generate'")
+    b.add_argument("--sealed", required=True, help="the sealed labels of 'imply study gap generate'")
     b.add_argument("--accuracy", required=True, help="the world's measured numerical error (from 'gap generate')")
     b.add_argument("--reports", required=True, nargs="+", help="folders holding one report folder per case")
     b.add_argument("-o", "--output", required=True, help="the benchmark's result document (JSON)")
@@ -216,7 +219,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=[],
         help="the same for the contact benchmark's logs",
     )
-    b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply gap closed-loop'")
+    b.add_argument("--closed-loop", nargs="+", default=[], help="folders written by 'imply study gap closed-loop'")
     b.set_defaults(func=cmd_benchmark)
 
 
@@ -226,7 +229,7 @@ def add_shard_options(parser: argparse.ArgumentParser) -> None:
         "--shards",
         type=int_range(1),
         default=1,
-        help="split the logs into this many shards and write one (join the labels with 'imply gap merge-labels')",
+        help="split the logs into this many shards and write one (join the labels with 'imply study gap merge-labels')",
     )
     parser.add_argument(
         "--shard",

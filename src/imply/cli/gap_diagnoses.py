@@ -1,4 +1,4 @@
-"""The gap stage's diagnoses: many push logs in one process (``imply gap diagnose-many``), and the closed loop
+"""The gap stage's diagnoses: many push logs in one process (``imply study gap diagnose-many``), and the closed loop
 (``closed-loop``): the recommended next pushes run in the logs' worlds and diagnosed again."""
 
 from __future__ import annotations

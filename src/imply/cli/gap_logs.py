@@ -1,4 +1,4 @@
-"""The gap stage's logs: the effect tables (``imply gap tables``), the benchmarks' synthetic push logs and their sealed
+"""The gap stage's logs: the effect tables (``imply study gap tables``), the benchmarks' synthetic push logs and their sealed
 labels (``generate``, ``lab-generate``, one shard each where asked) and the shards' labels joined (``merge-labels``)."""
 
 from __future__ import annotations

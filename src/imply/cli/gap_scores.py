@@ -1,4 +1,4 @@
-"""The gap stage's scores: which lab logs can be told apart from their contact (``imply gap separability``), a lab
+"""The gap stage's scores: which lab logs can be told apart from their contact (``imply study gap separability``), a lab
 set's diagnoses scored with and without probes (``lab-score``), and the benchmarks scored against their sealed labels
 (``benchmark``)."""
 

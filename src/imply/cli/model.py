@@ -1,18 +1,18 @@
-"""``imply model train|readout|rollout|plot``: the action-conditioned predictor of Section 5 on cached encoder features.
+"""``imply study model train|readout|rollout|plot``: the action-conditioned predictor of Section 5 on cached encoder features.
 
 Typical use (what ``workflow/rules/model.smk`` runs)::
 
-    imply model readout --features results/features/train.npz --clips results/clips/train.csv \\
+    imply study model readout --features results/features/train.npz --clips results/clips/train.csv \\
         --token-grid 1 8 -o results/model/readout_ln.npz --report results/model/readout_ln.json
-    imply model train --features results/features/train.npz --clips results/clips/train.csv \\
+    imply study model train --features results/features/train.npz --clips results/clips/train.csv \\
         --readout results/model/readout_ln.npz --preset-json '{"width": 64, ...}' --token-grid 1 8 \\
         --variant-json '{"calib": true, ...}' --train-json '{...}' --rest-state 1.0 --seed 0 \\
         -o results/model/calib/seed0/model.pt --history results/model/calib/seed0/training.json \\
         --rollout-readout results/model/calib/seed0/readout.npz
-    imply model rollout --model results/model/calib/seed0/model.pt --features results/features/heldout_calib.npz \\
+    imply study model rollout --model results/model/calib/seed0/model.pt --features results/features/heldout_calib.npz \\
         --clips results/clips/heldout_calib.csv --readout results/model/calib/seed0/readout.npz \\
         --contexts own,swap,none --derangement-seed 11 -o results/model/calib/seed0/rollouts.csv
-    imply model plot results/model/*/seed*/training.json -o results/model/training.png
+    imply study model plot results/model/*/seed*/training.json -o results/model/training.png
 
 A training run with a checkpoint beside its output resumes from it.
 """
@@ -63,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--readout",
         type=existing_file,
-        help="the latent readout fitted on real training clips (imply model readout), for validation",
+        help="the latent readout fitted on real training clips (imply study model readout), for validation",
     )
     tr.add_argument("--table", type=existing_file, help="the push table (results/table/table.npz), for validation")
     tr.add_argument("--score-json", type=json_arg, default={}, help="scoring settings (config score): grid, floor")
@@ -106,12 +106,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     ro = msub.add_parser("rollout", help="deterministic latent rollouts of held-out objects, read out to displacement")
     ro.add_argument(
-        "--model", type=existing_file, required=True, help="the trained predictor (.pt of imply model train)"
+        "--model", type=existing_file, required=True, help="the trained predictor (.pt of imply study model train)"
     )
     ro.add_argument("--features", type=existing_file, required=True, help="the held-out clips' encoder features (.npz)")
     ro.add_argument("--clips", type=existing_file, required=True, help="the held-out clips' table (.csv)")
     ro.add_argument(
-        "--readout", type=existing_file, required=True, help="the latent readout (.npz of imply model readout)"
+        "--readout", type=existing_file, required=True, help="the latent readout (.npz of imply study model readout)"
     )
     ro.add_argument("--contexts", default="own,swap,none", help="comma-separated: own, swap, none")
     ro.add_argument(
@@ -133,7 +133,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     pl = msub.add_parser("plot", help="plot the per-epoch validation of trained predictors")
     pl.add_argument(
-        "histories", nargs="+", type=existing_file, help="training.json files (imply model train --history)"
+        "histories", nargs="+", type=existing_file, help="training.json files (imply study model train --history)"
     )
     pl.add_argument("-o", "--output", required=True, help="the figure (.png)")
     pl.set_defaults(func=cmd_plot)
@@ -289,7 +289,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     docs = []
     for path in args.histories:
         with user_errors(
-            ValueError, KeyError, message=f"{path}: not a training history of imply model train --history ({{error}})"
+            ValueError,
+            KeyError,
+            message=f"{path}: not a training history of imply study model train --history ({{error}})",
         ):
             doc = json.loads(Path(path).read_text())
             if not doc["history"] or "layout" not in doc:

@@ -1,4 +1,4 @@
-"""``imply paper part|tables|figure1|figure2|merge``: the paper outputs, from the stages' result documents.
+"""``imply study paper part|tables|figure1|figure2|merge``: the paper outputs, from the stages' result documents.
 
 * ``part STAGE RESULT...``: every registered number of a stage (:mod:`imply.paper.registry`)
   read from its result documents, and the stage's claims checked on them;

@@ -1,14 +1,14 @@
-"""``imply pixel train|score|figure``: the pixel-space, stochastic world model beyond the paper.
+"""``imply study pixel train|score|figure``: the pixel-space, stochastic world model beyond the paper.
 
 Typical use (what ``workflow/rules/pixel.smk`` runs; the evaluation between is ``imply evaluate``
 with ``--model imply.models.pixel_video:trained_pixel_video,checkpoint=...``)::
 
-    imply pixel train --clips results/clips/train.npz --recipe-json '{"epochs": 20, ...}' --variant calib \\
+    imply study pixel train --clips results/clips/train.npz --recipe-json '{"epochs": 20, ...}' --variant calib \\
         -o results/pixel/calib/model.pt --history results/pixel/calib/training.json
-    imply pixel score --calib results/pixel/evaluate/calib --nocalib results/pixel/evaluate/nocalib \\
+    imply study pixel score --calib results/pixel/evaluate/calib --nocalib results/pixel/evaluate/nocalib \\
         --calib-history results/pixel/calib/training.json --nocalib-history results/pixel/nocalib/training.json \\
         -o results/pixel/metrics.json
-    imply pixel figure --metrics results/pixel/metrics.json --calib-model results/pixel/calib/model.pt \\
+    imply study pixel figure --metrics results/pixel/metrics.json --calib-model results/pixel/calib/model.pt \\
         --calib results/pixel/evaluate/calib/per_object.csv --nocalib results/pixel/evaluate/nocalib/per_object.csv \\
         --suite results/suite --pdf results/paper/figures/figure3.pdf --png results/paper/figures/figure3.png
 """
@@ -96,7 +96,7 @@ def _history(path: Path) -> list[dict]:
         doc = json.loads(Path(path).read_text())
         return list(doc["epochs"])
     except (ValueError, KeyError, TypeError) as exc:
-        raise UserError(f"{path}: not a training history of imply pixel train ({exc})") from exc
+        raise UserError(f"{path}: not a training history of imply study pixel train ({exc})") from exc
 
 
 def cmd_score(args: argparse.Namespace) -> int:

@@ -1,4 +1,4 @@
-"""``imply readout fit``: both displacement readouts fitted on training clips and evaluated on held-out objects."""
+"""``imply study readout fit``: both displacement readouts fitted on training clips and evaluated on held-out objects."""
 
 from __future__ import annotations
 

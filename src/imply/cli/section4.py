@@ -1,8 +1,8 @@
-"""``imply section4 STEP``: the controlled validation (paper Section 4), one workflow step per command.
+"""``imply study section4 STEP``: the controlled validation (paper Section 4), one workflow step per command.
 
 Steps (``workflow/rules/section4.smk`` calls each with only the config it reads):
 ``objects`` -> ``truth`` -> ``standins`` -> ``scores`` -> ``metrics``, ``noise``,
-``selection``; the stage's part, tables and figure are ``imply paper`` commands. The
+``selection``; the stage's part, tables and figure are ``imply study paper`` commands. The
 logic lives in :mod:`imply.study.section4`; a handler reads its inputs, calls one
 function and writes its outputs. Config options: ``--seed`` (``section4.seed``),
 ``--objects-json``/``--standins-json``/``--noise-json``/``--selection-json`` (the

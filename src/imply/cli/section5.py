@@ -1,4 +1,4 @@
-"""``imply section5``: scores of the predictor's latent rollouts, the stage's result document and per-object table.
+"""``imply study section5``: scores of the predictor's latent rollouts, the stage's result document and per-object table.
 
 ``--evaluation MODEL:SEED:FOLDER`` (repeatable) names each ``imply evaluate`` report: the
 calibrated (``calib``) and context-free (``nocalib``) model of each data-order seed, its

@@ -30,7 +30,7 @@ What is in it (sizes: N objects, K query speeds, C context frames, T frames a cl
   ``frame_times`` then the rest frame), and per query speed the first C frames of the
   query push; the query's rest frame and slide go to the truth only.
 * The fixed partner of each object (condition ``other``):
-  :func:`imply.models.examples.derangement` with ``suite.partner_seed``, Section 5's swap.
+  :func:`imply.stats.derangement` with ``suite.partner_seed``, Section 5's swap.
 * Readout clips: the first ``suite.n_readout_train`` training objects' 3 clips each
   (2 calibration, 1 query, as :func:`imply.data.clips.plan_clips` plans them), frame 0 and
   the rest frame, with their speeds and slides (M = 3 n_readout_train); the next
@@ -405,7 +405,7 @@ def build_suite(
     """
     import imply
     from imply.io import check_folder, write_folder, write_json, write_npz
-    from imply.models.examples import derangement
+    from imply.stats import derangement
     from imply.table import PushTable, TableError
 
     frame_times, camera = suite_view(cfg, clips)

@@ -279,10 +279,10 @@ def save_cpu_encoder(
 
 
 def load_cpu_encoder(path: str | os.PathLike) -> ViTFrameEncoder:
-    """The CPU default encoder written by ``imply encoder pretrain``."""
+    """The CPU default encoder written by ``imply study encoder pretrain``."""
     path = Path(path)
     if not path.is_file():
-        raise EncoderError(f"{path}: no such encoder file (run 'imply encoder pretrain')")
+        raise EncoderError(f"{path}: no such encoder file (run 'imply study encoder pretrain')")
     ckpt = torch.load(path, map_location="cpu", weights_only=True)
     if not isinstance(ckpt, dict) or ckpt.get("format") != CPU_FORMAT:
         raise EncoderError(f"{path}: not an imply CPU encoder file")

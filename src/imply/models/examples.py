@@ -133,16 +133,3 @@ def heldout_objects(split: FeatureSplit) -> HeldOut:
         query=qp.loc[objs].to_numpy(dtype=np.int64),
         speeds=speeds,
     )
-
-
-def derangement(n: int, seed: int) -> np.ndarray:
-    """A permutation with no fixed point: object i takes object partner[i]'s calibration.
-
-    A random cyclic order (from ``seed``), each object paired with the next one in it.
-    """
-    if n < 2:
-        raise ValueError("a swap needs at least 2 objects")
-    order = np.random.default_rng(seed).permutation(n)
-    partner = np.empty(n, dtype=np.int64)
-    partner[order] = np.roll(order, -1)
-    return partner

@@ -75,10 +75,10 @@ class LatentReadout:
 
 
 def load_latent_readout(path: str | Path) -> LatentReadout:
-    """A readout written by :meth:`LatentReadout.save` (``imply model readout`` or ``imply model train``)."""
+    """A readout written by :meth:`LatentReadout.save` (``imply study model readout`` or ``imply study model train``)."""
     with np.load(path) as z:
         if "format" not in z or str(z["format"]) != LATENT_FORMAT:
-            raise ValueError(f"{path}: not a latent readout file (imply model readout writes one)")
+            raise ValueError(f"{path}: not a latent readout file (imply study model readout writes one)")
         p, k = (int(v) for v in z["shape"])
         ridge = RidgeReadout(z["mean"], z["scale"], z["coef"], float(z["intercept"]), float(z["alpha"]), p, k)
         lo, hi = (float(v) for v in z["log_range"])

@@ -523,7 +523,7 @@ class PixelVideoWorldModel:
 def trained_pixel_video(
     *, checkpoint: str | os.PathLike, name: str | None = None, batch_size: int | str = 64, seed: int | str = 0
 ) -> PixelVideoWorldModel:
-    """The pixel model trained by ``imply pixel train`` (``checkpoint``) as an ``imply evaluate`` model::
+    """The pixel model trained by ``imply study pixel train`` (``checkpoint``) as an ``imply evaluate`` model::
 
     imply evaluate --model imply.models.pixel_video:trained_pixel_video,checkpoint=results/pixel/calib/model.pt ...
     """

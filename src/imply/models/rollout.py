@@ -38,10 +38,11 @@ from tqdm import tqdm
 
 from imply.models.ac_predictor import ACPredictor
 from imply.models.config import Layout
-from imply.models.examples import derangement, heldout_objects
+from imply.models.examples import heldout_objects
 from imply.models.features import FeatureSplit
 from imply.models.modules import KeyValue
 from imply.models.sequences import Sequences, build_sequences
+from imply.stats import derangement
 
 log = logging.getLogger("imply.models.rollout")
 

@@ -135,7 +135,7 @@ def trained_predictor(
     name: str | None = None,
     batch_size: int | str = 100,
 ) -> PredictorWorldModel:
-    """The predictor trained by ``imply model train`` (``checkpoint``) with its frozen encoder.
+    """The predictor trained by ``imply study model train`` (``checkpoint``) with its frozen encoder.
 
     ``encoder``: the CPU default's weights (``results/encoder/encoder.pt``) or, with
     ``encoder_kind`` ``vjepa2_hf`` / ``vjepa2_pt``, released V-JEPA 2 weights. ``name``

@@ -168,7 +168,7 @@ def figure2(per_object: pd.DataFrame, *, seed: int, pdf_path: str | os.PathLike,
 def training_figure(histories: list[dict], *, png_path: str | os.PathLike) -> None:
     """Per-epoch validation of every trained predictor on the validation objects (Table 3's quantities).
 
-    ``histories``: the ``--history`` documents of ``imply model train`` (keys ``seed``,
+    ``histories``: the ``--history`` documents of ``imply study model train`` (keys ``seed``,
     ``layout`` and ``history``, a list of per-epoch entries). Left: log error per context,
     the object-blind baseline dashed; middle: tracking r; right: the share of objects
     whose disagreement is lower with their own calibration than with another's, self and

@@ -11,7 +11,7 @@ Each study stage has one part, ``results/paper/parts/<stage>.json``, built by
 Every registered number of the stage (:mod:`imply.paper.registry`) is read from the
 result of its ``source`` function at its ``path``, unrounded; the stage's claims are
 checked on those values by the stage's claims function, which the caller passes in
-(``imply paper part`` takes it from :func:`imply.cli.paper.stage_claims`), so this module
+(``imply study paper part`` takes it from :func:`imply.cli.paper.stage_claims`), so this module
 imports no study code.
 """
 

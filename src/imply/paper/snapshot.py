@@ -1,6 +1,6 @@
 """A snapshot of one study run, committed with the documentation: real results before anything has run.
 
-``imply paper snapshot`` (the workflow's ``snapshot`` rule) copies what the documentation
+``imply study paper snapshot`` (the workflow's ``snapshot`` rule) copies what the documentation
 shows from a finished run's ``results/`` into ``docs/snapshot/`` (paths kept, under
 ``docs/snapshot/results/``): the reproduction report and ``numbers.json``, the stand-ins'
 known answers, every figure a documentation page names in a ``{{ figure ... }}``

@@ -182,7 +182,9 @@ class BenchmarkConfig(Config):
     noise: NoiseModel = option(NoiseModel(), doc="readout noise of the logs", required=True)
     stepping: WorldStepping = option(WorldStepping(), doc="how the world steps a push")
     # how the diagnoses are judged (imply.realworld.benchmark.score_cases)
-    accuracy: AccuracyCheck = option(AccuracyCheck(), doc="the world's own error, measured by 'imply gap generate'")
+    accuracy: AccuracyCheck = option(
+        AccuracyCheck(), doc="the world's own error, measured by 'imply study gap generate'"
+    )
     min_size_sd: float = option(
         2.0, doc="effects at least this many noise sd (visible RMS) count for the targets", exclusive_minimum=0
     )
