@@ -76,19 +76,48 @@ def analytic_log_d(v, m, mu):
 
 @pytest.fixture(scope="session")
 def full_table(scene, default_config, request, tmp_path_factory) -> PushTable:
-    """The default 19 x 25 x 21 table, cached across runs under pytest's cache dir."""
+    """The default 19 x 25 x 21 table, cached across runs under pytest's cache dir, and built once per run however
+    many test workers ask for it (the first builds it, the others wait for its file)."""
     grid = TableGrid.from_dict(default_config["table"])
     from imply.table import config_digest
 
     key = config_digest({"scene": scene.to_dict(), "grid": grid.__dict__})
     cache_api = getattr(request.config, "cache", None)  # absent with -p no:cacheprovider
-    folder = Path(cache_api.mkdir("imply-tables")) if cache_api else tmp_path_factory.mktemp("imply-tables")
-    cache = folder / f"table-{key}.npz"
-    if cache.exists():
-        return PushTable.load(cache)
-    table = build_table(scene, grid, nthread=2)
-    table.save(cache)
-    return table
+    if cache_api:
+        folder = Path(cache_api.mkdir("imply-tables"))
+    elif os.environ.get("PYTEST_XDIST_WORKER"):
+        folder = tmp_path_factory.getbasetemp().parent / "imply-tables"  # this run's folder, shared by its workers
+        folder.mkdir(exist_ok=True)
+    else:
+        folder = tmp_path_factory.mktemp("imply-tables")
+    return _built_once(folder / f"table-{key}.npz", lambda: build_table(scene, grid, nthread=2))
+
+
+def _built_once(path: Path, build, patience_s: float = 1800.0) -> PushTable:
+    """The table at ``path``, built by whichever process takes its lock file first; the others wait for it."""
+    import time
+
+    lock = path.with_suffix(".lock")
+    waited = 0.0
+    while not path.exists():
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL)
+        except FileExistsError:
+            if waited > patience_s:  # a builder that died holding the lock: build here
+                break
+            time.sleep(1.0)
+            waited += 1.0
+            continue
+        try:
+            table = build()
+            partial = path.with_name(f".{path.name}.{os.getpid()}.npz")
+            table.save(partial)
+            partial.replace(path)
+            return table
+        finally:
+            os.close(fd)
+            lock.unlink(missing_ok=True)
+    return PushTable.load(path) if path.exists() else build()
 
 
 @pytest.fixture
@@ -138,5 +167,10 @@ def known_answers_suite(full_table, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def effect_cache(tmp_path_factory) -> Path:
-    """One effect-table cache for the diagnostic's tests (tables are keyed by the grid and effects they hold)."""
-    return tmp_path_factory.mktemp("effect-cache")
+    """One effect-table cache for the diagnostic's tests (tables are keyed by the grid and effects they hold), shared
+    by the run's test workers: each table is written whole (``imply.io``), so a worker finds it built or builds it."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return tmp_path_factory.mktemp("effect-cache")
+    folder = tmp_path_factory.getbasetemp().parent / "effect-cache"
+    folder.mkdir(exist_ok=True)
+    return folder
