@@ -20,13 +20,14 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
-NEUTRAL = ("imply.stats", "imply.results")
+NEUTRAL = ("imply.stats", "imply.results", "imply.extras")
 DIAGNOSE_STAGES = ("inputs", "physics", "inference", "conclusion")
 DIAGNOSE_TOP = ("analysis", "reference", "report", "run")
 # package -> the packages it must not import
 FORBIDDEN = {
     "imply.stats": ("imply",),
     "imply.results": ("imply",),
+    "imply.extras": ("imply",),
     "imply.models": ("imply.study", "imply.paper", "imply.diagnose", "imply.cli"),
     "imply.study": ("imply.paper", "imply.diagnose", "imply.cli"),
     # the tool a user runs does not hold the study's benchmark (imply.realworld scores it)
