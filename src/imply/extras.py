@@ -3,8 +3,7 @@
 The core (``pip install imply``) runs what a user runs: ``imply score``, ``evaluate``, ``diagnose``, ``sim``,
 ``table`` and ``suite``. The study's workflow steps need ``imply[study]``; MP4 video needs ``imply[video]``
 (PNG frames need only the core); parquet files need ``imply[parquet]`` (CSV only the core); released V-JEPA 2
-weights need ``imply[vjepa2]``. ``pyproject.toml`` lists each
-extra's distributions; a test holds this map to it.
+weights need ``imply[vjepa2]``. ``pyproject.toml`` lists each extra's distributions; a test holds this map to it.
 """
 
 from __future__ import annotations
