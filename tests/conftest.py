@@ -101,13 +101,16 @@ def _built_once(path: Path, build, patience_s: float = 1800.0) -> PushTable:
     waited = 0.0
     while not path.exists():
         try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL)
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
         except FileExistsError:
-            if waited > patience_s:  # a builder that died holding the lock: build here
-                break
+            if waited > patience_s or not _holder_alive(lock):  # a builder that died holding the lock
+                lock.unlink(missing_ok=True)
+                waited = 0.0
+                continue
             time.sleep(1.0)
             waited += 1.0
             continue
+        os.write(fd, str(os.getpid()).encode())
         try:
             table = build()
             partial = path.with_name(f".{path.name}.{os.getpid()}.npz")
@@ -117,7 +120,24 @@ def _built_once(path: Path, build, patience_s: float = 1800.0) -> PushTable:
         finally:
             os.close(fd)
             lock.unlink(missing_ok=True)
-    return PushTable.load(path) if path.exists() else build()
+    return PushTable.load(path)
+
+
+def _holder_alive(lock: Path) -> bool:
+    """Whether the process whose pid the lock file holds still runs (a lock just created, still empty, counts)."""
+    try:
+        text = lock.read_text().strip()
+    except FileNotFoundError:
+        return True
+    if not text:
+        return True
+    try:
+        os.kill(int(text), 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, ValueError):
+        return True
+    return True
 
 
 @pytest.fixture
