@@ -83,13 +83,7 @@ def full_table(scene, default_config, request, tmp_path_factory) -> PushTable:
 
     key = config_digest({"scene": scene.to_dict(), "grid": grid.__dict__})
     cache_api = getattr(request.config, "cache", None)  # absent with -p no:cacheprovider
-    if cache_api:
-        folder = Path(cache_api.mkdir("imply-tables"))
-    elif os.environ.get("PYTEST_XDIST_WORKER"):
-        folder = tmp_path_factory.getbasetemp().parent / "imply-tables"  # this run's folder, shared by its workers
-        folder.mkdir(exist_ok=True)
-    else:
-        folder = tmp_path_factory.mktemp("imply-tables")
+    folder = Path(cache_api.mkdir("imply-tables")) if cache_api else run_folder(tmp_path_factory, "imply-tables")
     return _built_once(folder / f"table-{key}.npz", lambda: build_table(scene, grid, nthread=2))
 
 
@@ -113,9 +107,7 @@ def _built_once(path: Path, build, patience_s: float = 1800.0) -> PushTable:
         os.write(fd, str(os.getpid()).encode())
         try:
             table = build()
-            partial = path.with_name(f".{path.name}.{os.getpid()}.npz")
-            table.save(partial)
-            partial.replace(path)
+            table.save(path)  # written whole (imply.io): a waiting worker never reads half a file
             return table
         finally:
             os.close(fd)
@@ -189,8 +181,14 @@ def known_answers_suite(full_table, tmp_path_factory) -> Path:
 def effect_cache(tmp_path_factory) -> Path:
     """One effect-table cache for the diagnostic's tests (tables are keyed by the grid and effects they hold), shared
     by the run's test workers: each table is written whole (``imply.io``), so a worker finds it built or builds it."""
+    return run_folder(tmp_path_factory, "effect-cache")
+
+
+def run_folder(tmp_path_factory, name: str) -> Path:
+    """A folder named ``name`` for this test run, shared by its xdist workers (their base folders' parent), or a
+    fresh one without xdist."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
-        return tmp_path_factory.mktemp("effect-cache")
-    folder = tmp_path_factory.getbasetemp().parent / "effect-cache"
+        return tmp_path_factory.mktemp(name)
+    folder = tmp_path_factory.getbasetemp().parent / name
     folder.mkdir(exist_ok=True)
     return folder

@@ -7,13 +7,8 @@ import argparse
 import logging
 from pathlib import Path
 
-from imply.cli.common import (
-    UserError,
-    config_from_json,
-    diagnose_request,
-    output_dir,
-    user_errors,
-)
+from imply.cli.common import UserError, config_from_json, diagnose_request, output_dir
+from imply.cli.gap_logs import lab_subset
 
 log = logging.getLogger("imply")
 
@@ -60,14 +55,13 @@ def cmd_closed_loop(args: argparse.Namespace) -> int:
     from imply.diagnose.run import prepare
     from imply.realworld.cases import ContactBenchmarkConfig, draw_cases
     from imply.realworld.closed_loop import run_closed_loop
-    from imply.realworld.lab import LabBenchmarkConfig, draw_lab_cases
+    from imply.realworld.lab import draw_lab_cases
     from imply.sim import SceneConfig
 
     if args.lab_json is not None:
         if args.set is None:
             raise UserError("--lab-json needs --set (development or sealed)")
-        with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
-            design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
+        design = lab_subset(args)
         drawn = draw_lab_cases(design)
     else:
         if args.set is not None:

@@ -26,7 +26,7 @@ def _check_shard(args: argparse.Namespace) -> None:
         raise UserError(f"--shard {args.shard}: need 0 <= shard < --shards {args.shards}")
 
 
-def _benchmark_config(args: argparse.Namespace):
+def benchmark_config(args: argparse.Namespace):
     from imply.realworld.cases import BenchmarkConfig
 
     return config_from_json(BenchmarkConfig, args.bench_json, "gap.benchmark")
@@ -52,7 +52,7 @@ def _generate_config(args: argparse.Namespace):
 
     if args.contact_bench_json is not None:
         return config_from_json(ContactBenchmarkConfig, args.contact_bench_json, "gap.contact_benchmark")
-    return _benchmark_config(args)
+    return benchmark_config(args)
 
 
 def cmd_generate(args: argparse.Namespace) -> int:
@@ -89,19 +89,26 @@ def cmd_generate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _lab_config(args: argparse.Namespace):
+def lab_config(args: argparse.Namespace):
     from imply.realworld.lab import LabBenchmarkConfig
 
     return config_from_json(LabBenchmarkConfig, args.lab_json, "gap.lab_benchmark")
 
 
+def lab_subset(args: argparse.Namespace):
+    """The lab benchmark's design (``--lab-json``) cut to the set ``--set`` names."""
+    from imply.realworld.lab import LabBenchmarkConfig
+
+    with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
+        return LabBenchmarkConfig.of_subset(args.lab_json, args.set)
+
+
 def cmd_lab_generate(args: argparse.Namespace) -> int:
-    from imply.realworld.lab import LabBenchmarkConfig, write_lab_set
+    from imply.realworld.lab import write_lab_set
     from imply.sim import SceneConfig
 
     _check_shard(args)
-    with user_errors(ValueError, TypeError, message="--lab-json: {error}"):
-        design = LabBenchmarkConfig.of_subset(args.lab_json, args.set)
+    design = lab_subset(args)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")
     timing = write_lab_set(

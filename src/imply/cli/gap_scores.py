@@ -15,7 +15,7 @@ from imply.cli.common import (
     load_table,
     user_errors,
 )
-from imply.cli.gap_logs import _benchmark_config, _lab_config
+from imply.cli.gap_logs import benchmark_config, lab_config
 
 log = logging.getLogger("imply")
 
@@ -39,7 +39,7 @@ def cmd_separability(args: argparse.Namespace) -> int:
     from imply.paper.results import write_result
     from imply.realworld.separability import mark_logs, summarise, write_separability
 
-    design = _lab_config(args)
+    design = lab_config(args)
     labels, timing = _set_paths(args.labels, "--labels"), _set_paths(args.timing, "--timing")
     if set(labels) != set(timing):
         raise UserError("--labels and --timing must name the same sets")
@@ -82,7 +82,7 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
     from imply.realworld.benchmark import CONTACT_SINGLE, find_summaries, shrink_sizes
     from imply.realworld.lab_score import score_lab, write_lab_score
 
-    design = _lab_config(args)
+    design = lab_config(args)
     with user_errors(FileNotFoundError, message="--labels: {error}"):
         with open(args.labels) as fh:
             labels = json.load(fh)
@@ -138,7 +138,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     from imply.realworld.benchmark_report import write_benchmark_markdown
 
     table = load_table(args.table)
-    config = _benchmark_config(args)
+    config = benchmark_config(args)
     with open(args.sealed) as fh:
         labels = json.load(fh)
     with open(args.accuracy) as fh:
