@@ -204,6 +204,12 @@ def main(argv=None) -> int:
         action="store_true",
         help="train the calibrated models alone and print their validation histories (a quick look at a candidate)",
     )
+    ap.add_argument(
+        "--variants",
+        default="calib,nocalib",
+        help="the models to train (comma-separated); with --score-only every model of the runs must be in --out, so "
+        "a candidate for one variant is judged beside the other's runs copied there",
+    )
     args = ap.parse_args(argv)
     if missing_inputs():
         return 2
@@ -223,7 +229,10 @@ def main(argv=None) -> int:
             ap.error(f"--set {item!r}: {exc.args[0]}")
     args.out.mkdir(parents=True, exist_ok=True)
     # the calibrated models first: they take longest, so the pool ends with the short ones
-    variants = ("calib",) if args.calib_only else ("calib", "nocalib")
+    variants = ["calib"] if args.calib_only else [v for v in args.variants.split(",") if v.strip()]
+    unknown = [v for v in variants if v not in model["variants"]]
+    if unknown:
+        ap.error(f"--variants: unknown {unknown[0]!r} (config model.variants: {', '.join(model['variants'])})")
     jobs = [(v, s, r) for v in variants for r in roundings for s in seeds]
     t0 = time.perf_counter()
 
@@ -263,6 +272,13 @@ def main(argv=None) -> int:
     scorer = score.scorer(PushTable.load(ROOT / "results/table/table.npz"))
     typical = typical_slide_of_clips(pd.read_csv(ROOT / "results/clips/train.csv"))
     by = {(t["variant"], t["seed"], t["rounding"]): t for t in trained}
+    for job in [(v, s, r) for v in ("calib", "nocalib") for r in roundings for s in seeds]:
+        if job not in by:  # the other variant's runs, trained before into --out
+            try:
+                by[job] = already_trained(variant=job[0], seed=job[1], rounding=job[2], out=args.out)
+            except FileNotFoundError:
+                ap.error(f"--variants: {job[0]} seed {job[1]} {job[2]} is neither trained now nor in {args.out}")
+            trained.append(by[job])
     runs = []
     for rounding in roundings:
         for seed in seeds:

@@ -105,6 +105,16 @@ def variant_json(wildcards):
     return as_json(config["model"]["variants"][wildcards.variant])
 
 
+def train_json(wildcards):
+    """config model.train as this variant trains it (TrainConfig.for_layout): a change of context_free_epochs
+    reruns the context-free trainings only."""
+    from imply.models.config import Layout, TrainConfig
+
+    model = config["model"]
+    layout = Layout.from_dict({**model["variants"][wildcards.variant], "rest_state": model["rest_state"]})
+    return as_json(TrainConfig.from_dict(model["train"]).for_layout(layout).to_dict())
+
+
 def token_grid_option(wildcards=None):
     """--token-grid ROWS COLS for the predictor's pooled tokens (empty: the encoder's own grid)."""
     grid = config["model"].get("token_grid")

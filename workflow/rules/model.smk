@@ -52,7 +52,7 @@ rule model_train:
         preset=preset_json,
         token_grid=token_grid_option,
         variant=variant_json,
-        train=as_json(config["model"]["train"]),
+        train=train_json,
         rest_state=config["model"]["rest_state"],
         device=config["model"]["device"],
         score=score_subset("grid", "readout_floor"),

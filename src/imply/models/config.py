@@ -205,6 +205,12 @@ class TrainConfig(Config):
         "learned to use their calibration by epoch 22; benchmarks/s5_robustness.py)",
         minimum=1,
     )
+    context_free_epochs: int | None = option(
+        None,
+        doc="epochs of a variant without calibration (null: epochs). Such a model learns the object-blind answer, "
+        "which has no threshold to cross, so it may need fewer passes than a calibrated one (for_layout)",
+        minimum=1,
+    )
     batch_size: int = option(16, doc="sequences per step", minimum=1)
     lr: float = option(2.0e-3, doc="peak learning rate", exclusive_minimum=0)
     start_lr: float = option(1.0e-4, doc="learning rate at the first warmup step", minimum=0)
@@ -233,6 +239,13 @@ class TrainConfig(Config):
         "weight, only what the history records)",
         minimum=1,
     )
+
+    def for_layout(self, layout: Layout) -> TrainConfig:
+        """The recipe one variant trains with: ``context_free_epochs`` (when set) replaces ``epochs`` for a layout
+        without calibration, and is dropped from the result, so the recipe a model records is the one it ran."""
+        if layout.calib or self.context_free_epochs is None:
+            return self.replace(context_free_epochs=None)
+        return self.replace(epochs=self.context_free_epochs, context_free_epochs=None)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -330,8 +330,10 @@ def train_variant(
     The features are pooled to ``token_grid`` (:meth:`imply.models.features.FeatureSplit.pooled`;
     None keeps the encoder's grid). The predictor's width comes from ``preset``, its
     token width and patch grid from the pooled features. ``validate`` runs after the epochs
-    :func:`train` says. Returns the saved payload (see :func:`train`).
+    :func:`train` says. ``config`` is resolved for the layout (:meth:`TrainConfig.for_layout`). Returns the saved
+    payload (see :func:`train`).
     """
+    config = config.for_layout(layout)
     split = split.pooled(token_grid)
     objects = training_objects(split)
     examples = objects
