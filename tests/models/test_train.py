@@ -83,6 +83,19 @@ def test_resumed_run_matches_uninterrupted(synth, tmp_path):
     assert loaded_layout == layout and payload["history"] == full["history"]
 
 
+def test_each_variant_trains_its_own_epochs():
+    """context_free_epochs replaces epochs for a layout without calibration only, and the recipe a model records
+    is the one it ran (no unused field)."""
+    cfg = TrainConfig(epochs=40, context_free_epochs=15)
+    blind, calibrated = Layout(calib=False), Layout(calib=True)
+    assert cfg.for_layout(blind).epochs == 15 and cfg.for_layout(calibrated).epochs == 40
+    assert cfg.for_layout(blind).context_free_epochs is None is cfg.for_layout(calibrated).context_free_epochs
+    assert TrainConfig(epochs=40).for_layout(blind).epochs == 40
+    assert cfg.for_layout(calibrated) == TrainConfig(epochs=40)  # the calibrated recipe is the one it always was
+    with pytest.raises(ValueError, match="context_free_epochs"):
+        TrainConfig.from_dict({"context_free_epochs": 0})
+
+
 class _RunsCode:
     """What a shared checkpoint could hold: an object whose unpickling calls a function."""
 

@@ -37,3 +37,19 @@ def test_told_error_reads_the_heavier_of_the_true_effects_own_hypotheses_whateve
     truth = {"name": "viscous", "magnitude": 0.5}
     assert abs(told_error(truth, summary) - 0.1) < 1e-12  # 0.55 against 0.5, not the lighter 0.2 nor the 0.9
     assert told_error({"name": "air_drag", "magnitude": 1.0}, summary) is None  # never fitted alone
+
+
+def test_a_log_whose_world_settled_no_push_is_neither_diagnosed_nor_scored(tmp_path, caplog):
+    """A world that settles none of a log's pushes leaves a log with no rows: the scoring leaves its label out (and
+    says so), and the batch of diagnoses passes the file by instead of stopping the whole batch."""
+    from imply.cli import main
+    from imply.realworld.benchmark import measured
+
+    labels = {"log-000": {"pushes": {"kept": [True, False]}}, "log-001": {"pushes": {"kept": [False, False]}}}
+    with caplog.at_level("WARNING", logger="imply"):
+        assert list(measured(labels)) == ["log-000"]
+    assert "log-001 left out" in caplog.text
+    (tmp_path / "log-001.csv").write_text("object_id,speed,direction,displacement\n")
+    out = tmp_path / "reports"
+    assert main(["study", "gap", "diagnose-many", str(tmp_path / "log-001.csv"), "-o", str(out)]) == 0
+    assert not any(out.iterdir()) if out.exists() else True

@@ -90,6 +90,9 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
     assert [h["epoch"] for h in history] == [1, 2] and {"own_track", "swap_track", "own_lt_swap_self"} <= set(
         history[0]
     )
+    # the context-free model trains its own epochs (model.train.context_free_epochs)
+    nocalib = json.loads((work / "results/model/nocalib/seed0/training.json").read_text())["history"]
+    assert [h["epoch"] for h in nocalib] == [1]
     assert "vjBErr" in part["numbers"] and "vjBQErr" in part["numbers"]
     report = json.loads((work / "results/section5/evaluate/calib_seed0/results.json").read_text())
     assert report["models"][0]["kind"] == "latents" and report["models"][0]["readout"]["name"] == "ridge on encode()"

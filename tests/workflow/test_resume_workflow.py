@@ -26,7 +26,7 @@ from workflow_helpers import ROOT, copy_workflow
 pytestmark = pytest.mark.slow
 
 TARGET = "results/model/calib/seed0/model.pt"
-EPOCHS = 60
+EPOCHS = 12
 
 
 def _plant(work: Path, tiny_table_path: Path) -> None:

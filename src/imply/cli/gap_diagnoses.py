@@ -14,6 +14,8 @@ log = logging.getLogger("imply")
 
 
 def cmd_diagnose_many(args: argparse.Namespace) -> int:
+    import pandas as pd
+
     from imply.diagnose.run import run
 
     out = output_dir(args.output)
@@ -21,6 +23,14 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
     pushlogs = [str(p) for path in args.pushlogs for p in logs_in(path)]
     if not pushlogs:
         raise UserError(f"no push logs in {', '.join(args.pushlogs)}")
+    # a benchmark world that settled none of a log's pushes leaves a log with no rows: nothing to diagnose, and its
+    # scoring leaves it out too (imply.realworld.benchmark.measured)
+    empty = [p for p in pushlogs if Path(p).suffix == ".csv" and pd.read_csv(p, nrows=1).empty]
+    for path in empty:
+        log.warning("%s passed by: no data rows (its world settled none of its pushes)", path)
+    pushlogs = [p for p in pushlogs if p not in empty]
+    if not pushlogs:
+        return 0
     for path in pushlogs:
         stem = Path(path).stem
         if stem in stems:

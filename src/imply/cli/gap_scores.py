@@ -79,13 +79,13 @@ def cmd_separability(args: argparse.Namespace) -> int:
 
 def cmd_lab_score(args: argparse.Namespace) -> int:
     from imply.paper.results import write_result
-    from imply.realworld.benchmark import CONTACT_SINGLE, find_summaries, shrink_sizes
+    from imply.realworld.benchmark import CONTACT_SINGLE, find_summaries, measured, shrink_sizes
     from imply.realworld.lab_score import score_lab, write_lab_score
 
     design = lab_config(args)
     with user_errors(FileNotFoundError, message="--labels: {error}"):
         with open(args.labels) as fh:
-            labels = json.load(fh)
+            labels = measured(json.load(fh))
     summaries = {}
     tiers = (
         ("no_probes", args.reports_no_probes),
@@ -134,13 +134,13 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
     from imply.paper.results import write_result
-    from imply.realworld.benchmark import find_summaries, score_cases, visible_sizes
+    from imply.realworld.benchmark import find_summaries, measured, score_cases, visible_sizes
     from imply.realworld.benchmark_report import write_benchmark_markdown
 
     table = load_table(args.table)
     config = benchmark_config(args)
     with open(args.sealed) as fh:
-        labels = json.load(fh)
+        labels = measured(json.load(fh))
     with open(args.accuracy) as fh:
         accuracy = json.load(fh)
     with user_errors(FileNotFoundError, message="--reports: {error}"):
@@ -153,7 +153,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         if args.contact_bench_json is None or not args.contact_reports:
             raise UserError("--contact-sealed needs --contact-bench-json and --contact-reports")
         with open(args.contact_sealed) as fh:
-            contact_labels = json.load(fh)
+            contact_labels = measured(json.load(fh))
         with user_errors(FileNotFoundError, message="--contact-reports: {error}"):
             contact_summaries = find_summaries(contact_labels, [Path(r) for r in args.contact_reports])
         from imply.realworld.cases import ContactBenchmarkConfig

@@ -30,6 +30,7 @@ discrepancy):
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,8 @@ from imply.diagnose.inference.estimates import AcceptedEffect
 from imply.diagnose.inputs.observables import Observables
 from imply.diagnose.physics.candidates import CONTACT
 from imply.realworld.cases import BenchmarkConfig
+
+log = logging.getLogger("imply")
 
 
 def visible_size(label: dict, table, what: str = "all", grid: int = 61) -> float:
@@ -128,6 +131,16 @@ def visible_sizes(labels: dict[str, dict], table, *, progress: bool = True) -> d
         cid: {what: visible_size(lab, table, what) for what in lab["noise_free"]}
         for cid, lab in tqdm(labels.items(), desc="visible sizes", unit="log", disable=not progress)
     }
+
+
+def measured(labels: dict[str, dict]) -> dict[str, dict]:
+    """The labels of the logs a lab could have written: those whose world settled at least one of their pushes
+    (``pushes.kept``). A world that settles none (a box creeping down a tilted table on regularised friction, say)
+    leaves a log with no rows, which is neither diagnosed (``imply study gap diagnose-many`` passes it by) nor scored."""
+    kept = {cid: lab for cid, lab in labels.items() if any(lab["pushes"]["kept"])}
+    for cid in sorted(set(labels) - set(kept)):
+        log.warning("log %s left out: its world settled none of its %d pushes", cid, len(labels[cid]["pushes"]["kept"]))
+    return kept
 
 
 def find_summaries(labels: dict[str, dict], report_dirs: list[Path]) -> dict[str, Summary]:
