@@ -90,8 +90,9 @@ def test_each_variant_trains_its_own_epochs():
     blind, calibrated = Layout(calib=False), Layout(calib=True)
     assert cfg.for_layout(blind).epochs == 15 and cfg.for_layout(calibrated).epochs == 40
     assert cfg.for_layout(blind).context_free_epochs is None is cfg.for_layout(calibrated).context_free_epochs
-    assert TrainConfig(epochs=40).for_layout(blind).epochs == 40
-    assert cfg.for_layout(calibrated) == TrainConfig(epochs=40)  # the calibrated recipe is the one it always was
+    assert TrainConfig(epochs=40, context_free_epochs=None).for_layout(blind).epochs == 40
+    # the calibrated recipe is the one it always was
+    assert cfg.for_layout(calibrated) == TrainConfig(epochs=40, context_free_epochs=None)
     with pytest.raises(ValueError, match="context_free_epochs"):
         TrainConfig.from_dict({"context_free_epochs": 0})
 
