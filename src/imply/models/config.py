@@ -208,8 +208,8 @@ class TrainConfig(Config):
     context_free_epochs: int | None = option(
         15,
         doc="epochs of a variant without calibration (null: epochs). Such a model learns the object-blind answer, "
-        "which has no threshold to cross (15: validation error within the 40-epoch runs' range in 8 of 8 runs; "
-        "docs/notes/section5-recipe.md)",
+        "which has no threshold to cross (15: every Section 5 target and claim held or failed in the same 8 validation "
+        "runs as with 40; docs/notes/section5-recipe.md)",
         minimum=1,
     )
     batch_size: int = option(16, doc="sequences per step", minimum=1)
