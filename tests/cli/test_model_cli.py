@@ -15,9 +15,9 @@ from synthetic_features import synth_split
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 TINY = {"width": 32, "depth": 2, "heads": 2}
-TRAIN = {"epochs": 2, "batch_size": 16, "rollout_steps": 2, "final_weight": 5.0}
+TRAIN = {"epochs": 2, "context_free_epochs": None, "batch_size": 16, "rollout_steps": 2, "final_weight": 5.0}
 # the smallest training (the default is the study's 40 epochs)
-ONE_EPOCH = {"epochs": 1}
+ONE_EPOCH = {"epochs": 1, "context_free_epochs": None}
 QUERY = {"query_context": 1, "query_frames": [0, 1, 4, 7]}
 VARIANTS = {"calib": {"calib": True, **QUERY}, "nocalib": {"calib": False, **QUERY}}
 

@@ -43,7 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--variant-json", type=json_arg, required=True, help="the sequence layout (config model.variants.X)"
     )
-    tr.add_argument("--train-json", type=json_arg, required=True, help="training settings (config model.train)")
+    tr.add_argument(
+        "--train-json",
+        type=json_arg,
+        required=True,
+        help="training settings (config model.train; a layout without calibration trains context_free_epochs, "
+        "15 unless given, null: epochs)",
+    )
     tr.add_argument(
         "--rest-state",
         type=float,
