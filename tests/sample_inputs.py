@@ -1,5 +1,12 @@
 """Small, valid inputs shared by the tests of the commands that read them."""
 
+# the coarse effect grid of every test that diagnoses (--effect-grid-json): one grid, so the run's shared effect-table
+# cache (conftest effect_cache) builds each table once
+EFFECT_GRID_JSON = (
+    '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, '
+    '"floor_pushes": 24}'
+)
+
 # two objects for `imply score`: a with its two calibration pushes, b without
 ROLLOUTS_CSV = """object_id,role,speed,displacement
 a,calibration,0.3,0.035

@@ -21,6 +21,7 @@ import pandas as pd
 import pytest
 
 from imply.extras import EXTRA_OF_MODULE, NOT_IN_CORE
+from sample_inputs import EFFECT_GRID_JSON
 from video_helpers import oracle_pngs
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,9 +46,7 @@ FAST_DIAGNOSIS = [
     "--effects",
     "tilt,speed_gain,viscous",
     "--effect-grid-json",
-    # the grid of tests/diagnose and the diagnose tutorial's test: the effect tables are built once per run
-    '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, '
-    '"floor_pushes": 24}',
+    EFFECT_GRID_JSON,
     "--threads",
     "2",
 ]

@@ -22,6 +22,7 @@ import pytest
 
 from imply import docs_pages
 from imply.options import Config
+from sample_inputs import EFFECT_GRID_JSON
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -277,7 +278,7 @@ def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_pat
     snakemake(work, "-n", *sorted(targets))
 
 
-GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, "floor_pushes": 24}'  # as tests/diagnose: one effect cache
+GRID = EFFECT_GRID_JSON
 
 
 def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path, effect_cache):

@@ -25,9 +25,9 @@ from imply.diagnose.physics.probe_fit import Servo
 from imply.io import write_csv
 from imply.realworld import cases as C
 from imply.sim import SceneConfig
-from sample_inputs import PUSHLOG_CSV
+from sample_inputs import EFFECT_GRID_JSON, PUSHLOG_CSV
 
-GRID = '{"n_speeds": 4, "n_masses": 4, "n_frictions": 4, "stop_speeds": 5, "stop_masses": 4, "stop_frictions": 4, "floor_pushes": 24}'
+GRID = EFFECT_GRID_JSON
 EFFECTS = "tilt,speed_offset,viscous"
 DESIGN = C.ContactBenchmarkConfig.from_dict(
     {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}
