@@ -14,6 +14,7 @@ import yaml
 
 from imply.sim import SceneConfig
 from imply.table import PushTable, TableGrid, build_table
+from run_folders import copy_whole, run_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,61 +76,21 @@ def analytic_log_d(v, m, mu):
 
 
 @pytest.fixture(scope="session")
-def full_table(scene, default_config, request, tmp_path_factory) -> PushTable:
-    """The default 19 x 25 x 21 table, cached across runs under pytest's cache dir, and built once per run however
-    many test workers ask for it (the first builds it, the others wait for its file)."""
-    grid = TableGrid.from_dict(default_config["table"])
+def full_table(scene, default_config) -> PushTable:
+    """The default 19 x 25 x 21 table, read from tests/stored/default_table.npz (building it takes four
+    CPU-minutes); tests/test_table.py holds the file to the builder, cell by cell on a sample."""
     from imply.table import config_digest
+    from stored.make_default_table import STORED_TABLE
 
+    grid = TableGrid.from_dict(default_config["table"])
     key = config_digest({"scene": scene.to_dict(), "grid": grid.__dict__})
-    cache_api = getattr(request.config, "cache", None)  # absent with -p no:cacheprovider
-    folder = Path(cache_api.mkdir("imply-tables")) if cache_api else run_folder(tmp_path_factory, "imply-tables")
-    return _built_once(folder / f"table-{key}.npz", lambda: build_table(scene, grid, nthread=2))
-
-
-def _built_once(path: Path, build, patience_s: float = 1800.0) -> PushTable:
-    """The table at ``path``, built by whichever process takes its lock file first; the others wait for it."""
-    import time
-
-    lock = path.with_suffix(".lock")
-    waited = 0.0
-    while not path.exists():
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            if waited > patience_s or not _holder_alive(lock):  # a builder that died holding the lock
-                lock.unlink(missing_ok=True)
-                waited = 0.0
-                continue
-            time.sleep(1.0)
-            waited += 1.0
-            continue
-        os.write(fd, str(os.getpid()).encode())
-        try:
-            table = build()
-            table.save(path)  # written whole (imply.io): a waiting worker never reads half a file
-            return table
-        finally:
-            os.close(fd)
-            lock.unlink(missing_ok=True)
-    return PushTable.load(path)
-
-
-def _holder_alive(lock: Path) -> bool:
-    """Whether the process whose pid the lock file holds still runs (a lock just created, still empty, counts)."""
-    try:
-        text = lock.read_text().strip()
-    except FileNotFoundError:
-        return True
-    if not text:
-        return True
-    try:
-        os.kill(int(text), 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, ValueError):
-        return True
-    return True
+    table = PushTable.load(STORED_TABLE)
+    if table.meta.get("config_digest") != key:
+        pytest.fail(
+            f"{STORED_TABLE.relative_to(ROOT)} was built for another scene or table grid than config.yaml's "
+            f"(config digest {table.meta.get('config_digest')} against {key}): python tests/stored/make_default_table.py"
+        )
+    return table
 
 
 @pytest.fixture
@@ -180,15 +141,13 @@ def known_answers_suite(full_table, tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def effect_cache(tmp_path_factory) -> Path:
     """One effect-table cache for the diagnostic's tests (tables are keyed by the grid and effects they hold), shared
-    by the run's test workers: each table is written whole (``imply.io``), so a worker finds it built or builds it."""
-    return run_folder(tmp_path_factory, "effect-cache")
+    by the run's test workers and started from tests/stored/effect-cache (the tables the tests ask for, built once by
+    tests/stored/make_effect_cache.py): a table missing there is built and written whole (``imply.io``), so a worker
+    finds it built or builds it."""
+    from stored.make_effect_cache import STORED_EFFECT_CACHE
 
-
-def run_folder(tmp_path_factory, name: str) -> Path:
-    """A folder named ``name`` for this test run, shared by its xdist workers (their base folders' parent), or a
-    fresh one without xdist."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        return tmp_path_factory.mktemp(name)
-    folder = tmp_path_factory.getbasetemp().parent / name
-    folder.mkdir(exist_ok=True)
+    folder = run_folder(tmp_path_factory, "effect-cache")
+    for stored in STORED_EFFECT_CACHE.iterdir():
+        if not (folder / stored.name).exists():
+            copy_whole(stored, folder / stored.name)
     return folder

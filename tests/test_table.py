@@ -35,6 +35,19 @@ def test_full_table_every_cell(full_table):
     assert d.min() < 0.02 and d.max() > 0.3  # slides from about a centimetre to tens of cm
 
 
+def test_the_stored_default_table_is_what_the_builder_gives(full_table, scene):
+    """tests/stored/default_table.npz against the simulator, on its 8 corners and 40 random cells: the same log d
+    to 1e-6 (the builder is deterministic; the margin is for another CPU's last bits), so the tests that read the
+    stored table read what ``build_table`` writes today."""
+    from imply.sim import simulate_pushes
+
+    nodes = check_nodes(full_table.log_d.shape, 48, seed=20261129)
+    i, j, k = np.unravel_index(nodes, full_table.log_d.shape)
+    run = simulate_pushes(full_table.speeds[i], full_table.masses[j], full_table.frictions[k], scene=scene, nthread=1)
+    assert run.ok.all()
+    np.testing.assert_allclose(np.log(run.displacement), full_table.log_d[i, j, k], rtol=0, atol=1e-6)
+
+
 def test_check_nodes_take_the_corners_first_then_distinct_random_nodes():
     nodes = check_nodes((19, 25, 21), 200, seed=3)
     assert nodes.size == 200 and np.unique(nodes).size == 200

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from run_folders import built_once
 from workflow_helpers import ROOT, copy_workflow
 
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
@@ -67,14 +68,17 @@ def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def dag_dir(tmp_path_factory, tiny_table_path) -> Path:
-    work = tmp_path_factory.mktemp("s4dag")
-    copy_workflow(work)
-    # the small config's table grid is the tiny fixture's: reuse it instead of rebuilding
-    (work / "results" / "table").mkdir(parents=True)
-    shutil.copy(tiny_table_path, work / "results" / "table" / "table.npz")
-    proc = snakemake(work, *TARGETS)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return work
+    """The small config's Section 4 run, built by one test worker for both tests (the second only plans)."""
+
+    def build(work: Path) -> None:
+        copy_workflow(work)
+        # the small config's table grid is the tiny fixture's: reuse it instead of rebuilding
+        (work / "results" / "table").mkdir(parents=True)
+        shutil.copy(tiny_table_path, work / "results" / "table" / "table.npz")
+        proc = snakemake(work, *TARGETS)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+
+    return built_once(tmp_path_factory, "s4dag", build)
 
 
 @pytest.mark.slow

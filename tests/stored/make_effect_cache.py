@@ -1,0 +1,62 @@
+"""Write ``effect-cache/``: the effect tables every diagnosing test reads, on the tiny table and the tests' coarse grid.
+
+The tests copy these files into their run's effect-table cache (conftest ``effect_cache``) instead of simulating them
+(a CPU-minute). A file's name carries the digest of what it was built from (scene, grids, levels, MuJoCo's version,
+the tiny table's own digest), so a change there makes the tests build the table afresh, and tests/diagnose/
+test_stored_inputs.py rebuilds one of them to hold the files to the builder. Run this after changing the effect
+library or how its tables are built:
+
+    python tests/stored/make_effect_cache.py
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+STORED_EFFECT_CACHE = HERE / "effect-cache"
+# the candidates the diagnosing tests name (--effects): tilt, speed_offset, viscous and speed_gain
+TEST_EFFECTS = ("tilt", "speed_offset", "viscous", "speed_gain")
+
+
+def tiny_table():
+    """The tests' tiny table (conftest ``tiny_table``): the default scene on a 7 x 6 x 6 grid."""
+    sys.path.insert(0, str(HERE.parent))
+    from conftest import TINY_GRID
+    from imply.sim import SceneConfig
+    from imply.table import build_table
+
+    return build_table(SceneConfig(), TINY_GRID, nthread=0)
+
+
+def build(cache_dir: Path) -> None:
+    """The tables of ``TEST_EFFECTS`` on the tests' effect grid, simulated into ``cache_dir``."""
+    sys.path.insert(0, str(HERE.parent))
+    from imply.diagnose.analysis import DiagnosisConfig
+    from imply.diagnose.physics import candidates
+    from imply.diagnose.physics.effect_tables import CoarseGrid
+    from imply.diagnose.run import effect_tables
+    from sample_inputs import EFFECT_GRID_JSON
+
+    effect_tables(
+        tiny_table(),
+        candidates.get(list(TEST_EFFECTS)),
+        options=DiagnosisConfig(),
+        grid=CoarseGrid.from_dict(json.loads(EFFECT_GRID_JSON)),
+        cache_dir=cache_dir,
+        progress=True,
+    )
+
+
+def main() -> None:
+    shutil.rmtree(STORED_EFFECT_CACHE, ignore_errors=True)
+    STORED_EFFECT_CACHE.mkdir()
+    build(STORED_EFFECT_CACHE)
+    print(f"wrote {', '.join(sorted(p.name for p in STORED_EFFECT_CACHE.iterdir()))} in {STORED_EFFECT_CACHE}")
+
+
+if __name__ == "__main__":
+    main()
