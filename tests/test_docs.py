@@ -281,6 +281,7 @@ def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_pat
 GRID = EFFECT_GRID_JSON
 
 
+@pytest.mark.slow
 def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path, effect_cache):
     """Every command of the diagnose tutorial, in order, on the tiny table (the diagnosis on three candidate effects and
     a coarse effect grid, so that it takes seconds)."""

@@ -6,6 +6,7 @@ from the effect tables the verdict reads."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import mujoco
@@ -26,6 +27,7 @@ from imply.diagnose.physics import candidates
 from imply.diagnose.physics.candidates import Model
 from imply.diagnose.physics.probe_fit import Servo
 from imply.sim.scene import SceneConfig, build_xml
+from run_folders import built_once
 
 TRUE_TILT = 0.02
 
@@ -38,15 +40,21 @@ def cache(effect_cache):
 @pytest.fixture(scope="module")
 def tilted(tmp_path_factory, tiny_table, tiny_table_path, cache):
     """A table sloping 0.02 rad toward the table's +x, diagnosed with the simulator refit: (summary, report folder)."""
-    tmp = tmp_path_factory.mktemp("tilted")
     # slides alone (the tutorial's test refits stop times too): a refit of stop times records every push each ms
     case = _case([_effect("tilt", TRUE_TILT, 0.0)], seed=21)
     # two iterations: the refit starts at the tables' estimate, and each iteration is several passes over the log
     extra = ["--refit", "--options-json", '{"refit_iterations": 2}']
-    s, _, _ = _diagnose(tmp, tiny_table, tiny_table_path, cache, case, extra=extra)
-    return s, tmp / f"report-{case['id']}"
+    # diagnosed by one test worker for all of this module's tests, whichever workers run them
+    tmp = built_once(
+        tmp_path_factory,
+        "tilted",
+        lambda folder: _diagnose(folder, tiny_table, tiny_table_path, cache, case, extra=extra),
+    )
+    folder = tmp / f"report-{case['id']}"
+    return json.loads((folder / "summary.json").read_text()), folder
 
 
+@pytest.mark.slow
 def test_the_corrected_scene_holds_the_stated_tilt_and_loads_plainly(tilted):
     s, folder = tilted
     assert s["verdict"]["effects"] == ["tilt"], s["verdict"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 import yaml
 
 from workflow_helpers import ROOT, copy_workflow, planned, snakemake
@@ -12,6 +13,7 @@ TINY = ROOT / "tests" / "config" / "evaluate_tiny.yaml"
 TARGET = "results/paper/parts/evaluate.json"
 
 
+@pytest.mark.slow
 def test_the_evaluate_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):
     work = copy_workflow(tmp_path)
     override = work / "tiny.yaml"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 import yaml
 
 from imply.paper.registry import load_registry
@@ -15,6 +16,7 @@ TINY = ROOT / "tests" / "config" / "pixel_tiny.yaml"
 TARGETS = ["results/paper/reproduction.md", "results/paper/figures/figure3.png"]
 
 
+@pytest.mark.slow
 def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):
     work = copy_workflow(tmp_path)
     override = work / "tiny.yaml"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import yaml
 
 from imply.table import PushTable
@@ -24,6 +25,7 @@ def planned_rules(proc) -> set[str]:
     return rules
 
 
+@pytest.mark.slow
 def test_table_targets_build_and_only_dependants_rerun(tmp_path):
     work = copy_workflow(tmp_path)
     override = work / "small.yaml"
