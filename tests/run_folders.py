@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import time
 from pathlib import Path
 
 import pytest
@@ -13,8 +14,6 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
     """A folder named ``name`` shared by the run's test workers, filled by ``build(folder)`` in whichever worker asks
     first; the others wait for it instead of building it again (a module fixture is otherwise built once per worker
     that runs one of the module's tests). A failed build fails every worker that waits for it, with its error."""
-    import time
-
     folder = run_folder(tmp_path_factory, name)
     done, failed, lock = folder / ".built", folder / ".failed", folder.with_name(f"{name}.lock")
     while not done.exists():
@@ -29,6 +28,11 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
             continue
         os.write(fd, str(os.getpid()).encode())
         try:
+            if done.exists():  # built by the worker that held the lock a moment ago
+                return folder
+            # what a worker that died while building left behind
+            shutil.rmtree(folder)
+            folder.mkdir()
             build(folder)
             done.touch()
         except BaseException as exc:
