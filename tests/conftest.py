@@ -76,13 +76,13 @@ def analytic_log_d(v, m, mu):
 
 
 @pytest.fixture(scope="session")
-def full_table(scene, default_config) -> PushTable:
+def full_table() -> PushTable:
     """The default 19 x 25 x 21 table, read from tests/stored/default_table.npz (building it takes four
     CPU-minutes); tests/test_table.py holds the file to the builder, cell by cell on a sample."""
     from imply.table import config_digest
-    from stored.make_default_table import STORED_TABLE
+    from stored.make_default_table import STORED_TABLE, default_scene_and_grid
 
-    grid = TableGrid.from_dict(default_config["table"])
+    scene, grid = default_scene_and_grid()
     key = config_digest({"scene": scene.to_dict(), "grid": grid.__dict__})
     table = PushTable.load(STORED_TABLE)
     if table.meta.get("config_digest") != key:

@@ -278,9 +278,6 @@ def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_pat
     snakemake(work, "-n", *sorted(targets))
 
 
-GRID = EFFECT_GRID_JSON
-
-
 @pytest.mark.slow
 def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path, effect_cache):
     """Every command of the diagnose tutorial, in order, on the tiny table (the diagnosis on three candidate effects and
@@ -292,7 +289,7 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         "--effects",
         "tilt,speed_gain,viscous",
         "--effect-grid-json",
-        GRID,
+        EFFECT_GRID_JSON,
         "--cache-dir",
         str(effect_cache),
         "--threads",

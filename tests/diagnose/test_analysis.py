@@ -18,7 +18,6 @@ from imply.sim import SceneConfig
 from sample_inputs import EFFECT_GRID_JSON, PUSHLOG_CSV
 
 EFFECTS = "tilt,speed_offset,viscous"
-GRID = EFFECT_GRID_JSON
 DESIGN = C.BenchmarkConfig.from_dict(
     {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}
 )
@@ -74,7 +73,7 @@ def _diagnose(
         "--effects",
         EFFECTS,
         "--effect-grid-json",
-        GRID,
+        EFFECT_GRID_JSON,
         "--cache-dir",
         str(cache),
         "--threads",
@@ -171,7 +170,7 @@ def test_report_folder_is_fresh_and_force_keeps_other_files(tmp_path, tiny_table
         "--effects",
         "speed_gain",
         "--effect-grid-json",
-        GRID,
+        EFFECT_GRID_JSON,
         "--cache-dir",
         str(cache),
         "--noise-sd",

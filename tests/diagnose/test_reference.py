@@ -27,7 +27,6 @@ from imply.realworld import cases as C
 from imply.sim import SceneConfig
 from sample_inputs import EFFECT_GRID_JSON, PUSHLOG_CSV
 
-GRID = EFFECT_GRID_JSON
 EFFECTS = "tilt,speed_offset,viscous"
 DESIGN = C.ContactBenchmarkConfig.from_dict(
     {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}
@@ -92,7 +91,7 @@ def _diagnose(tiny_table_path, cache, log, out, *extra) -> tuple[dict, str]:
         "--effects",
         EFFECTS,
         "--effect-grid-json",
-        GRID,
+        EFFECT_GRID_JSON,
         "--cache-dir",
         str(cache),
         "--threads",

@@ -6,27 +6,14 @@ import json
 
 import numpy as np
 
-from imply.diagnose.analysis import DiagnosisConfig
-from imply.diagnose.physics import candidates
-from imply.diagnose.physics.effect_tables import CoarseGrid
-from imply.diagnose.run import effect_tables
-from sample_inputs import EFFECT_GRID_JSON
-from stored.make_effect_cache import STORED_EFFECT_CACHE
+from stored.make_effect_cache import STORED_EFFECT_CACHE, build
 
 
 def test_the_stored_effect_tables_are_what_the_builder_gives(tiny_table, tmp_path):
     """viscous's table, the observables' baseline and the model floor built afresh (the same names, so the same
     digests) hold the stored files' numbers: the tests that read the stored cache read what the builder writes
     today."""
-    effect_tables(
-        tiny_table,
-        candidates.get(["viscous"]),
-        options=DiagnosisConfig(),
-        grid=CoarseGrid.from_dict(json.loads(EFFECT_GRID_JSON)),
-        cache_dir=tmp_path,
-        nthread=1,
-        progress=False,
-    )
+    build(tmp_path, effects=("viscous",), table=tiny_table, nthread=1)
     built = sorted(p.name for p in tmp_path.iterdir())
     assert [name.split("-")[0] for name in built] == ["effects", "floor", "observables"], built
     for name in built:

@@ -3,7 +3,7 @@
 The tests copy these files into their run's effect-table cache (conftest ``effect_cache``) instead of simulating them
 (a CPU-minute). A file's name carries the digest of what it was built from (scene, grids, levels, MuJoCo's version,
 the tiny table's own digest), so a change there makes the tests build the table afresh, and tests/diagnose/
-test_stored_inputs.py rebuilds one of them to hold the files to the builder. Run this after changing the effect
+test_stored_effect_cache.py rebuilds one of them to hold the files to the builder. Run this after changing the effect
 library or how its tables are built:
 
     python tests/stored/make_effect_cache.py
@@ -17,6 +17,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))  # the tests' helpers, when run as a script
+
 STORED_EFFECT_CACHE = HERE / "effect-cache"
 # the candidates the diagnosing tests name (--effects): tilt, speed_offset, viscous and speed_gain
 TEST_EFFECTS = ("tilt", "speed_offset", "viscous", "speed_gain")
@@ -24,7 +26,6 @@ TEST_EFFECTS = ("tilt", "speed_offset", "viscous", "speed_gain")
 
 def tiny_table():
     """The tests' tiny table (conftest ``tiny_table``): the default scene on a 7 x 6 x 6 grid."""
-    sys.path.insert(0, str(HERE.parent))
     from conftest import TINY_GRID
     from imply.sim import SceneConfig
     from imply.table import build_table
@@ -32,9 +33,9 @@ def tiny_table():
     return build_table(SceneConfig(), TINY_GRID, nthread=0)
 
 
-def build(cache_dir: Path) -> None:
-    """The tables of ``TEST_EFFECTS`` on the tests' effect grid, simulated into ``cache_dir``."""
-    sys.path.insert(0, str(HERE.parent))
+def build(cache_dir: Path, *, effects=TEST_EFFECTS, table=None, nthread: int = 0) -> None:
+    """The tables of ``effects`` against ``table`` (default: :func:`tiny_table`) on the tests' effect grid, simulated
+    into ``cache_dir``, as a diagnosis with the default settings asks for them."""
     from imply.diagnose.analysis import DiagnosisConfig
     from imply.diagnose.physics import candidates
     from imply.diagnose.physics.effect_tables import CoarseGrid
@@ -42,12 +43,13 @@ def build(cache_dir: Path) -> None:
     from sample_inputs import EFFECT_GRID_JSON
 
     effect_tables(
-        tiny_table(),
-        candidates.get(list(TEST_EFFECTS)),
+        tiny_table() if table is None else table,
+        candidates.get(list(effects)),
         options=DiagnosisConfig(),
         grid=CoarseGrid.from_dict(json.loads(EFFECT_GRID_JSON)),
         cache_dir=cache_dir,
-        progress=True,
+        nthread=nthread,
+        progress=table is None,
     )
 
 

@@ -114,7 +114,6 @@ def _leftovers(folder: Path) -> list[str]:
     return [p.name for p in folder.iterdir() if p.name.startswith(".")]
 
 
-@pytest.mark.slow
 def test_interrupted_training_resumes_through_snakemake(tmp_path, tiny_table_path):
     work = copy_workflow(tmp_path / "wf")
     small = yaml.safe_load((ROOT / "tests/config/model_small.yaml").read_text())

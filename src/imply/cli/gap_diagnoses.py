@@ -25,10 +25,13 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
         raise UserError(f"no push logs in {', '.join(args.pushlogs)}")
     # a benchmark world that settled none of a log's pushes leaves a log with no rows: nothing to diagnose, and its
     # scoring leaves it out too (imply.realworld.benchmark.measured)
-    empty = [p for p in pushlogs if Path(p).suffix == ".csv" and pd.read_csv(p, nrows=1).empty]
-    for path in empty:
-        log.warning("%s passed by: no data rows (its world settled none of its pushes)", path)
-    pushlogs = [p for p in pushlogs if p not in empty]
+    with_rows = []
+    for path in pushlogs:
+        if Path(path).suffix == ".csv" and pd.read_csv(path, nrows=1).empty:
+            log.warning("%s passed by: no data rows (its world settled none of its pushes)", path)
+        else:
+            with_rows.append(path)
+    pushlogs = with_rows
     if not pushlogs:
         return 0
     for path in pushlogs:
