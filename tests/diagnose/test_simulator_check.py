@@ -165,3 +165,20 @@ def test_free_strokes_contradict_an_explanation_that_leaves_the_pusher_at_its_co
 )
 def test_the_simulator_contradicts_only_a_shrink_it_cannot_reach(share, predicted, tolerance, expected):
     assert compare_shares(share, predicted, tolerance) == expected
+
+
+def test_replicate_pushes_are_simulated_once_with_the_outcome_of_each_alone():
+    scene = Scene(xml=build_xml(SceneConfig()), name="built-in")
+    lm, lu = np.log([[0.5, 1.2], [0.8, 0.6]]), np.log([[0.2, 0.35], [0.3, 0.15]])
+    # pushes 0 and 2 are replicates, as are 1 and 3; push 4 is object 1 at push 0's speed
+    replicated = PushSet(
+        speed=np.array([0.3, 0.7, 0.3, 0.7, 0.3]), direction=np.zeros(5), obj=np.array([0, 1, 0, 1, 1])
+    )
+    got_d, got_t, got_ok = simulate_log(scene, {}, replicated, lm, lu, stop_time=True)
+    for i in range(5):
+        one = PushSet(speed=replicated.speed[i : i + 1], direction=np.zeros(1), obj=replicated.obj[i : i + 1])
+        want_d, want_t, want_ok = simulate_log(scene, {}, one, lm, lu, stop_time=True)
+        np.testing.assert_array_equal(got_d[:, i], want_d[:, 0])
+        np.testing.assert_array_equal(got_t[:, i], want_t[:, 0])
+        np.testing.assert_array_equal(got_ok[:, i], want_ok[:, 0])
+    assert got_d.shape == (2, 5) and not np.array_equal(got_d[:, 0], got_d[:, 4])

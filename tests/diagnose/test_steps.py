@@ -327,3 +327,23 @@ def test_pipeline_names_anisotropy_and_its_summary_reads_back(analytic_table, tm
     # one contender: nothing to separate, and the next pushes file says so with its header alone
     assert s.next_pushes is None
     assert (tmp_path / "next_pushes.csv").read_text().strip() == "object_id,speed,direction,mass"
+
+
+def test_a_joint_fit_with_a_box_pulled_past_the_table_reaches_the_profiled_optimum(analytic_table):
+    # box 0's friction, 0.07, lies below the table's 0.1: its fit sits at the bound and the pushes pull it further
+    log = make_log(gain=0.12, measured_mass=False, seed=3)
+    rng = np.random.default_rng(3)
+    mu = np.where(log.obj == 0, 0.07, np.geomspace(0.15, 0.45, 6)[log.obj])
+    m = np.geomspace(0.3, 1.5, 6)[log.obj]
+    log_d = analytic_log_d(log.speed * 1.12, m, mu) + rng.normal(0, 0.02, log.speed.size)
+    log = PushLog(**{**log.__dict__, "displacement": np.exp(log_d)})
+    prob = problem_of(log, analytic_table).with_noise(0.02, None)
+    model = Model((candidates.CANDIDATES["speed_gain"],))
+    start = prob.initial_fit()
+    fit = prob.fit(model, np.array([0.0]), start)
+    assert fit.objects.lu[0] == pytest.approx(prob.lu_range[0])
+    # the profile over the gain's range, every box refitted within the table's range at each value
+    gains = np.linspace(model.lo()[0], model.hi()[0], 401)[:, None]
+    _, _, sse = prob.refine_many(model, gains, start.lm[None, :], start.lu[None, :], iters=30)
+    assert fit.sse <= sse.sum(1).min() + 0.05
+    assert fit.iterations < 25

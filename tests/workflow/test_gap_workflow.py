@@ -223,20 +223,27 @@ def check_lab(tmp_path):
     # every log has a reference session: its boxes, one push of each of its pushes' conditions, probes where it has
     # them; its diagnosis against it says both gaps, and the tier is scored apart
     refs = tmp_path / "results/gap/lab/sealed/references"
+    shards = sorted((tmp_path / "results/gap/lab/sealed/reports_reference").iterdir())
+    assert len(shards) > 1 and shards == sorted((tmp_path / "results/gap/lab/sealed/reports_reference").glob("shard*"))
     for name, lab in labels.items():
         ref, own = read_pushlog(refs / f"{name}.csv"), read_pushlog(folder / f"{name}.csv")
         assert ref.objects == own.objects and (refs / f"{name}.probes.csv").is_file() == bool(lab["probes"])
         conditions = {(o, round(v, 6), round(d, 6)) for o, v, d in zip(own.obj, own.speed, own.direction, strict=True)}
         assert ref.n == len(conditions)
-        summary = json.loads((tmp_path / f"results/gap/lab/sealed/reports_reference/{name}/summary.json").read_text())
+        # the reference tier is sharded: each log diagnosed once, in the shard of its place in the sorted set
+        found = sorted((tmp_path / "results/gap/lab/sealed/reports_reference").glob(f"shard*/{name}/summary.json"))
+        assert [p.parts[-3] for p in found] == [f"shard{sorted(labels).index(name) % len(shards)}"]
+        summary = json.loads(found[0].read_text())
         assert summary["reference"]["objects_shared"] == own.objects and "cause_shrink" in summary
         assert summary["sentence"].startswith("The standing gap, read from the reference session")
     assert scored["reference"]["all"]["n_logs"] == 4
     single = [c for c in scored["reference"]["all"]["cases"] if c["group"].startswith("single")]
     assert all(c["true_share"] is None or -1 < c["true_share"] <= 1 for c in single)
     # the closed loop ran (probes allowed) on the logs the reference tier left with several contenders
-    loop = json.loads((tmp_path / "results/gap/lab/sealed/closed_loop/closed_loop.json").read_text())
-    assert {r["arm"] for r in loop["rows"]} <= {"next", "random"}
+    loops = sorted((tmp_path / "results/gap/lab/sealed/closed_loop").glob("shard*/closed_loop.json"))
+    assert len(loops) == len(shards)
+    rows = [r for path in loops for r in json.loads(path.read_text())["rows"]]
+    assert {r["arm"] for r in rows} <= {"next", "random"}
     assert set(scored["closed_loop"]) >= {"next", "random", "rows"}
     md = (tmp_path / "results/gap/lab/sealed/score.md").read_text()
     assert md.startswith("# Lab benchmark") and "## Closed loop" in md and "## How far the gap shrinks" in md

@@ -313,7 +313,8 @@ rule gap_lab_diagnose:
 
 
 # The third tier: each log diagnosed against its reference session (the same world and boxes without the effect,
-# one push of each, fresh noise; with probes where the log has them).
+# one push of each, fresh noise; with probes where the log has them). This tier and its closed loop are the end of
+# the stage's longest chain: sharded like the main set's diagnoses, so that the study's last minutes use both cores.
 rule gap_lab_diagnose_reference:
     conda:
         IMPLY_ENV
@@ -323,23 +324,26 @@ rule gap_lab_diagnose_reference:
         table="results/table/table.npz",
         tables="results/gap/effect_tables",
     output:
-        directory("results/gap/lab/{set}/reports_reference"),
+        directory("results/gap/lab/{set}/reports_reference/shard{shard}"),
     params:
         grid=as_json(config["gap"]["effect_grid"]),
         options=lambda wildcards: gap_lab_diagnose_options(wildcards, probes=True),
         effects=gap_effects_option(),
+        shards=len(GAP_SHARDS),
     wildcard_constraints:
         set="development|sealed",
     threads: 1
+    priority: 15
     resources:
         mem_mb=1500,
-        runtime=40,
+        runtime=20,
     log:
-        "results/logs/gap_lab_diagnose_reference_{set}.log",
+        "results/logs/gap_lab_diagnose_reference_{set}_shard{shard}.log",
     benchmark:
-        "results/benchmarks/gap_lab_diagnose_reference/{set}.tsv"
+        "results/benchmarks/gap_lab_diagnose_reference/{set}_{shard}.tsv"
     shell:
-        "imply study gap diagnose-many {input.logs} --references {input.references} --table {input.table}"
+        "imply study gap diagnose-many {input.logs} --shard {wildcards.shard} --shards {params.shards}"
+        " --references {input.references} --table {input.table}"
         " --effect-grid-json {params.grid} {params.effects} --options-json {params.options} --cache-dir {input.tables}"
         " --threads 1 --no-plots -o {output} > {log} 2>&1"
 
@@ -353,11 +357,11 @@ rule gap_lab_closed_loop:
     input:
         logs="results/gap/lab/{set}/logs",
         references="results/gap/lab/{set}/references",
-        reports="results/gap/lab/{set}/reports_reference",
+        reports="results/gap/lab/{set}/reports_reference/shard{shard}",
         table="results/table/table.npz",
         tables="results/gap/effect_tables",
     output:
-        directory("results/gap/lab/{set}/closed_loop"),
+        directory("results/gap/lab/{set}/closed_loop/shard{shard}"),
     params:
         lab=gap_lab_set_json,
         grid=as_json(config["gap"]["effect_grid"]),
@@ -366,13 +370,14 @@ rule gap_lab_closed_loop:
     wildcard_constraints:
         set="development|sealed",
     threads: 1
+    priority: 15
     resources:
         mem_mb=2000,
-        runtime=40,
+        runtime=20,
     log:
-        "results/logs/gap_lab_closed_loop_{set}.log",
+        "results/logs/gap_lab_closed_loop_{set}_shard{shard}.log",
     benchmark:
-        "results/benchmarks/gap_lab_closed_loop/{set}.tsv"
+        "results/benchmarks/gap_lab_closed_loop/{set}_{shard}.tsv"
     shell:
         "imply study gap closed-loop --lab-json {params.lab} --set {wildcards.set} --logs {input.logs}"
         " --reports {input.reports} --references {input.references} --table {input.table}"
@@ -387,8 +392,8 @@ rule gap_lab_score:
         labels="results/gap/lab/{set}/labels.json",
         probes="results/gap/lab/{set}/reports_probes",
         no_probes="results/gap/lab/{set}/reports_no_probes",
-        reference="results/gap/lab/{set}/reports_reference",
-        closed_loop="results/gap/lab/{set}/closed_loop",
+        reference=expand("results/gap/lab/{{set}}/reports_reference/shard{shard}", shard=GAP_SHARDS),
+        closed_loop=expand("results/gap/lab/{{set}}/closed_loop/shard{shard}", shard=GAP_SHARDS),
         table="results/table/table.npz",
     output:
         result="results/gap/lab/{set}/score.json",

@@ -46,6 +46,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a folder of reference sessions, one per log under the log's file name (with their .probes.csv beside "
         "them): each log is diagnosed against its own ('imply diagnose --reference')",
     )
+    dm.add_argument(
+        "--shards",
+        type=int_range(1),
+        default=1,
+        help="split the logs, in the order given (a folder's sorted), into this many shards and diagnose one",
+    )
+    dm.add_argument(
+        "--shard",
+        type=int_range(0),
+        default=0,
+        help="which shard to diagnose (0 .. shards-1): logs whose index is K mod N",
+    )
     add_diagnose_options(dm)
     dm.set_defaults(func=cmd_diagnose_many)
 
@@ -184,7 +196,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ls.add_argument("--labels", required=True, help="the set's labels ('imply study gap lab-generate')")
     ls.add_argument("--reports-probes", required=True, help="the folder of its report folders, diagnosed with probes")
     ls.add_argument("--reports-no-probes", required=True, help="the same diagnosed without them")
-    ls.add_argument("--reports-reference", help="the same diagnosed against their reference sessions")
+    ls.add_argument(
+        "--reports-reference", nargs="+", help="the same diagnosed against their reference sessions (folders of shards)"
+    )
     ls.add_argument(
         "--closed-loop",
         nargs="*",

@@ -18,11 +18,19 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
 
     from imply.diagnose.run import run
 
+    if args.shard >= args.shards:
+        raise UserError(f"--shard {args.shard}: need 0 <= shard < --shards {args.shards}")
     out = output_dir(args.output)
     stems: dict[str, str] = {}
     pushlogs = [str(p) for path in args.pushlogs for p in logs_in(path)]
     if not pushlogs:
         raise UserError(f"no push logs in {', '.join(args.pushlogs)}")
+    pushlogs = pushlogs[args.shard :: args.shards]
+    if not pushlogs:
+        # more shards than logs: this one has none, and its folder says so by being empty
+        out.mkdir(parents=True, exist_ok=True)
+        log.info("shard %d of %d holds none of the logs", args.shard, args.shards)
+        return 0
     # a benchmark world that settled none of a log's pushes leaves a log with no rows: nothing to diagnose, and its
     # scoring leaves it out too (imply.realworld.benchmark.measured)
     with_rows = []

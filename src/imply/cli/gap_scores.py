@@ -88,15 +88,15 @@ def cmd_lab_score(args: argparse.Namespace) -> int:
             labels = measured(json.load(fh))
     summaries = {}
     tiers = (
-        ("no_probes", args.reports_no_probes),
-        ("probes", args.reports_probes),
+        ("no_probes", [args.reports_no_probes]),
+        ("probes", [args.reports_probes]),
         ("reference", args.reports_reference),
     )
-    for variant, folder in tiers:
-        if folder is None:
+    for variant, folders in tiers:
+        if not folders:
             continue
         with user_errors(FileNotFoundError, message=f"--reports-{variant.replace('_', '-')}: {{error}}"):
-            summaries[variant] = find_summaries(labels, [Path(folder)])
+            summaries[variant] = find_summaries(labels, [Path(f) for f in folders])
     result = score_lab(
         labels,
         summaries,

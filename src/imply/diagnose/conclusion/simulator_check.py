@@ -202,7 +202,15 @@ def simulate_log(
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """The pushes in ``scene`` with ``causes`` written in, each box at exp(lm), exp(lu) of its object (K settings at
     once: lm, lu (K, N)): log displacement (K, n), log stop time (K, n) with ``stop_time`` (else None), and ok
-    (K, n). A tilt needs a scene per push direction; everything else shares one."""
+    (K, n). A tilt needs a scene per push direction; everything else shares one. Replicate pushes (the same object,
+    speed and direction) are simulated once: the simulator gives them the same outcome."""
+    key = np.stack([pushes.obj.astype(float), pushes.speed, pushes.direction], 1)
+    distinct, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    if distinct.shape[0] < pushes.speed.size:
+        once = PushSet(speed=pushes.speed[first], direction=pushes.direction[first], obj=pushes.obj[first])
+        log_d, log_t, ok = simulate_log(scene, causes, once, lm, lu, stop_time=stop_time, nthread=nthread)
+        back = back.ravel()
+        return log_d[:, back], None if log_t is None else log_t[:, back], ok[:, back]
     lm, lu = np.atleast_2d(lm), np.atleast_2d(lu)
     k, n = lm.shape[0], pushes.speed.size
     frames = stop_frame_times() if stop_time else None

@@ -19,7 +19,8 @@ Fits are Gauss-Newton / Levenberg-Marquardt with finite-difference Jacobians: pe
 (log m, log mu) alone at fixed theta (:meth:`Problem.refine`, vectorised over objects:
 2 x 2 normal equations per object), or theta and every object's parameters jointly
 (:meth:`Problem.fit`), the objects' blocks eliminated by their Schur complement, bounds
-by projection. A measured mass or friction is held fixed. At a joint optimum each
+by projection (an object's parameter at its bound that the data pull past it held there for the step,
+theta's too). A measured mass or friction is held fixed. At a joint optimum each
 object's contribution to the profiled sum of squares is kept as a quadratic in theta
 (:class:`JointFit`), which gives leave-objects-out fits in closed form (one Newton step).
 """
@@ -680,6 +681,9 @@ class Problem(Predicting, FreeLaunch):
                 break
             A, B, C, g_u, g_t, r0 = blocks
             sse = float(r0 @ r0) + float(prec @ theta**2)
+            # an object parameter at its bound that the data pull past it is held there: clipping its step instead
+            # would leave theta's step profiled over a move the object cannot make, and the fit would crawl
+            A, B, g_u = self._hold_at_bounds(objs, A, B, g_u)
             Ad = A + lam * A * np.eye(2)[None]  # damped object blocks
             Ainv = np.linalg.inv(Ad + 1e-12 * np.eye(2))
             # the prior's half Hessian and half gradient join the objects' profiled ones
@@ -723,6 +727,22 @@ class Problem(Predicting, FreeLaunch):
         S_i = C - np.einsum("naj,nab,nbk->njk", B, Ainv, B)
         b_i = g_t - np.einsum("naj,nab,nb->nj", B, Ainv, g_u)
         return JointFit(model, theta, objs, S_i, b_i, it)
+
+    def _hold_at_bounds(self, objs: ObjectFit, A: np.ndarray, B: np.ndarray, g_u: np.ndarray):
+        """The object blocks with every object parameter held that sits at its bound and that the sum of squares
+        pulls past it: its row and column of A made the identity's, its row of B and its gradient zero, so that the
+        step leaves it where it is and theta's step is profiled over the objects' free parameters alone."""
+        eps = 1e-9
+        at = np.stack([objs.lm, objs.lu], 1)
+        lo = np.array([self.lm_range[0], self.lu_range[0]])
+        hi = np.array([self.lm_range[1], self.lu_range[1]])
+        held = ((at <= lo + eps) & (g_u > 0)) | ((at >= hi - eps) & (g_u < 0))
+        if not held.any():
+            return A, B, g_u
+        A = np.where(held[:, :, None] | held[:, None, :], 0.0, A)
+        for a in range(2):
+            A[:, a, a] = np.where(held[:, a], 1.0, A[:, a, a])
+        return A, np.where(held[:, :, None], 0.0, B), np.where(held, 0.0, g_u)
 
     def _stencil(
         self, model: Model, theta: np.ndarray, lm: np.ndarray, lu: np.ndarray, hstep: np.ndarray
