@@ -19,8 +19,8 @@ Fits are Gauss-Newton / Levenberg-Marquardt with finite-difference Jacobians: pe
 (log m, log mu) alone at fixed theta (:meth:`Problem.refine`, vectorised over objects:
 2 x 2 normal equations per object), or theta and every object's parameters jointly
 (:meth:`Problem.fit`), the objects' blocks eliminated by their Schur complement, bounds
-by projection (an object's parameter at its bound that the data pull past it held there for the step,
-theta's too). A measured mass or friction is held fixed. At a joint optimum each
+by projection: a parameter at its bound that the data pull past it, an object's or theta's, is held there for
+the step. A measured mass or friction is held fixed. At a joint optimum each
 object's contribution to the profiled sum of squares is kept as a quadratic in theta
 (:class:`JointFit`), which gives leave-objects-out fits in closed form (one Newton step).
 """
