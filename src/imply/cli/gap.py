@@ -46,17 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a folder of reference sessions, one per log under the log's file name (with their .probes.csv beside "
         "them): each log is diagnosed against its own ('imply diagnose --reference')",
     )
-    dm.add_argument(
-        "--shards",
-        type=int_range(1),
-        default=1,
-        help="split the logs, in the order given (a folder's sorted), into this many shards and diagnose one",
-    )
-    dm.add_argument(
-        "--shard",
-        type=int_range(0),
-        default=0,
-        help="which shard to diagnose (0 .. shards-1): logs whose index is K mod N",
+    add_shard_options(
+        dm, "diagnose", after="in the order given, a folder's logs sorted; each shard writes its own report folders"
     )
     add_diagnose_options(dm)
     dm.set_defaults(func=cmd_diagnose_many)
@@ -237,17 +228,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.set_defaults(func=cmd_benchmark)
 
 
-def add_shard_options(parser: argparse.ArgumentParser) -> None:
-    """``--shard K --shards N``: write only the logs whose index in the set is K modulo N (imply.realworld.shards)."""
+def add_shard_options(
+    parser: argparse.ArgumentParser,
+    verb: str = "write",
+    *,
+    after: str = "join the labels with 'imply study gap merge-labels'",
+) -> None:
+    """``--shard K --shards N``: ``verb`` only the logs whose index in the set is K modulo N (imply.realworld.shards);
+    ``after``: what the help says of the shards and their outputs."""
     parser.add_argument(
         "--shards",
         type=int_range(1),
         default=1,
-        help="split the logs into this many shards and write one (join the labels with 'imply study gap merge-labels')",
+        help=f"split the logs into this many shards and {verb} one ({after})",
     )
     parser.add_argument(
         "--shard",
         type=int_range(0),
         default=0,
-        help="which shard to write (0 .. shards-1): logs whose index is K mod N",
+        help=f"which shard to {verb} (0 .. shards-1): logs whose index is K mod N",
     )

@@ -8,7 +8,7 @@ import logging
 from pathlib import Path
 
 from imply.cli.common import UserError, config_from_json, diagnose_request, output_dir
-from imply.cli.gap_logs import lab_subset
+from imply.cli.gap_logs import check_shard, lab_subset
 
 log = logging.getLogger("imply")
 
@@ -17,15 +17,15 @@ def cmd_diagnose_many(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from imply.diagnose.run import run
+    from imply.realworld.shards import shard_cases
 
-    if args.shard >= args.shards:
-        raise UserError(f"--shard {args.shard}: need 0 <= shard < --shards {args.shards}")
+    check_shard(args)
     out = output_dir(args.output)
     stems: dict[str, str] = {}
     pushlogs = [str(p) for path in args.pushlogs for p in logs_in(path)]
     if not pushlogs:
         raise UserError(f"no push logs in {', '.join(args.pushlogs)}")
-    pushlogs = pushlogs[args.shard :: args.shards]
+    pushlogs = shard_cases(pushlogs, args.shard, args.shards)
     if not pushlogs:
         # more shards than logs: this one has none, and its folder says so by being empty
         out.mkdir(parents=True, exist_ok=True)

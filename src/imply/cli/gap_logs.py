@@ -21,7 +21,8 @@ from imply.cli.common import (
 log = logging.getLogger("imply")
 
 
-def _check_shard(args: argparse.Namespace) -> None:
+def check_shard(args: argparse.Namespace) -> None:
+    """A one-line error unless ``--shard`` is below ``--shards``."""
     if args.shard >= args.shards:
         raise UserError(f"--shard {args.shard}: need 0 <= shard < --shards {args.shards}")
 
@@ -59,7 +60,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
     from imply.realworld.cases import write_benchmark_logs
     from imply.sim import SceneConfig
 
-    _check_shard(args)
+    check_shard(args)
     if args.accuracy is None and args.shards == 1:
         raise UserError("--accuracy is required (unless sharded: then one shard measures it)")
     config = _generate_config(args)
@@ -107,7 +108,7 @@ def cmd_lab_generate(args: argparse.Namespace) -> int:
     from imply.realworld.lab import write_lab_set
     from imply.sim import SceneConfig
 
-    _check_shard(args)
+    check_shard(args)
     design = lab_subset(args)
     table = load_table(args.table)
     scene = SceneConfig.from_dict(table.meta.get("scene"), "the table's scene")

@@ -12,6 +12,9 @@ writes.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TypeVar
+
+T = TypeVar("T")
 
 
 def check_shard(shard: int, shards: int) -> None:
@@ -20,9 +23,9 @@ def check_shard(shard: int, shards: int) -> None:
         raise ValueError(f"shard {shard} of {shards}: need 0 <= shard < shards")
 
 
-def shard_cases(cases: Sequence[dict], shard: int, shards: int) -> list[dict]:
-    """The logs of shard ``shard`` of ``shards``: those whose index in ``cases`` (the set's drawn logs, in order) is
-    ``shard`` modulo ``shards``."""
+def shard_cases(cases: Sequence[T], shard: int, shards: int) -> list[T]:
+    """The logs of shard ``shard`` of ``shards``: those whose index in ``cases`` (the set's drawn logs, or their
+    files, in order) is ``shard`` modulo ``shards``."""
     check_shard(shard, shards)
     return [case for k, case in enumerate(cases) if k % shards == shard]
 
