@@ -29,6 +29,8 @@ ROOT = Path(__file__).resolve().parents[1]
 BLOCKER = """
 import sys
 
+pytestmark = pytest.mark.duration(20)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
+
 BLOCKED = {blocked!r}
 
 

@@ -33,8 +33,6 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
-from sklearn.linear_model import RidgeCV
-from sklearn.metrics import r2_score
 
 from imply.io import write_npz
 from imply.options import Config, option
@@ -90,7 +88,7 @@ class RidgeReadout:
         scale = flat.std(axis=0)
         scale[scale < 1e-8] = 1.0  # constant features carry nothing; avoid dividing by zero
         z = (flat - mean) / scale
-        model = RidgeCV(alphas=alphas).fit(z, np.log(d))
+        model = _ridge_cv(alphas).fit(z, np.log(d))
         return cls(
             mean, scale, np.asarray(model.coef_, dtype=float), float(model.intercept_), float(model.alpha_), p, k
         )
@@ -106,7 +104,7 @@ class RidgeReadout:
         n, p, k = np.shape(tokens)
         flat = np.asarray(tokens, dtype=np.float64).reshape(n, p * k)
         mean = flat.mean(axis=0)
-        fit = RidgeCV(alphas=alphas).fit(flat - mean, np.asarray(log_d, dtype=float))
+        fit = _ridge_cv(alphas).fit(flat - mean, np.asarray(log_d, dtype=float))
         return cls(
             mean, np.ones_like(mean), np.asarray(fit.coef_, float), float(fit.intercept_), float(fit.alpha_), p, k
         )
@@ -207,11 +205,25 @@ class FrameDiffReadout:
         return np.maximum(self.slope * np.asarray(shift_px) + self.intercept, FLOOR)
 
 
+def _ridge_cv(alphas: np.ndarray):
+    """scikit-learn's ``RidgeCV`` over ``alphas``, imported on first use (a second or two): the many commands that
+    only read a fitted readout, or none, start without scikit-learn."""
+    from sklearn.linear_model import RidgeCV
+
+    return RidgeCV(alphas=alphas)
+
+
+def _r2_score(true: np.ndarray, pred: np.ndarray) -> float:
+    from sklearn.metrics import r2_score
+
+    return float(r2_score(true, pred))
+
+
 def r2_log(true_d: np.ndarray, pred_d: np.ndarray) -> float:
     """R^2 of predicted against true log displacement."""
-    return float(r2_score(np.log(np.asarray(true_d, dtype=float)), np.log(np.asarray(pred_d, dtype=float))))
+    return _r2_score(np.log(np.asarray(true_d, dtype=float)), np.log(np.asarray(pred_d, dtype=float)))
 
 
 def r2_linear(true_d: np.ndarray, pred_d: np.ndarray) -> float:
     """R^2 of predicted against true displacement in metres."""
-    return float(r2_score(np.asarray(true_d, dtype=float), np.asarray(pred_d, dtype=float)))
+    return _r2_score(np.asarray(true_d, dtype=float), np.asarray(pred_d, dtype=float))

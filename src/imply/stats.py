@@ -25,8 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import binomtest
-from sklearn.metrics import roc_auc_score
 
 
 def auroc(negatives, positives) -> float:
@@ -39,6 +37,10 @@ def auroc(negatives, positives) -> float:
     if not np.all(np.isfinite(scores)):
         raise ValueError("AUROC scores must be finite")
     labels = np.concatenate([np.zeros(neg.size), np.ones(pos.size)])
+    # imported on use, as binomtest below: scikit-learn and scipy.stats take a second or more each to import, and
+    # most commands that import this module call neither
+    from sklearn.metrics import roc_auc_score
+
     return float(roc_auc_score(labels, scores))
 
 
@@ -105,6 +107,8 @@ def binomial_share(count: int, n: int, *, alternative: str = "two-sided", level:
     """
     if n < 1 or not 0 <= count <= n:
         raise ValueError(f"a binomial share needs 0 <= count <= n and n >= 1, got {count} of {n}")
+    from scipy.stats import binomtest
+
     p = binomtest(int(count), int(n), 0.5, alternative=alternative).pvalue
     ci = binomtest(int(count), int(n), 0.5).proportion_ci(confidence_level=level, method="exact")
     return BinomialShare(int(count), int(n), alternative, float(p), float(ci.low), float(ci.high))

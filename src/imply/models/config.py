@@ -326,3 +326,27 @@ class ModelConfig(Config):
     selection_seed: int = option(12, doc="the random-candidate selection rule of Section 5", minimum=0, required=True)
     device: str = option("cpu", doc="torch device for training and rollouts", required=True)
     resources: ModelResources = option(ModelResources(), doc="scheduler resources of its jobs", required=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PixelVideoConfig(Config):
+    """Config section ``pixel.recipe``: the network's size and its training recipe (both variants)."""
+
+    config_key: ClassVar[str] = "pixel.recipe"
+
+    width: int = option(32, doc="conv channels and MLP width", minimum=1)
+    latent: int = option(4, doc="size of the latent z drawn once per sample set", minimum=1)
+    frames: tuple[int, ...] = option(
+        (1, 4, 7),
+        doc="clip frame indices generated after the first (the last: at rest)",
+        min_items=1,
+        items={"minimum": 1},
+    )
+    keypoint_sd: float = option(0.1, doc="sd of the keypoints' log slide in the ELBO's likelihood", exclusive_minimum=0)
+    pixel_weight: float = option(100.0, doc="weight of the pixel error beside the ELBO's nats per push", minimum=0)
+    pixels_move_box: bool = option(True, doc="false: the pixel error fits the mask and table only, not the slides")
+    profile_weight: float = option(30.0, doc="weight of the column-profile error within the pixel error", minimum=0)
+    epochs: int = option(20, doc="passes over the training objects", minimum=1)
+    batch_size: int = option(32, doc="objects per step", minimum=1)
+    lr: float = option(2e-3, doc="peak learning rate (one-cycle)", exclusive_minimum=0)
+    seed: int = option(0, doc="initialisation and data order", minimum=0)

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from imply.evaluate.report import read_report
-from imply.models.pixel_video import PixelVideoConfig
+from imply.models.config import PixelVideoConfig
 from imply.options import Config, option
 from imply.results import Claim, Values
 
