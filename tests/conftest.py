@@ -151,11 +151,3 @@ def effect_cache(tmp_path_factory) -> Path:
         if not (folder / stored.name).exists():
             copy_whole(stored, folder / stored.name)
     return folder
-
-
-def pytest_collection_modifyitems(config, items):
-    """Long modules first, dealt evenly to the test workers (tests/scheduling.py); in one process, as collected."""
-    from scheduling import deal
-
-    workers = int(getattr(config, "workerinput", {}).get("workercount", 1))
-    items[:] = deal(items, workers)

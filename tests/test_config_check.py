@@ -10,8 +10,6 @@ import yaml
 from imply.config_check import ConfigError, check_config
 from workflow_helpers import ROOT, copy_workflow, snakemake
 
-pytestmark = pytest.mark.duration(28)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 SCHEMAS = ROOT / "workflow" / "schemas"
 
 

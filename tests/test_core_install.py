@@ -24,8 +24,6 @@ from imply.extras import EXTRA_OF_MODULE, NOT_IN_CORE
 from sample_inputs import EFFECT_GRID_JSON
 from video_helpers import oracle_pngs
 
-pytestmark = pytest.mark.duration(20)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 ROOT = Path(__file__).resolve().parents[1]
 
 BLOCKER = """

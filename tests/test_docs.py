@@ -24,8 +24,6 @@ from imply import docs_pages
 from imply.options import Config
 from sample_inputs import EFFECT_GRID_JSON
 
-pytestmark = pytest.mark.duration(100)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 

@@ -22,8 +22,6 @@ import pytest
 
 from imply import docs_pages
 
-pytestmark = pytest.mark.duration(15)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = ("reference/cli", "reference/config", "reference/formats")
 

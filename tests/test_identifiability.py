@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from imply.score import Scorer
 from imply.sim import simulate_pushes
-
-pytestmark = pytest.mark.duration(12)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
 
 
 def r_squared(truth: np.ndarray, estimate: np.ndarray) -> float:

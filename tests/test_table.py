@@ -7,8 +7,6 @@ import pytest
 
 from imply.table import OutOfRangeError, PushTable, TableCheckConfig, TableError, check_nodes, check_table
 
-pytestmark = pytest.mark.duration(18)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 
 def test_tiny_table_shape_and_metadata(tiny_table):
     t = tiny_table

@@ -17,8 +17,6 @@ from imply.realworld import cases as C
 from imply.sim import SceneConfig
 from sample_inputs import EFFECT_GRID_JSON, PUSHLOG_CSV
 
-pytestmark = pytest.mark.duration(35)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 EFFECTS = "tilt,speed_offset,viscous"
 DESIGN = C.BenchmarkConfig.from_dict(
     {"seed": 0, "n_objects": 8, "speeds": [0.25, 0.45, 0.65, 0.85], "masses": [0.3, 1.5], "frictions": [0.15, 0.45]}

@@ -29,8 +29,6 @@ from imply.diagnose.physics.probe_fit import Servo
 from imply.sim.scene import SceneConfig, build_xml
 from run_folders import built_once
 
-pytestmark = pytest.mark.duration(40)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 TRUE_TILT = 0.02
 
 

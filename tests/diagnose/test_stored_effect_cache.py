@@ -5,11 +5,8 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from stored.make_effect_cache import STORED_EFFECT_CACHE, build
-
-pytestmark = pytest.mark.duration(22)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
 
 
 def test_the_stored_effect_tables_are_what_the_builder_gives(tiny_table, tmp_path):

@@ -17,8 +17,6 @@ from imply.evaluate.rollouts_file import RolloutsFileError, write_rollouts_file
 from imply.evaluate.standins import STANDINS, Collapse
 from imply.evaluate.suite import load_suite, load_truth
 
-pytestmark = pytest.mark.duration(22)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 FAST = EvaluateConfig(bootstrap=50)
 TUTORIAL = Path(__file__).resolve().parents[2] / "docs" / "tutorials" / "evaluate.md"
 

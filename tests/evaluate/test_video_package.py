@@ -25,8 +25,6 @@ from imply.evaluate.video_package import (
 )
 from video_helpers import CONDITIONS, generate_videos
 
-pytestmark = pytest.mark.duration(30)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 FAST = EvaluateConfig(bootstrap=50)
 
 

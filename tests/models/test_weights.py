@@ -18,8 +18,6 @@ from imply.models.vision_transformer import VisionTransformer
 from imply.models.weights import check_encoder_weights, encoder_weight_files
 from workflow_helpers import copy_workflow, snakemake
 
-pytestmark = pytest.mark.duration(40)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 TINY_ARCH = {"patch_size": 16, "tubelet_size": 2, "embed_dim": 16, "depth": 1, "num_heads": 2}
 
 

@@ -14,8 +14,6 @@ from imply.realworld.lab import RUNS, LabBenchmarkConfig, write_lab_set
 from imply.realworld.separability import mark_logs
 from imply.realworld.shards import merge_labels, merge_timing, shard_cases
 
-pytestmark = pytest.mark.duration(30)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 # a lab set of what the cut is about, 2 boxes x 3 speeds each: a null log without probes, an effect log with weighed
 # masses and probes, an effect log in Bullet with unweighed masses in the four-direction design
 LAB = {

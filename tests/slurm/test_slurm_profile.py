@@ -17,8 +17,6 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.duration(85)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 SCRIPT = Path(__file__).with_name("run_slurm_test.sh")
 SKIPPED = 77  # the script's exit status for "cannot run here"
 # the script limits each of its waits; this covers an install with apt-get and both runs

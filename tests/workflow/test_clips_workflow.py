@@ -17,8 +17,6 @@ from imply.models.encoder import load_features
 from imply.readout import load_readout
 from workflow_helpers import copy_workflow
 
-pytestmark = pytest.mark.duration(65)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 
 @pytest.mark.slow
 def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):

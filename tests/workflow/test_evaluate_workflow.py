@@ -9,8 +9,6 @@ import yaml
 
 from workflow_helpers import ROOT, copy_workflow, planned, snakemake
 
-pytestmark = pytest.mark.duration(44)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 TINY = ROOT / "tests" / "config" / "evaluate_tiny.yaml"
 TARGET = "results/paper/parts/evaluate.json"
 

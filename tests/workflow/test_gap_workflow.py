@@ -10,8 +10,6 @@ import pytest
 
 from workflow_helpers import copy_workflow
 
-pytestmark = pytest.mark.duration(145)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 
 def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedProcess:
     """``snakemake TARGET... --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""

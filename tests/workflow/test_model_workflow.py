@@ -19,7 +19,7 @@ from suite_helpers import build_eight_frame_suite, write_tiny_encoder
 from synthetic_features import synth_split
 from workflow_helpers import copy_workflow
 
-pytestmark = [pytest.mark.slow, pytest.mark.duration(47)]
+pytestmark = pytest.mark.slow
 
 SPLITS = (("train", 40, False), ("heldout_calib", 8, True), ("heldout_nocalib", 10, True), ("validation", 8, True))
 

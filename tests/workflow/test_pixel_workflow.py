@@ -12,8 +12,6 @@ import yaml
 from imply.paper.registry import load_registry
 from workflow_helpers import ROOT, copy_workflow, planned, snakemake
 
-pytestmark = pytest.mark.duration(95)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 TINY = ROOT / "tests" / "config" / "pixel_tiny.yaml"
 TARGETS = ["results/paper/reproduction.md", "results/paper/figures/figure3.png"]
 

@@ -23,7 +23,7 @@ import yaml
 from synthetic_features import synth_split
 from workflow_helpers import ROOT, copy_workflow
 
-pytestmark = [pytest.mark.slow, pytest.mark.duration(60)]
+pytestmark = pytest.mark.slow
 
 TARGET = "results/model/calib/seed0/model.pt"
 EPOCHS = 12

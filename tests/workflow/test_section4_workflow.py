@@ -13,8 +13,6 @@ import pytest
 from run_folders import built_once
 from workflow_helpers import ROOT, copy_workflow
 
-pytestmark = pytest.mark.duration(55)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
     "results/paper/reproduction.md",

@@ -9,8 +9,6 @@ import yaml
 from imply.table import PushTable
 from workflow_helpers import ROOT, copy_workflow, snakemake
 
-pytestmark = pytest.mark.duration(60)  # rough seconds on an idle 2-core machine (tests/scheduling.py)
-
 
 def planned_rules(proc) -> set[str]:
     rules, in_stats = set(), False
