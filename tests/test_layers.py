@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import ast
 import functools
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -180,3 +182,19 @@ def test_the_diagnostic_is_four_stages_and_a_pipeline():
 @pytest.mark.parametrize("module", NEUTRAL)
 def test_neutral_modules_import_nothing_of_imply(module):
     assert package_graph()[module] == set()
+
+
+@pytest.mark.parametrize(
+    ("module", "heavy"),
+    [
+        # the readouts' and the statistics' helpers: scikit-learn and scipy.stats only where a fit or a test runs
+        ("imply.readout", ("sklearn",)),
+        ("imply.stats", ("sklearn", "scipy.stats")),
+        # the pixel model's scores read reports and settings, never the network
+        ("imply.study.pixel_model", ("torch", "sklearn")),
+    ],
+)
+def test_modules_that_many_commands_import_leave_the_heavy_libraries_for_their_use(module, heavy):
+    code = f"import sys, {module}; print(','.join(m for m in {heavy!r} if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "", f"importing {module} imports {out}"
