@@ -212,7 +212,10 @@ def test_generate_writes_contact_logs_with_their_labels(tmp_path, tiny_table_pat
     for label in labels.values():
         assert label["engine"] == "mujoco" and label["contact"]["kinds"] and label["design"] == "random"
         assert set(label["noise_free"]) == ({"all"} if label["group"] == "null_contact" else {"all", "contact"})
-    assert json.loads((tmp_path / "a.json").read_text())["against_finer"]["log_d"]["n"] >= 1
+    finer = json.loads((tmp_path / "a.json").read_text())["against_finer"]
+    assert finer["log_d"]["n"] >= 1
+    # the push behind the largest difference is named, with what sets it apart from the nominal world
+    assert abs(finer["worst"]["log_d_difference"]) == finer["log_d"]["max_abs"] and "parameters" in finer["worst"]
 
 
 @pytest.mark.parametrize(

@@ -174,3 +174,22 @@ def test_bad_design_is_one_line(tmp_path, tiny_table_path, capsys, edit, message
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert not (tmp_path / "logs").exists()
+
+
+def test_the_accuracy_record_names_the_worst_push_with_what_sets_it_apart(scene):
+    from imply.realworld.accuracy import worst_push
+
+    pushes = WorldPushes.nominal([0.3, 0.5, 0.7], [0.4, 0.8, 1.2], [0.2, 0.3, 0.4], [0.0, 1.0, 2.0], scene)
+    pushes.params["viscous"][1] = 0.5
+    pushes.params["servo_kv"][2] = 2 * scene.pusher_kv
+    d = np.array([0.001, -0.02, 0.01])
+    t = np.array([0.0, np.nan, 0.002])
+    worst = worst_push(pushes, d, t, scene)
+    assert worst["index"] == 1 and worst["log_d_difference"] == -0.02 and worst["log_stop_time_difference"] is None
+    assert (worst["speed"], worst["mass"], worst["friction"], worst["direction"]) == (0.5, 0.8, 0.3, 1.0)
+    # only what differs from the nominal world (the scene's carriage defaults included)
+    assert worst["parameters"] == {"viscous": 0.5}
+    assert worst_push(pushes, d * np.array([0.0, 0.0, 1.0]), t, scene)["parameters"] == {
+        "servo_kv": 2 * scene.pusher_kv
+    }
+    assert worst_push(pushes, np.full(3, np.nan), t, scene) is None

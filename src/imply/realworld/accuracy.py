@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imply.realworld.world import WorldPushes, WorldStepping, simulate_world
+from imply.realworld.world import PARAMETERS, WorldPushes, WorldStepping, simulate_world
 from imply.sim.reference import reference_log_d
 from imply.sim.scene import SceneConfig
 
@@ -25,6 +25,31 @@ def _summary(diff: np.ndarray) -> dict:
     if not diff.size:
         return {"n": 0, "max_abs": None, "rms": None}
     return {"n": int(diff.size), "max_abs": float(np.abs(diff).max()), "rms": float(np.sqrt(np.mean(diff**2)))}
+
+
+def worst_push(pushes: WorldPushes, d: np.ndarray, t: np.ndarray, scene: SceneConfig) -> dict | None:
+    """The push of ``pushes`` whose log d differs most from its finer run (``d``, ``t``: (n,) log d and log stop-time
+    differences, NaN where either run failed): its conditions and every world parameter away from the nominal
+    world's of ``scene``, so that it can be simulated again alone; None where no push compares."""
+    if not np.isfinite(d).any():
+        return None
+    i = int(np.nanargmax(np.abs(d)))
+    nominal = WorldPushes.nominal(pushes.speed[i], pushes.mass[i], pushes.friction[i], pushes.direction[i], scene)
+    changed = {
+        name: float(values[i])
+        for name, values in pushes.params.items()
+        if name in PARAMETERS and not np.isclose(values[i], nominal.params[name][0], rtol=0.0, atol=1e-12)
+    }
+    return {
+        "index": i,
+        "log_d_difference": float(d[i]),
+        "log_stop_time_difference": float(t[i]) if np.isfinite(t[i]) else None,
+        "speed": float(pushes.speed[i]),
+        "mass": float(pushes.mass[i]),
+        "friction": float(pushes.friction[i]),
+        "direction": float(pushes.direction[i]),
+        "parameters": changed,
+    }
 
 
 def measure_error(
@@ -63,6 +88,7 @@ def measure_error(
             "log_d": _summary(d),
             "log_stop_time": _summary(t),
             "failed": int((~ok).sum()),
+            "worst": worst_push(both, d, t, scene),
             "method": (
                 f"{both.n} pushes ({n} drawn from the benchmark's logs, effects included, and {nominal.n} of the "
                 f"nominal world) simulated again with every step {factor} times finer"
