@@ -90,6 +90,11 @@ class WorldStepping(Config):
     )
     rest_speed: float = option(1.0e-4, doc="m/s in the table plane: below it the push is over", exclusive_minimum=0)
     max_time: float = option(4.0, doc="s a push may take at most", exclusive_minimum=0)
+    contact_steps: bool = option(
+        True,
+        doc="shorten every step of a push whose box-table contact is stiffer than the scene's by its time constant's "
+        "factor (false: the nominal steps, which miss a stiff underdamped contact's slide by about 0.02 in log d)",
+    )
 
     def __post_init__(self) -> None:
         if self.integrator not in ("RK4", "Euler", "implicit", "implicitfast"):
@@ -367,7 +372,7 @@ def _run(
     # a box-table contact stiffer than the scene's (its time constant's factor below 1) takes every step shortened
     # by that factor, so that each step resolves the contact as the nominal one's does: an underdamped stiff contact
     # stepped at the nominal steps misses the converged slide by about as much as the noise
-    shorter = np.minimum(prm["table_timeconst"], 1.0)
+    shorter = np.minimum(prm["table_timeconst"], 1.0) if st.contact_steps else np.ones(n)
     fine = np.where(p.speed < st.slow_speed, st.slow_push_step, st.push_step) * shorter
     timestep = b.expand("opt.timestep")
     timestep[:] = fine
