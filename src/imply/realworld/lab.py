@@ -413,7 +413,7 @@ def write_lab_set(
                 lab_probe_layout(case, design),
                 np.random.default_rng([case["noise_seed"], 3]),
             )
-            write_csv(logs / f"{case['id']}.probes.csv", rows)
+            write_csv(logs / f"{case['id']}.probes.csv", probes_of_logged(rows, frame))
         if references is not None:
             write_reference(case, sim, design, scene, references)
         label["probes"] = case["probes"]
@@ -429,19 +429,29 @@ def write_lab_set(
     return times
 
 
+def probes_of_logged(rows: pd.DataFrame, log: pd.DataFrame) -> pd.DataFrame:
+    """The probe rows of ``rows`` that a lab could file beside ``log``: those of boxes with a push in it, and free
+    strokes (no box). A box whose every push failed its world's checks is not in the log, and a probe of it would name
+    an object the log does not have."""
+    pushed = set(log["object_id"].astype(str))
+    keep = rows["object_id"].astype(str).eq("") | rows["object_id"].astype(str).isin(pushed)
+    return rows[keep].reset_index(drop=True)
+
+
 def write_reference(case: dict, sim: dict, design: LabBenchmarkConfig, scene: SceneConfig, folder: Path) -> None:
     """The reference session of ``case`` (:func:`imply.realworld.cases.reference_log`: its world and boxes without
     the effect, one push of each, fresh noise) into ``folder/<id>.csv``, and where the log carries probes, the same
     probes run in that world once each, with fresh noise, into ``folder/<id>.probes.csv``. Nothing is simulated
     here: the world without the effect is a run the label already holds."""
     folder.mkdir(parents=True, exist_ok=True)
-    write_csv(folder / f"{case['id']}.csv", reference_log(case, sim, design, scene))
+    session = reference_log(case, sim, design, scene)
+    write_csv(folder / f"{case['id']}.csv", session)
     if case["probes"]:
         world = sim["contact"] if case["effects"] else sim["all"]
         once = dataclasses.replace(design, replicates=1)
         rng = np.random.default_rng([reference_seed(case), 3])
         rows = recorded_probes(case, once, world["probes"], lab_probe_layout(case, design), rng)
-        write_csv(folder / f"{case['id']}.probes.csv", rows)
+        write_csv(folder / f"{case['id']}.probes.csv", probes_of_logged(rows, session))
 
 
 def extra_probes(
