@@ -141,3 +141,22 @@ def test_the_diagnostic_reads_a_pull_test_as_the_world_runs_it(scene, effect, ca
     # without the drag's direction and speed, the reading cannot say what the effect does to it
     blind = pull_test_log_reading(model, np.array([theta]), lm, lu, np.full(3, np.nan), np.full(3, np.nan))[0]
     assert np.allclose(np.exp(blind), FRICTIONS, rtol=1e-3)  # the slope's cos on the normal force alone
+
+
+def test_a_logs_probes_name_only_the_boxes_it_pushed():
+    """A box whose every push failed its world's checks is not in the log: its probes are left out, free strokes
+    (no box) kept, and the diagnosis's reader takes what is left."""
+    import pandas as pd
+
+    from imply.realworld.lab import probes_of_logged
+
+    log = pd.DataFrame({"object_id": ["obj00", "obj00"], "speed": [0.2, 0.34]})
+    rows = pd.DataFrame(
+        {
+            "probe": ["free_stroke", "friction", "friction", "added_mass"],
+            "object_id": ["", "obj00", "obj01", "obj01"],
+            "speed": [0.2, 0.1, 0.1, 0.48],
+        }
+    )
+    kept = probes_of_logged(rows, log)
+    assert kept["probe"].tolist() == ["free_stroke", "friction"] and kept["object_id"].tolist() == ["", "obj00"]
