@@ -433,8 +433,8 @@ def probes_of_logged(rows: pd.DataFrame, log: pd.DataFrame) -> pd.DataFrame:
     """The probe rows of ``rows`` that a lab could file beside ``log``: those of boxes with a push in it, and free
     strokes (no box). A box whose every push failed its world's checks is not in the log, and a probe of it would name
     an object the log does not have."""
-    pushed = set(log["object_id"].astype(str))
-    keep = rows["object_id"].astype(str).eq("") | rows["object_id"].astype(str).isin(pushed)
+    ids = rows["object_id"].astype(str)
+    keep = ids.eq("") | ids.isin(set(log["object_id"].astype(str)))
     return rows[keep].reset_index(drop=True)
 
 
