@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 
 # before mujoco is imported anywhere: offscreen rendering through EGL
@@ -13,8 +14,8 @@ import pytest
 import yaml
 
 from imply.sim import SceneConfig
-from imply.table import PushTable, TableGrid, build_table
-from run_folders import copy_whole, run_folder
+from imply.table import PushTable, TableGrid
+from run_folders import built_once, copy_whole, run_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,17 +49,40 @@ TINY_GRID = TableGrid(
 )
 
 
-@pytest.fixture(scope="session")
-def tiny_table(scene) -> PushTable:
-    """A 7 x 6 x 6 table of the real scene: enough to exercise code paths in a second."""
-    return build_table(scene, TINY_GRID, nthread=2)
+# the tests' tiny workflow configs build the table on TINY_GRID with this quick check (tests/config/core_small.yaml)
+TINY_TABLE_CONFIG = ROOT / "tests" / "config" / "core_small.yaml"
+
+
+def tiny_workflow_config() -> dict:
+    """config.yaml with tests/config/core_small.yaml over it: the table settings of the tests' tiny workflow runs."""
+    from snakemake.utils import update_config
+
+    cfg = yaml.safe_load((ROOT / "config.yaml").read_text())
+    update_config(cfg, yaml.safe_load(TINY_TABLE_CONFIG.read_text()))
+    return cfg
 
 
 @pytest.fixture(scope="session")
-def tiny_table_path(tiny_table, tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("tables") / "tiny.npz"
-    tiny_table.save(path)
-    return path
+def tiny_table_path(tmp_path_factory) -> Path:
+    """A 7 x 6 x 6 table of the real scene, built by ``imply table build`` as the workflow's table rule runs it on
+    the tests' tiny configs (its 4-cell check included), once for all of the run's test workers: the workflow tests
+    plant it instead of building it again."""
+    from imply.cli import main
+
+    cfg = tiny_workflow_config()
+    options = ["--scene-json", json.dumps(cfg["scene"]), "--grid-json", json.dumps(cfg["table"])]
+    options += ["--check-json", json.dumps(cfg["table_check"]), "--threads", "2"]
+
+    def build(folder: Path) -> None:
+        assert main(["table", "build", *options, "-o", str(folder / "tiny.npz")]) == 0
+
+    return built_once(tmp_path_factory, "tiny-table", build) / "tiny.npz"
+
+
+@pytest.fixture(scope="session")
+def tiny_table(tiny_table_path) -> PushTable:
+    """The tiny table (``tiny_table_path``) loaded: enough to exercise code paths in a second."""
+    return PushTable.load(tiny_table_path)
 
 
 @pytest.fixture(scope="session")
@@ -91,6 +115,21 @@ def full_table() -> PushTable:
             f"(config digest {table.meta.get('config_digest')} against {key}): python tests/stored/make_default_table.py"
         )
     return table
+
+
+@pytest.fixture(scope="session")
+def docs_site(tmp_path_factory) -> Path:
+    """The documentation site, built strict (warnings as errors) by one test worker for every test that reads it."""
+    import subprocess
+    import sys
+
+    def build(out: Path) -> None:
+        env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+        command = [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "--site-dir", str(out / "site")]
+        proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env=env)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+
+    return built_once(tmp_path_factory, "docs-site", build) / "site"
 
 
 @pytest.fixture

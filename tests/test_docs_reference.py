@@ -10,10 +10,7 @@ once, as CI does, and read its HTML.
 from __future__ import annotations
 
 import argparse
-import os
 import re
-import subprocess
-import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -207,21 +204,6 @@ def test_a_settings_default_a_help_string_names_is_shown_as_its_value(monkeypatc
 # -- the built site ----------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def site(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("site")
-    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
-    proc = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "--site-dir", str(out)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        env=env,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return out
-
-
 def built(site: Path, name: str) -> tuple[str, Page]:
     html = (site / name / "index.html").read_text()
     return html, Page(html)
@@ -229,14 +211,14 @@ def built(site: Path, name: str) -> tuple[str, Page]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", PAGES)
-def test_the_built_reference_pages_hold_only_the_tags_mkdocs_emits(site, name):
-    _, page = built(site, name)
+def test_the_built_reference_pages_hold_only_the_tags_mkdocs_emits(docs_site, name):
+    _, page = built(docs_site, name)
     assert page.tags <= ALLOWED_TAGS, f"{name}: tags made of generated text: {sorted(page.tags - ALLOWED_TAGS)}"
 
 
 @pytest.mark.slow
-def test_the_built_cli_reference_shows_the_angle_brackets_of_its_help(site):
-    html, page = built(site, "reference/cli")
+def test_the_built_cli_reference_shows_the_angle_brackets_of_its_help(docs_site):
+    html, page = built(docs_site, "reference/cli")
     assert "&lt;custom&gt;" in html and "&lt;stage&gt;" in html
     assert "<custom><numeric name='stroke'>)" in page.plain and "results/paper/parts/<stage>.json" in page.plain
     assert "and )." not in page.plain and "parts/.json" not in page.plain
@@ -244,8 +226,8 @@ def test_the_built_cli_reference_shows_the_angle_brackets_of_its_help(site):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["reference/cli", "reference/config"])
-def test_no_default_on_the_built_pages_is_a_class_attribute(site, name):
-    _, page = built(site, name)
+def test_no_default_on_the_built_pages_is_a_class_attribute(docs_site, name):
+    _, page = built(docs_site, name)
     assert not DEFAULT_AS_ATTRIBUTE.search(page.plain), DEFAULT_AS_ATTRIBUTE.findall(page.plain)
     defaults = page.column("default")
     assert len(defaults) > 50

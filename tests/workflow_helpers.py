@@ -23,6 +23,14 @@ def copy_workflow(dest: Path) -> Path:
     return dest
 
 
+def plant_table(workdir: Path, table: Path) -> None:
+    """Put the tests' tiny table (the ``tiny_table_path`` fixture) where the table rule writes it, so that a run on a
+    tiny config reads it instead of building it again (the table rule is run by tests/workflow/test_table_workflow.py;
+    a test there holds the tiny configs to the planted table's settings)."""
+    (workdir / "results" / "table").mkdir(parents=True, exist_ok=True)
+    shutil.copy(table, workdir / "results" / "table" / "table.npz")
+
+
 def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
     """Run snakemake in ``workdir`` with the current interpreter's installation.
 

@@ -42,8 +42,8 @@ def tilted(tmp_path_factory, tiny_table, tiny_table_path, cache):
     """A table sloping 0.02 rad toward the table's +x, diagnosed with the simulator refit: (summary, report folder)."""
     # slides alone (the tutorial's test refits stop times too): a refit of stop times records every push each ms
     case = _case([_effect("tilt", TRUE_TILT, 0.0)], seed=21)
-    # two iterations: the refit starts at the tables' estimate, and each iteration is several passes over the log
-    extra = ["--refit", "--options-json", '{"refit_iterations": 2}']
+    # one iteration: the refit starts at the tables' estimate, and an iteration is several passes over the log
+    extra = ["--refit", "--options-json", '{"refit_iterations": 1}']
     # diagnosed by one test worker for all of this module's tests, whichever workers run them
     tmp = built_once(
         tmp_path_factory,

@@ -13,6 +13,7 @@ from imply.realworld import lab
 from imply.realworld.lab import RUNS, LabBenchmarkConfig, write_lab_set
 from imply.realworld.separability import mark_logs
 from imply.realworld.shards import merge_labels, merge_timing, shard_cases
+from run_folders import built_once
 
 # a lab set of what the cut is about, 2 boxes x 3 speeds each: a null log without probes, an effect log with weighed
 # masses and probes, an effect log in Bullet with unweighed masses in the four-direction design
@@ -79,10 +80,13 @@ def _lab_args(tmp_path: Path, table: Path, name: str, *shard: str) -> list[str]:
 
 @pytest.fixture(scope="module")
 def lab_set(tiny_table_path, tmp_path_factory) -> Path:
-    """The LAB set, written by one unsharded 'imply study gap lab-generate' into a folder (logs/, labels.json, timing.json)."""
-    root = tmp_path_factory.mktemp("lab")
-    assert main(_lab_args(root, tiny_table_path, "one")) == 0
-    return root / "one"
+    """The LAB set, written by one unsharded 'imply study gap lab-generate' into a folder (logs/, labels.json,
+    timing.json), by one test worker for the module's tests whichever workers run them."""
+
+    def build(root: Path) -> None:
+        assert main(_lab_args(root, tiny_table_path, "one")) == 0
+
+    return built_once(tmp_path_factory, "lab-set", build) / "one"
 
 
 def test_runs_cut_to_what_the_marking_reads_leave_the_logs_and_the_marking_alone(lab_set, scene, tmp_path, monkeypatch):

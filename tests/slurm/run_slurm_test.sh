@@ -157,7 +157,7 @@ rm -rf "$WF" && mkdir -p "$WF/tests"
 cp -r "$REPO/Snakefile" "$REPO/config.yaml" "$REPO/workflow" "$REPO/envs" "$WF/"
 cp -r "$REPO/tests/config" "$WF/tests/config"
 # the shipped profile, with the tiny configs instead of the paper-size ones, requests this
-# node can meet, the first status check after 5 s instead of 40, and the job logs kept
+# node can meet, status checks every 2 s (the first after 2 s instead of 40), and the job logs kept
 "$PY" - "$REPO/profiles/slurm/config.yaml" "$WORK/profile/config.yaml" <<'EOF'
 import sys
 from pathlib import Path
@@ -168,12 +168,18 @@ profile = yaml.safe_load(Path(sys.argv[1]).read_text())
 assert profile["executor"] == "slurm", profile
 profile.update(
     {
-        "configfile": ["config.yaml", "tests/config/core_small.yaml", "tests/config/section4_small.yaml"],
+        "configfile": [
+            "config.yaml",
+            "tests/config/core_small.yaml",
+            "tests/config/section4_small.yaml",
+            "tests/config/slurm_grid.yaml",
+        ],
         "default-resources": {**profile.get("default-resources", {}), "mem_mb": 1000, "runtime": 10},
         "jobs": 2,
         "retries": 0,
         "latency-wait": 5,
-        "slurm-init-seconds-before-status-checks": 5,
+        "slurm-init-seconds-before-status-checks": 2,
+        "seconds-between-status-checks": 2,
         "slurm-keep-successful-logs": True,
     }
 )

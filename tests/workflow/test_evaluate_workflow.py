@@ -7,15 +7,16 @@ import json
 import pytest
 import yaml
 
-from workflow_helpers import ROOT, copy_workflow, planned, snakemake
+from workflow_helpers import ROOT, copy_workflow, planned, plant_table, snakemake
 
 TINY = ROOT / "tests" / "config" / "evaluate_tiny.yaml"
 TARGET = "results/paper/parts/evaluate.json"
 
 
 @pytest.mark.slow
-def test_the_evaluate_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):
+def test_the_evaluate_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path, tiny_table_path):
     work = copy_workflow(tmp_path)
+    plant_table(work, tiny_table_path)
     override = work / "tiny.yaml"
     override.write_text(TINY.read_text())
     snakemake(work, TARGET, "--configfile", str(override))

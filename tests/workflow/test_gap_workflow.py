@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from workflow_helpers import copy_workflow
+from workflow_helpers import copy_workflow, plant_table
 
 
 def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedProcess:
@@ -34,9 +34,10 @@ LAB_DEVELOPMENT = "results/gap/lab/development/separability.json"
 
 
 @pytest.mark.slow
-def test_gap_workflow_tiny(tmp_path, repo_root):
+def test_gap_workflow_tiny(tmp_path, repo_root, tiny_table_path):
     """The gap stage's part and the lab benchmark, in one run (they share the table and the effect tables)."""
     copy_workflow(tmp_path)
+    plant_table(tmp_path, tiny_table_path)
     target = "results/paper/parts/gap.json"
     run = _snakemake_tiny(tmp_path, repo_root, target, *LAB_TARGETS, LAB_DEVELOPMENT)
     assert run.returncode == 0, run.stderr[-3000:]

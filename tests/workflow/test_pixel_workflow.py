@@ -10,15 +10,16 @@ import pytest
 import yaml
 
 from imply.paper.registry import load_registry
-from workflow_helpers import ROOT, copy_workflow, planned, snakemake
+from workflow_helpers import ROOT, copy_workflow, planned, plant_table, snakemake
 
 TINY = ROOT / "tests" / "config" / "pixel_tiny.yaml"
 TARGETS = ["results/paper/reproduction.md", "results/paper/figures/figure3.png"]
 
 
 @pytest.mark.slow
-def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path):
+def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path, tiny_table_path):
     work = copy_workflow(tmp_path)
+    plant_table(work, tiny_table_path)
     override = work / "tiny.yaml"
     override.write_text(TINY.read_text())
     snakemake(work, *TARGETS, "--configfile", str(override))
