@@ -62,21 +62,22 @@ def tiny_workflow_config() -> dict:
     return cfg
 
 
-@pytest.fixture(scope="session")
-def tiny_table_path(tmp_path_factory) -> Path:
-    """A 7 x 6 x 6 table of the real scene, built by ``imply table build`` as the workflow's table rule runs it on
-    the tests' tiny configs (its 4-cell check included), once for all of the run's test workers: the workflow tests
-    plant it instead of building it again."""
+def build_tiny_table(path: Path, *, threads: int = 2) -> None:
+    """Write the tests' tiny table to ``path``: a 7 x 6 x 6 table of the real scene, built by ``imply table build`` as
+    the workflow's table rule runs it on the tests' tiny configs, its 4-cell check included."""
     from imply.cli import main
 
     cfg = tiny_workflow_config()
     options = ["--scene-json", json.dumps(cfg["scene"]), "--grid-json", json.dumps(cfg["table"])]
-    options += ["--check-json", json.dumps(cfg["table_check"]), "--threads", "2"]
+    options += ["--check-json", json.dumps(cfg["table_check"]), "--threads", str(threads)]
+    assert main(["table", "build", *options, "-o", str(path)]) == 0
 
-    def build(folder: Path) -> None:
-        assert main(["table", "build", *options, "-o", str(folder / "tiny.npz")]) == 0
 
-    return built_once(tmp_path_factory, "tiny-table", build) / "tiny.npz"
+@pytest.fixture(scope="session")
+def tiny_table_path(tmp_path_factory) -> Path:
+    """The tests' tiny table (:func:`build_tiny_table`), built once for all of the run's test workers: the workflow
+    tests plant it instead of building it again."""
+    return built_once(tmp_path_factory, "tiny-table", lambda folder: build_tiny_table(folder / "tiny.npz")) / "tiny.npz"
 
 
 @pytest.fixture(scope="session")

@@ -25,12 +25,15 @@ TEST_EFFECTS = ("tilt", "speed_offset", "viscous", "speed_gain")
 
 
 def tiny_table():
-    """The tests' tiny table (conftest ``tiny_table``): the default scene on a 7 x 6 x 6 grid."""
-    from conftest import TINY_GRID
-    from imply.sim import SceneConfig
-    from imply.table import build_table
+    """The tests' tiny table (conftest ``tiny_table``): the default scene on a 7 x 6 x 6 grid, with its 4-cell check."""
+    import tempfile
 
-    return build_table(SceneConfig(), TINY_GRID, nthread=0)
+    from conftest import build_tiny_table
+    from imply.table import PushTable
+
+    with tempfile.TemporaryDirectory() as folder:
+        build_tiny_table(Path(folder) / "tiny.npz")
+        return PushTable.load(Path(folder) / "tiny.npz")
 
 
 def build(cache_dir: Path, *, effects=TEST_EFFECTS, table=None, nthread: int = 0) -> None:
