@@ -133,6 +133,39 @@ def docs_site(tmp_path_factory) -> Path:
     return built_once(tmp_path_factory, "docs-site", build) / "site"
 
 
+@pytest.fixture(scope="session")
+def imply_server(tmp_path_factory):
+    """A fork server for ``imply`` jobs (tests/forkserver.py), one per test worker: the environment that sends a
+    workflow's ``imply`` commands to it (its client first on PATH, the socket in IMPLY_FORKSERVER)."""
+    import subprocess
+    import sys
+    import time
+
+    from forkserver import write_client
+
+    folder = tmp_path_factory.mktemp("forkserver")
+    sock, log = folder / "imply.sock", folder / "server.log"
+    with open(log, "w") as out:
+        server = subprocess.Popen([sys.executable, str(ROOT / "tests" / "forkserver.py"), str(sock)], stderr=out)
+    deadline = time.monotonic() + 120
+    while not sock.exists():
+        if server.poll() is not None or time.monotonic() > deadline:
+            server.kill()
+            pytest.fail(f"the imply fork server did not start:\n{log.read_text()[-3000:]}")
+        time.sleep(0.1)
+    client = write_client(folder / "bin")
+    yield {"PATH": f"{client.parent}{os.pathsep}{os.environ['PATH']}", "IMPLY_FORKSERVER": str(sock)}
+    server.terminate()
+    server.wait(timeout=30)
+
+
+@pytest.fixture
+def forked_imply(imply_server, monkeypatch):
+    """Run this test's workflow ``imply`` jobs in forks of the worker's fork server (``imply_server``)."""
+    for name, value in imply_server.items():
+        monkeypatch.setenv(name, value)
+
+
 @pytest.fixture
 def one_torch_thread():
     """Run a test on one torch thread (tiny tensors: more threads only contend with the rest of the suite)."""

@@ -269,9 +269,11 @@ def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_pat
 
 
 @pytest.mark.slow
-def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tiny_table_path, effect_cache):
+def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(
+    tmp_path, tiny_table_path, effect_cache, forked_imply
+):
     """Every command of the diagnose tutorial, in order, on the tiny table (the diagnosis on three candidate effects and
-    a coarse effect grid, so that it takes seconds)."""
+    a coarse effect grid, so that it takes seconds), each ``imply`` in a fork of the worker's fork server."""
     (tmp_path / "results" / "table").mkdir(parents=True)
     (tmp_path / "results" / "table" / "table.npz").symlink_to(tiny_table_path)
     (tmp_path / "examples").symlink_to(ROOT / "examples")
@@ -292,8 +294,8 @@ def test_the_diagnose_tutorial_runs_as_written_and_finds_the_slope(tmp_path, tin
         'python() { "$PY" "$@"; }\n'
         # the refit in one Levenberg-Marquardt iteration from the tables' estimate (a third of the default's time)
         f'imply() {{ local refit=(); case " $* " in *" --refit "*) refit=({shlex.join(one_refit_iteration)});; esac; '
-        f'if [ "$1" = diagnose ]; then "$PY" -m imply.cli "$@" {shlex.join(fast)} "${{refit[@]}}"; '
-        'else "$PY" -m imply.cli "$@"; fi; }\n'
+        f'if [ "$1" = diagnose ]; then command imply "$@" {shlex.join(fast)} "${{refit[@]}}"; '
+        'else command imply "$@"; fi; }\n'
     )
     blocks = bash_blocks(DOCS / "tutorials" / "diagnose.md")
     assert len(blocks) == 8

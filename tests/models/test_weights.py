@@ -107,7 +107,7 @@ def test_dry_run_refuses_the_shipped_placeholder_in_one_line(repo_root, tmp_path
 
 
 @pytest.mark.slow
-def test_replacing_the_weights_reruns_the_features(repo_root, tmp_path):
+def test_replacing_the_weights_reruns_the_features(repo_root, tmp_path, forked_imply):
     work = copy_workflow(tmp_path / "wf")
     weights = _write_tiny_pt(tmp_path / "vitg.pt")
     config = _tiny_config(repo_root, work, {**_pt_section(weights), "device": "cpu"})

@@ -19,7 +19,7 @@ from workflow_helpers import copy_workflow
 
 
 @pytest.mark.slow
-def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path):
+def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path, forked_imply):
     copy_workflow(tmp_path)
     cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
     update_config(cfg, yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))

@@ -34,7 +34,7 @@ LAB_DEVELOPMENT = "results/gap/lab/development/separability.json"
 
 
 @pytest.mark.slow
-def test_gap_workflow_tiny(tmp_path, repo_root, tiny_table_path):
+def test_gap_workflow_tiny(tmp_path, repo_root, tiny_table_path, forked_imply):
     """The gap stage's part and the lab benchmark, in one run (they share the table and the effect tables)."""
     copy_workflow(tmp_path)
     plant_table(tmp_path, tiny_table_path)

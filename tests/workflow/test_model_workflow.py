@@ -24,7 +24,7 @@ pytestmark = pytest.mark.slow
 SPLITS = (("train", 40, False), ("heldout_calib", 8, True), ("heldout_nocalib", 10, True), ("validation", 8, True))
 
 
-def test_section5_rules_run(repo_root, tiny_table_path, tmp_path):
+def test_section5_rules_run(repo_root, tiny_table_path, tmp_path, forked_imply):
     work = copy_workflow(tmp_path / "wf")
     shutil.copy(repo_root / "tests/config/model_small.yaml", work / "small.yaml")
     # the upstream outputs this stage reads, planted oldest first so nothing upstream reruns

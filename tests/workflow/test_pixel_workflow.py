@@ -17,7 +17,7 @@ TARGETS = ["results/paper/reproduction.md", "results/paper/figures/figure3.png"]
 
 
 @pytest.mark.slow
-def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path, tiny_table_path):
+def test_the_pixel_stage_builds_and_a_setting_reruns_only_what_reads_it(tmp_path, tiny_table_path, forked_imply):
     work = copy_workflow(tmp_path)
     plant_table(work, tiny_table_path)
     override = work / "tiny.yaml"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -11,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from run_folders import built_once
-from workflow_helpers import ROOT, copy_workflow
+from workflow_helpers import ROOT, copy_workflow, plant_table
 
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
@@ -67,15 +66,18 @@ def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="module")
-def dag_dir(tmp_path_factory, tiny_table_path) -> Path:
-    """The small config's Section 4 run, built by one test worker for both tests (the second only plans)."""
+def dag_dir(tmp_path_factory, tiny_table_path, imply_server) -> Path:
+    """The small config's Section 4 run, built by one test worker for both tests (the second only plans), its
+    ``imply`` jobs in forks of the worker's fork server."""
 
     def build(work: Path) -> None:
         copy_workflow(work)
         # the small config's table grid is the tiny fixture's: reuse it instead of rebuilding
-        (work / "results" / "table").mkdir(parents=True)
-        shutil.copy(tiny_table_path, work / "results" / "table" / "table.npz")
-        proc = snakemake(work, *TARGETS)
+        plant_table(work, tiny_table_path)
+        with pytest.MonkeyPatch.context() as env:
+            for name, value in imply_server.items():
+                env.setenv(name, value)
+            proc = snakemake(work, *TARGETS)
         assert proc.returncode == 0, proc.stderr[-3000:]
 
     return built_once(tmp_path_factory, "s4dag", build)

@@ -26,7 +26,7 @@ def planned_rules(proc) -> set[str]:
 
 
 @pytest.mark.slow
-def test_table_targets_build_and_only_dependants_rerun(tmp_path):
+def test_table_targets_build_and_only_dependants_rerun(tmp_path, forked_imply):
     work = copy_workflow(tmp_path)
     override = work / "small.yaml"
     # the tiny configs' table (tests/config/core_small.yaml) on a coarser grid: the rule, not the table, is tested
