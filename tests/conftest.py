@@ -135,13 +135,13 @@ def docs_site(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def imply_server(tmp_path_factory):
-    """A fork server for ``imply`` jobs (tests/forkserver.py), one per test worker: the environment that sends a
-    workflow's ``imply`` commands to it (its client first on PATH, the socket in IMPLY_FORKSERVER)."""
+    """A fork server for ``snakemake`` runs and ``imply`` jobs (tests/forkserver.py), one per test worker: the
+    environment that sends a workflow's commands to it (its clients first on PATH, the socket in IMPLY_FORKSERVER)."""
     import subprocess
     import sys
     import time
 
-    from forkserver import write_client
+    from forkserver import write_clients
 
     folder = tmp_path_factory.mktemp("forkserver")
     sock, log = folder / "imply.sock", folder / "server.log"
@@ -153,15 +153,16 @@ def imply_server(tmp_path_factory):
             server.kill()
             pytest.fail(f"the imply fork server did not start:\n{log.read_text()[-3000:]}")
         time.sleep(0.1)
-    client = write_client(folder / "bin")
-    yield {"PATH": f"{client.parent}{os.pathsep}{os.environ['PATH']}", "IMPLY_FORKSERVER": str(sock)}
+    clients = write_clients(folder / "bin")
+    yield {"PATH": f"{clients}{os.pathsep}{os.environ['PATH']}", "IMPLY_FORKSERVER": str(sock)}
     server.terminate()
     server.wait(timeout=30)
 
 
 @pytest.fixture
 def forked_imply(imply_server, monkeypatch):
-    """Run this test's workflow ``imply`` jobs in forks of the worker's fork server (``imply_server``)."""
+    """Run this test's ``snakemake`` (through :func:`workflow_helpers.snakemake_command`) and its workflow's ``imply``
+    jobs in forks of the worker's fork server (``imply_server``)."""
     for name, value in imply_server.items():
         monkeypatch.setenv(name, value)
 

@@ -1,12 +1,13 @@
-"""A fork server for the workflow tests' ``imply`` jobs.
+"""A fork server for the workflow tests' ``snakemake`` runs and their ``imply`` jobs.
 
-A workflow test runs its rules' shell commands as written, each ``imply ...`` a process of its own. Most of such a
-process's time on the tests' tiny configs is its start: importing NumPy, SciPy, pandas, MuJoCo and PyTorch takes 2 to
-5 CPU-seconds, the job's work often less. The server imports them once; every ``imply`` the rules start then runs in
-a fork of it: ``bin/imply`` (written by :func:`write_client`, first on the PATH of the test's Snakemake) hands the
-server its arguments, working folder, environment and its standard input, output and error, and exits with the
-fork's exit status, forwarding SIGINT and SIGTERM to it. Where the server cannot be reached the client runs the
-real ``imply`` instead.
+A workflow test runs Snakemake and its rules' shell commands as written, each ``imply ...`` a process of its own.
+Most of such a process's time on the tests' tiny configs is its start: importing NumPy, SciPy, pandas, MuJoCo and
+PyTorch takes 2 to 5 CPU-seconds, Snakemake's imports and plugin search about 3, the job's work often less. The server
+imports them once; every ``imply`` the rules start, and every ``snakemake`` the test starts, then runs in a fork of
+it: ``bin/imply`` and ``bin/snakemake`` (written by :func:`write_clients`; ``bin`` first on the PATH of the test's
+Snakemake) hand the server their program, arguments, working folder, environment and standard input, output and
+error, and exit with the fork's exit status, forwarding SIGINT and SIGTERM to it; a client killed hard takes its fork
+with it. Where the server cannot be reached a client runs the real program instead.
 
     python tests/forkserver.py SOCKET      # serve until stopped
 """
@@ -45,7 +46,13 @@ PRELOAD = (
     "imply.evaluate.suite",
     "imply.models.train",
     "imply.models.encoder",
+    "snakemake.cli",
+    "snakemake.api",
+    "snakemake.workflow",
+    "snakemake.scheduling.job_scheduler",
 )
+# the program a client names, and the module that runs it as its console script would
+PROGRAMS = {"imply": "imply.cli", "snakemake": "snakemake"}
 MESSAGE_LIMIT = 1 << 20
 
 
@@ -58,6 +65,12 @@ def serve(path: str) -> None:
             importlib.import_module(name)
         except ImportError:
             pass
+    try:  # Snakemake's plugin search (its command line's options): once here, not in every run
+        from snakemake.cli import get_argument_parser
+
+        get_argument_parser()
+    except ImportError:
+        pass
     # each finished fork reaped here, so that its CPU time counts in the server's (and a timing of the test run's)
     signal.signal(signal.SIGCHLD, _reap)
     server = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -103,13 +116,19 @@ def _run_job(conn: socket.socket) -> None:
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
-        sys.argv = ["imply", *request["argv"]]
+        program = request["program"]
+        sys.argv = [program, *request["argv"]]
         conn.send(json.dumps({"pid": os.getpid()}).encode())
         # a client killed hard (SIGKILL, as a test or a crash would) takes its job with it, as it would its own child
         threading.Thread(target=_die_with_client, args=(conn,), daemon=True).start()
-        from imply.cli import main
+        if program == "snakemake":
+            from snakemake.cli import main as snakemake_main
 
-        code = main()
+            snakemake_main(request["argv"])
+        else:
+            from imply.cli import main
+
+            code = main()
     except SystemExit as exc:
         if exc.code is None or isinstance(exc.code, int):
             code = exc.code or 0
@@ -152,9 +171,9 @@ path = os.environ.get("IMPLY_FORKSERVER", "")
 try:
     conn = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
     conn.connect(path)
-except OSError:  # no server: the real console script
-    os.execv({python!r}, [{python!r}, "-m", "imply.cli", *argv])
-request = {{"argv": argv, "cwd": os.getcwd(), "env": dict(os.environ)}}
+except OSError:  # no server: the real program
+    os.execv({python!r}, [{python!r}, "-m", {module!r}, *argv])
+request = {{"program": {program!r}, "argv": argv, "cwd": os.getcwd(), "env": dict(os.environ)}}
 socket.send_fds(conn, [json.dumps(request).encode()], [0, 1, 2])
 pid = json.loads(conn.recv(4096))["pid"]
 for sig in (signal.SIGINT, signal.SIGTERM):
@@ -164,13 +183,16 @@ sys.exit(json.loads(answer)["exit"] if answer else 1)
 """
 
 
-def write_client(folder: Path) -> Path:
-    """Write ``folder/imply``, the client that runs a command in the server (or the real ``imply`` without one)."""
+def write_clients(folder: Path) -> Path:
+    """Write ``folder/imply`` and ``folder/snakemake``, clients that run their program in the server (or the real
+    one without a server); return ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
-    client = folder / "imply"
-    client.write_text(f"#!{sys.executable} -S\n" + textwrap.dedent(CLIENT.format(python=sys.executable)))
-    client.chmod(0o755)
-    return client
+    for program, module in PROGRAMS.items():
+        client = folder / program
+        code = CLIENT.format(python=sys.executable, module=module, program=program)
+        client.write_text(f"#!{sys.executable} -S\n" + textwrap.dedent(code))
+        client.chmod(0o755)
+    return folder
 
 
 if __name__ == "__main__":

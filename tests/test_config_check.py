@@ -199,7 +199,7 @@ def workflow_copy(tmp_path_factory):
     ],
     ids=["unknown-section", "unknown-key", "ranges", "query-speed", "selection-speed"],
 )
-def test_snakemake_dry_run_refuses_a_bad_configfile(workflow_copy, tmp_path, override, expected):
+def test_snakemake_dry_run_refuses_a_bad_configfile(workflow_copy, tmp_path, override, expected, forked_imply):
     bad = tmp_path / "bad.yaml"
     bad.write_text(override)
     proc = snakemake(workflow_copy, "-n", "--configfile", str(bad), check=False)
@@ -209,7 +209,7 @@ def test_snakemake_dry_run_refuses_a_bad_configfile(workflow_copy, tmp_path, ove
     assert "Traceback" not in proc.stderr and "KeyError" not in proc.stderr
 
 
-def test_snakemake_dry_run_names_a_typo_in_config_yaml(tmp_path):
+def test_snakemake_dry_run_names_a_typo_in_config_yaml(tmp_path, forked_imply):
     work = copy_workflow(tmp_path / "wf")
     text = (work / "config.yaml").read_text()
     (work / "config.yaml").write_text(text.replace("\nsection4:", "\nsectoin4:"))

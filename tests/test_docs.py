@@ -254,7 +254,7 @@ def bash_blocks(page: Path) -> list[str]:
     return re.findall(r"```bash\n(.*?)```", page.read_text(), re.S)
 
 
-def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_path):
+def test_every_workflow_target_the_docs_name_is_a_target_of_the_workflow(tmp_path, forked_imply):
     from workflow_helpers import copy_workflow, snakemake
 
     targets = set()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -23,6 +24,14 @@ def copy_workflow(dest: Path) -> Path:
     return dest
 
 
+def snakemake_command() -> list[str]:
+    """``snakemake`` as this interpreter's installation runs it: through the test worker's fork server where the test
+    asked for it (the ``forked_imply`` fixture puts its clients first on PATH), else ``python -m snakemake``."""
+    if os.environ.get("IMPLY_FORKSERVER"):
+        return [shutil.which("snakemake") or "snakemake"]
+    return [sys.executable, "-m", "snakemake"]
+
+
 def plant_table(workdir: Path, table: Path) -> None:
     """Put the tests' tiny table (the ``tiny_table_path`` fixture) where the table rule writes it, so that a run on a
     tiny config reads it instead of building it again (the table rule is run by tests/workflow/test_table_workflow.py;
@@ -37,9 +46,7 @@ def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.Compl
     Put targets before ``--configfile``: that option takes every value after it.
     """
     cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         "--cores",
         "2",
         "--directory",

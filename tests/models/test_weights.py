@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -16,7 +15,7 @@ from imply.models.config import ViTConfig
 from imply.models.encoder import EncoderConfig, load_encoder
 from imply.models.vision_transformer import VisionTransformer
 from imply.models.weights import check_encoder_weights, encoder_weight_files
-from workflow_helpers import copy_workflow, snakemake
+from workflow_helpers import copy_workflow, snakemake, snakemake_command
 
 TINY_ARCH = {"patch_size": 16, "tubelet_size": 2, "embed_dim": 16, "depth": 1, "num_heads": 2}
 
@@ -94,7 +93,7 @@ def _tiny_config(repo_root: Path, work: Path, encoder: dict) -> Path:
     return path
 
 
-def test_dry_run_refuses_the_shipped_placeholder_in_one_line(repo_root, tmp_path):
+def test_dry_run_refuses_the_shipped_placeholder_in_one_line(repo_root, tmp_path, forked_imply):
     """The cluster profile's vitg.yaml names a placeholder path: `snakemake -n` stops on it."""
     work = copy_workflow(tmp_path / "wf")
     proc = snakemake(work, "-n", "--configfile", str(repo_root / "profiles/slurm/vitg.yaml"), check=False)
@@ -114,9 +113,7 @@ def test_replacing_the_weights_reruns_the_features(repo_root, tmp_path, forked_i
     target = "results/features/heldout_calib.npz"
     run = subprocess.run(
         [
-            sys.executable,
-            "-m",
-            "snakemake",
+            *snakemake_command(),
             "--cores",
             "2",
             "--directory",

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ from snakemake.utils import update_config
 from imply.data.clips import load_clips
 from imply.models.encoder import load_features
 from imply.readout import load_readout
-from workflow_helpers import copy_workflow
+from workflow_helpers import copy_workflow, snakemake_command
 
 
 @pytest.mark.slow
@@ -27,9 +26,7 @@ def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path, forked_impl
     # targets go before --configfile, which takes every value after it
     run = subprocess.run(
         [
-            sys.executable,
-            "-m",
-            "snakemake",
+            *snakemake_command(),
             "--cores",
             "2",
             "--directory",

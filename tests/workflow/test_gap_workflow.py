@@ -4,19 +4,16 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import pytest
 
-from workflow_helpers import copy_workflow, plant_table
+from workflow_helpers import copy_workflow, plant_table, snakemake_command
 
 
 def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedProcess:
     """``snakemake TARGET... --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""
     cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         *targets,
         "--cores",
         "2",

@@ -10,14 +10,13 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import time
 
 import pytest
 
 from suite_helpers import build_eight_frame_suite, write_tiny_encoder
 from synthetic_features import synth_split
-from workflow_helpers import copy_workflow
+from workflow_helpers import copy_workflow, snakemake_command
 
 pytestmark = pytest.mark.slow
 
@@ -62,9 +61,7 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path, forked_imply):
         "results/model/training.png",
     ]
     cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         "--cores",
         "2",
         "--directory",

@@ -12,7 +12,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,7 +20,7 @@ import torch
 import yaml
 
 from synthetic_features import synth_split
-from workflow_helpers import ROOT, copy_workflow
+from workflow_helpers import ROOT, copy_workflow, snakemake_command
 
 pytestmark = pytest.mark.slow
 
@@ -56,9 +55,7 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
 def _command(work: Path, *extra: str) -> list[str]:
     # options that take several values go last, with "--" before the target
     return [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         "--cores",
         "1",
         "--directory",

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from run_folders import built_once
-from workflow_helpers import ROOT, copy_workflow, plant_table
+from workflow_helpers import ROOT, copy_workflow, plant_table, snakemake_command
 
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
@@ -51,9 +50,7 @@ PAPER_S4_MACROS = [
 def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
     # targets go before --configfile, which takes several values
     cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         *args,
         "--cores",
         "2",
@@ -122,16 +119,14 @@ def test_dag_outputs(dag_dir):
 
 
 @pytest.mark.slow
-def test_dag_up_to_date_and_param_scoped_reruns(dag_dir):
+def test_dag_up_to_date_and_param_scoped_reruns(dag_dir, forked_imply):
     proc = snakemake(dag_dir, *TARGETS, "-n")
     assert proc.returncode == 0 and "Nothing to be done" in proc.stdout + proc.stderr
     # changing only the selection settings reruns only the selection and what follows it
     over = dag_dir / "over.yaml"
     over.write_text("section4:\n  selection:\n    noise_sd: 0.05\n")
     cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *snakemake_command(),
         *TARGETS,
         "-n",
         "--cores",

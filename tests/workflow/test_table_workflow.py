@@ -54,13 +54,13 @@ def test_table_targets_build_and_only_dependants_rerun(tmp_path, forked_imply):
     assert planned_rules(changed) == {"table"}
 
 
-def test_whole_dag_plans(tmp_path):
+def test_whole_dag_plans(tmp_path, forked_imply):
     work = copy_workflow(tmp_path)
     proc = snakemake(work, "-n")
     assert "table" in planned_rules(proc)
 
 
-def test_bad_config_is_refused_naming_the_option(tmp_path):
+def test_bad_config_is_refused_naming_the_option(tmp_path, forked_imply):
     work = copy_workflow(tmp_path)
     bad = work / "bad.yaml"
     bad.write_text("score:\n  grid: 3\n")
