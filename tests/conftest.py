@@ -186,7 +186,11 @@ def tiny_suite(tiny_table_path, tmp_path_factory) -> Path:
     """The folder of a tiny suite: N = 6 objects, K = 5 speeds, C = 1, T = 4 frames of 16 x 64 px, M = 12, M_c = 9."""
     from suite_helpers import build_tiny_suite
 
-    return build_tiny_suite(tmp_path_factory.mktemp("suites") / "tiny", tiny_table_path)
+    # built by one test worker for all of them
+    return (
+        built_once(tmp_path_factory, "tiny-suite", lambda folder: build_tiny_suite(folder / "tiny", tiny_table_path))
+        / "tiny"
+    )
 
 
 @pytest.fixture(scope="session")
@@ -198,18 +202,21 @@ def known_answers_suite(full_table, tmp_path_factory) -> Path:
     from imply.score import ScoreConfig
     from imply.sim import SceneConfig
 
-    folder = tmp_path_factory.mktemp("suites")
-    full_table.save(folder / "table.npz")
-    return build_suite(
-        SuiteConfig(n_objects=30, n_readout_train=40, n_readout_check=20),
-        clips=ClipsConfig(),
-        scene=SceneConfig(),
-        speeds=ScoreConfig(),
-        table_path=folder / "table.npz",
-        out_dir=folder / "known_answers",
-        nthread=2,
-        progress=False,
-    )
+    def build(folder: Path) -> None:
+        full_table.save(folder / "table.npz")
+        build_suite(
+            SuiteConfig(n_objects=30, n_readout_train=40, n_readout_check=20),
+            clips=ClipsConfig(),
+            scene=SceneConfig(),
+            speeds=ScoreConfig(),
+            table_path=folder / "table.npz",
+            out_dir=folder / "known_answers",
+            nthread=2,
+            progress=False,
+        )
+
+    # built by one test worker for all of them
+    return built_once(tmp_path_factory, "known-answers-suite", build) / "known_answers"
 
 
 @pytest.fixture(scope="session")

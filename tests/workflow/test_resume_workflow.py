@@ -12,6 +12,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import torch
 import yaml
 
 from synthetic_features import synth_split
-from workflow_helpers import ROOT, copy_workflow, snakemake_command
+from workflow_helpers import ROOT, copy_workflow
 
 pytestmark = pytest.mark.slow
 
@@ -53,9 +54,12 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
 
 
 def _command(work: Path, *extra: str) -> list[str]:
-    # options that take several values go last, with "--" before the target
+    # options that take several values go last, with "--" before the target; a Snakemake process of its own (not the
+    # fork server's), whose process group the test signals as a terminal would
     return [
-        *snakemake_command(),
+        sys.executable,
+        "-m",
+        "snakemake",
         "--cores",
         "1",
         "--directory",
@@ -111,7 +115,9 @@ def _leftovers(folder: Path) -> list[str]:
     return [p.name for p in folder.iterdir() if p.name.startswith(".")]
 
 
-def test_interrupted_training_resumes_through_snakemake(tmp_path, tiny_table_path):
+def test_interrupted_training_resumes_through_snakemake(tmp_path, tiny_table_path, forked_imply):
+    """The training job through the fork server's client (tests/forkserver.py), which forwards SIGINT to its fork and,
+    killed hard, takes the fork with it: what the signals do to a job of its own."""
     work = copy_workflow(tmp_path / "wf")
     small = yaml.safe_load((ROOT / "tests/config/model_small.yaml").read_text())
     small["model"]["train"]["epochs"] = EPOCHS
