@@ -155,8 +155,9 @@ def test_export_and_evaluate_from_the_command_line(tiny_suite, tmp_path):
     assert results["models"][0]["model"] == "oracle" and results["models"][0]["kind"] == "frames"
 
 
-def test_the_file_door_example_runs_as_written(tiny_suite, tmp_path, repo_root):
-    """The file-door how-to's three commands, as written, in a folder whose results/suite is the tiny suite."""
+def test_the_file_door_example_runs_as_written(tiny_suite, tmp_path, repo_root, forked_imply):
+    """The file-door how-to's three commands, as written, in a folder whose results/suite is the tiny suite (each
+    ``imply`` in a fork of the worker's fork server)."""
     import re
     import shlex
     import subprocess
@@ -170,9 +171,7 @@ def test_the_file_door_example_runs_as_written(tiny_suite, tmp_path, repo_root):
     (tmp_path / "examples").symlink_to(repo_root / "examples")
     for line in block.group(1).strip().splitlines():
         argv = shlex.split(line)
-        if argv[0] == "imply":
-            argv = [sys.executable, "-m", "imply.cli", *argv[1:]]
-        elif argv[0] == "python":
+        if argv[0] == "python":
             argv = [sys.executable, *argv[1:]]
         run = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True)
         assert run.returncode == 0, (line, run.stderr[-2000:])
