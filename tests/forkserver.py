@@ -96,6 +96,7 @@ def serve(path: str) -> None:
 
 
 def _reap(signum, frame) -> None:
+    """SIGCHLD: collect every fork that has ended (their exit status went to their clients already)."""
     try:
         while os.waitpid(-1, os.WNOHANG)[0]:
             pass
@@ -104,7 +105,8 @@ def _reap(signum, frame) -> None:
 
 
 def _run_job(conn: socket.socket) -> None:
-    """In the fork: take the client's request and standard streams, run ``imply`` as its console script would."""
+    """In the fork: take the client's request and standard streams, run its program (``imply`` or ``snakemake``) as
+    the program's console script would, and send the client the exit status."""
     signal.signal(signal.SIGCHLD, signal.SIG_DFL)
     code = 1
     try:
