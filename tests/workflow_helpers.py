@@ -41,7 +41,7 @@ def plant_table(workdir: Path, table: Path) -> None:
 
 
 def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
-    """Run snakemake in ``workdir`` with the current interpreter's installation.
+    """Run snakemake in ``workdir`` with the current interpreter's installation (:func:`snakemake_command`).
 
     Put targets before ``--configfile``: that option takes every value after it.
     """
