@@ -64,12 +64,13 @@ TINY_GRID = TableGrid(
 TINY_TABLE_CONFIG = ROOT / "tests" / "config" / "core_small.yaml"
 
 
-def tiny_workflow_config() -> dict:
-    """config.yaml with tests/config/core_small.yaml over it: the table settings of the tests' tiny workflow runs."""
+def tiny_workflow_config(override: Path = TINY_TABLE_CONFIG) -> dict:
+    """config.yaml with a tiny config over it (by default tests/config/core_small.yaml: the table settings of the
+    tests' tiny workflow runs)."""
     from snakemake.utils import update_config
 
     cfg = yaml.safe_load((ROOT / "config.yaml").read_text())
-    update_config(cfg, yaml.safe_load(TINY_TABLE_CONFIG.read_text()))
+    update_config(cfg, yaml.safe_load(override.read_text()))
     return cfg
 
 
@@ -170,12 +171,17 @@ def imply_server(tmp_path_factory):
     server.wait(timeout=30)
 
 
+def send_to_imply_server(env: pytest.MonkeyPatch, server: dict[str, str]) -> None:
+    """Set, through ``env``, the environment that sends commands to the fork server (``imply_server``'s value)."""
+    for name, value in server.items():
+        env.setenv(name, value)
+
+
 @pytest.fixture
 def forked_imply(imply_server, monkeypatch):
     """Run this test's ``snakemake`` (through :func:`workflow_helpers.snakemake_command`) and its workflow's ``imply``
     jobs in forks of the worker's fork server (``imply_server``)."""
-    for name, value in imply_server.items():
-        monkeypatch.setenv(name, value)
+    send_to_imply_server(monkeypatch, imply_server)
 
 
 @pytest.fixture

@@ -40,7 +40,9 @@ def plant_table(workdir: Path, table: Path) -> None:
     shutil.copy(table, workdir / "results" / "table" / "table.npz")
 
 
-def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+def snakemake(
+    workdir: Path, *args: str, check: bool = True, timeout: float | None = None
+) -> subprocess.CompletedProcess:
     """Run snakemake in ``workdir`` with the current interpreter's installation (:func:`snakemake_command`).
 
     Put targets before ``--configfile``: that option takes every value after it.
@@ -55,7 +57,7 @@ def snakemake(workdir: Path, *args: str, check: bool = True) -> subprocess.Compl
         str(workdir / "Snakefile"),
         *args,
     ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir)
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir, timeout=timeout)
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc

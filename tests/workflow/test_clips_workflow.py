@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +13,7 @@ from snakemake.utils import update_config
 from imply.data.clips import load_clips
 from imply.models.encoder import load_features
 from imply.readout import load_readout
-from workflow_helpers import copy_workflow, snakemake_command
+from workflow_helpers import copy_workflow, snakemake
 
 
 @pytest.mark.slow
@@ -24,24 +23,8 @@ def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path, forked_impl
     update_config(cfg, yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     # targets go before --configfile, which takes every value after it
-    run = subprocess.run(
-        [
-            *snakemake_command(),
-            "--cores",
-            "2",
-            "--directory",
-            str(tmp_path),
-            "--snakefile",
-            str(tmp_path / "Snakefile"),
-            "results/readout/ridge.npz",
-            "results/paper/parts/clips.json",
-            "--configfile",
-            str(tmp_path / "config.yaml"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    targets = ("results/readout/ridge.npz", "results/paper/parts/clips.json")
+    run = snakemake(tmp_path, *targets, "--configfile", str(tmp_path / "config.yaml"), check=False, timeout=300)
     logs = "\n".join(p.read_text() for p in sorted((tmp_path / "results/logs").glob("*.log")))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:] + logs[-3000:]
 

@@ -7,22 +7,12 @@ import subprocess
 
 import pytest
 
-from workflow_helpers import copy_workflow, plant_table, snakemake_command
+from workflow_helpers import copy_workflow, plant_table, snakemake
 
 
 def _snakemake_tiny(tmp_path, repo_root, *targets: str) -> subprocess.CompletedProcess:
     """``snakemake TARGET... --cores 2`` in the copied workflow at ``tmp_path``, on the tiny gap config."""
-    cmd = [
-        *snakemake_command(),
-        *targets,
-        "--cores",
-        "2",
-        "--directory",
-        str(tmp_path),
-        "--configfile",
-        str(repo_root / "tests/config/gap_tiny.yaml"),
-    ]
-    return subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    return snakemake(tmp_path, *targets, "--configfile", str(repo_root / "tests/config/gap_tiny.yaml"), check=False)
 
 
 LAB_TARGETS = ("results/gap/lab/separability.json", "results/gap/lab/sealed/score.json")

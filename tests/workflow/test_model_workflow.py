@@ -9,14 +9,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import time
 
 import pytest
 
 from suite_helpers import build_eight_frame_suite, write_tiny_encoder
 from synthetic_features import synth_split
-from workflow_helpers import copy_workflow, snakemake_command
+from workflow_helpers import copy_workflow, plant_table, snakemake
 
 pytestmark = pytest.mark.slow
 
@@ -27,8 +26,7 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path, forked_imply):
     work = copy_workflow(tmp_path / "wf")
     shutil.copy(repo_root / "tests/config/model_small.yaml", work / "small.yaml")
     # the upstream outputs this stage reads, planted oldest first so nothing upstream reruns
-    (work / "results/table").mkdir(parents=True)
-    shutil.copy(tiny_table_path, work / "results/table/table.npz")
+    plant_table(work, tiny_table_path)
     clips, feats = work / "results/clips", work / "results/features"
     clips.mkdir()
     feats.mkdir()
@@ -60,23 +58,10 @@ def test_section5_rules_run(repo_root, tiny_table_path, tmp_path, forked_imply):
         "results/paper/figures/figure2.png",
         "results/model/training.png",
     ]
-    cmd = [
-        *snakemake_command(),
-        "--cores",
-        "2",
-        "--directory",
-        str(work),
-        "--snakefile",
-        str(work / "Snakefile"),
-        "--configfile",
-        str(work / "config.yaml"),
-        str(work / "small.yaml"),
-        "--rerun-triggers",
-        "mtime",
-        "--",
-        *target,
-    ]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    configs = (str(work / "config.yaml"), str(work / "small.yaml"))
+    run = snakemake(
+        work, "--configfile", *configs, "--rerun-triggers", "mtime", "--", *target, check=False, timeout=600
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     for upstream in ("clips_render", "encoder_encode", "suite_build", "section5_suite_nocalib"):
         assert upstream not in run.stderr

@@ -21,7 +21,7 @@ import torch
 import yaml
 
 from synthetic_features import synth_split
-from workflow_helpers import ROOT, copy_workflow
+from workflow_helpers import ROOT, copy_workflow, plant_table
 
 pytestmark = pytest.mark.slow
 
@@ -31,8 +31,7 @@ EPOCHS = 12
 
 def _plant(work: Path, tiny_table_path: Path) -> None:
     """The training run's upstream outputs, oldest first, so nothing upstream reruns."""
-    (work / "results/table").mkdir(parents=True)
-    shutil.copy(tiny_table_path, work / "results/table/table.npz")
+    plant_table(work, tiny_table_path)
     clips, feats, enc = work / "results/clips", work / "results/features", work / "results/encoder"
     for d in (clips, feats, enc):
         d.mkdir()

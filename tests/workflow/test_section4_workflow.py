@@ -8,8 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from conftest import send_to_imply_server
 from run_folders import built_once
-from workflow_helpers import ROOT, copy_workflow, plant_table, snakemake_command
+from workflow_helpers import ROOT, copy_workflow, plant_table
+from workflow_helpers import snakemake as run_snakemake
 
 SMALL = ROOT / "tests" / "config" / "section4_small.yaml"
 TARGETS = [
@@ -47,19 +49,10 @@ PAPER_S4_MACROS = [
 ]
 
 
-def snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
-    # targets go before --configfile, which takes several values
-    cmd = [
-        *snakemake_command(),
-        *args,
-        "--cores",
-        "2",
-        "--directory",
-        str(workdir),
-        "--configfile",
-        str(SMALL),
-    ]
-    return subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, timeout=600)
+def snakemake(workdir: Path, *args: str, over: Path | None = None) -> subprocess.CompletedProcess:
+    """The small config's run (``over``: a config file over it) in ``workdir``; targets go in ``args``."""
+    configs = [str(SMALL)] + ([str(over)] if over else [])
+    return run_snakemake(workdir, *args, "--configfile", *configs, check=False, timeout=600)
 
 
 @pytest.fixture(scope="module")
@@ -72,8 +65,7 @@ def dag_dir(tmp_path_factory, tiny_table_path, imply_server) -> Path:
         # the small config's table grid is the tiny fixture's: reuse it instead of rebuilding
         plant_table(work, tiny_table_path)
         with pytest.MonkeyPatch.context() as env:
-            for name, value in imply_server.items():
-                env.setenv(name, value)
+            send_to_imply_server(env, imply_server)
             proc = snakemake(work, *TARGETS)
         assert proc.returncode == 0, proc.stderr[-3000:]
 
@@ -125,19 +117,7 @@ def test_dag_up_to_date_and_param_scoped_reruns(dag_dir, forked_imply):
     # changing only the selection settings reruns only the selection and what follows it
     over = dag_dir / "over.yaml"
     over.write_text("section4:\n  selection:\n    noise_sd: 0.05\n")
-    cmd = [
-        *snakemake_command(),
-        *TARGETS,
-        "-n",
-        "--cores",
-        "2",
-        "--directory",
-        str(dag_dir),
-        "--configfile",
-        str(SMALL),
-        str(over),
-    ]
-    proc = subprocess.run(cmd, cwd=dag_dir, capture_output=True, text=True, timeout=300)
+    proc = snakemake(dag_dir, *TARGETS, "-n", over=over)
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = proc.stdout + proc.stderr
     stats = out[out.index("Job stats") :].splitlines()[3:]

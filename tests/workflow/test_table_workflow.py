@@ -86,14 +86,11 @@ def test_same_config_same_table_bytes(tmp_path):
 def test_the_planted_tiny_table_is_the_tiny_configs_table(tiny_table):
     """Every tiny workflow config that plants the tests' tiny table (instead of running the table rule) asks for that
     table: the same grid, scene and check as tests/config/core_small.yaml, which built it."""
-    from snakemake.utils import update_config
-
     from conftest import TINY_GRID, tiny_workflow_config
 
     want = tiny_workflow_config()
     assert tiny_table.meta["grid"] == TINY_GRID.__dict__ and tiny_table.meta["numerical_error"]["cells"] == 4
     for name in ("gap_tiny", "evaluate_tiny", "pixel_tiny", "section4_small", "core_small"):
-        cfg = yaml.safe_load((ROOT / "config.yaml").read_text())
-        update_config(cfg, yaml.safe_load((ROOT / f"tests/config/{name}.yaml").read_text()))
+        cfg = tiny_workflow_config(ROOT / f"tests/config/{name}.yaml")
         for key in ("scene", "table", "table_check"):
             assert cfg[key] == want[key], (name, key)

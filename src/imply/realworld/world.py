@@ -12,8 +12,8 @@ table's (:mod:`imply.sim.pushes`):
   shortened slide steps and no travel correction (RK4 has no first-order travel error to
   correct). The stroke ends on the stroke: the step that would pass it is shortened. A
   box-table contact stiffer than the scene's (``table_timeconst`` below 1) has every step
-  shortened by that factor: the nominal steps leave a stiff, underdamped contact about
-  0.025 in log d from its converged slide;
+  shortened by that factor: the nominal steps leave a stiff, underdamped contact up to
+  about 0.02 in log d from its converged slide;
 - the stop time is when the box's speed in the table plane falls below ``stop_speed``
   (interpolated within the step); the push goes on until it falls below ``rest_speed``.
   MuJoCo's soft contacts end a slide in an exponential tail of a few milliseconds, in
