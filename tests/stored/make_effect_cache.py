@@ -2,9 +2,10 @@
 
 The tests copy these files into their run's effect-table cache (conftest ``effect_cache``) instead of simulating them
 (a CPU-minute). A file's name carries the digest of what it was built from (scene, grids, levels, MuJoCo's version,
-the tiny table's own digest), so a change there makes the tests build the table afresh, and tests/diagnose/
-test_stored_effect_cache.py rebuilds one of them to hold the files to the builder. Run this after changing the effect
-library or how its tables are built:
+the tiny table's own digest), so a change there makes the tests build the table afresh. The gap stage's workflow test
+(tests/workflow/test_gap_workflow.py) builds viscous's table, the observables' baseline and the model floor on the same
+table and grid in its ``gap_tables`` rule, and holds them to these files (:func:`assert_stored`). Run this after
+changing the effect library or how its tables are built:
 
     python tests/stored/make_effect_cache.py
 """
@@ -15,6 +16,8 @@ import json
 import shutil
 import sys
 from pathlib import Path
+
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # the tests' helpers, when run as a script
@@ -54,6 +57,26 @@ def build(cache_dir: Path, *, effects=TEST_EFFECTS, table=None, nthread: int = 0
         nthread=nthread,
         progress=table is None,
     )
+
+
+def assert_stored(built_dir: Path, names: list[str]) -> None:
+    """Hold the effect-table files ``names`` in ``built_dir``, built afresh, to the stored files of the same names (the
+    same names, so the same digests): the tests that read the stored cache read what the builder writes today."""
+    for name in names:
+        stored = STORED_EFFECT_CACHE / name
+        assert stored.is_file(), f"{name} is not in {STORED_EFFECT_CACHE}: python tests/stored/make_effect_cache.py"
+        if name.endswith(".json"):
+            fresh, kept = json.loads((built_dir / name).read_text()), json.loads(stored.read_text())
+            assert fresh.keys() == kept.keys()
+            np.testing.assert_allclose(fresh["model_floor"]["rms"], kept["model_floor"]["rms"], rtol=1e-6)
+            continue
+        with np.load(built_dir / name) as fresh, np.load(stored) as kept:
+            assert fresh.files == kept.files
+            for key in fresh.files:
+                if fresh[key].dtype.kind == "f":
+                    np.testing.assert_allclose(fresh[key], kept[key], rtol=0, atol=1e-9, err_msg=f"{name}: {key}")
+                else:
+                    assert json.loads(str(fresh[key])) == json.loads(str(kept[key])), f"{name}: {key}"
 
 
 def main() -> None:

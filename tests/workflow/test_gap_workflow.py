@@ -7,6 +7,7 @@ import subprocess
 
 import pytest
 
+from stored.make_effect_cache import assert_stored
 from workflow_helpers import copy_workflow, plant_table, snakemake
 
 
@@ -28,6 +29,7 @@ def test_gap_workflow_tiny(tmp_path, repo_root, tiny_table_path, forked_imply):
     target = "results/paper/parts/gap.json"
     run = _snakemake_tiny(tmp_path, repo_root, target, *LAB_TARGETS, LAB_DEVELOPMENT)
     assert run.returncode == 0, run.stderr[-3000:]
+    check_effect_tables(tmp_path / "results/gap/effect_tables")
     check_lab(tmp_path)
     check_development_target(tmp_path, repo_root)
     part = json.loads((tmp_path / target).read_text())
@@ -135,6 +137,15 @@ def test_gap_workflow_tiny(tmp_path, repo_root, tiny_table_path, forked_imply):
     ]
     assert sum(len(r) for r in rows) == len(loop["rows"])
     assert {r["arm"] for r in loop["rows"]} <= {"next", "random"} and "## Closed loop" in md
+
+
+def check_effect_tables(folder):
+    """The rule built a table for each candidate the library tabulates, the observables' baseline and the model floor;
+    on the tiny table and the stored cache's grid, those the stored cache holds are its files
+    (tests/stored/effect-cache, which the diagnosing tests start from)."""
+    built = sorted(p.name for p in folder.glob("[!.]*") if p.name != "manifest.json")
+    assert [name.rsplit("-", 1)[0] for name in built] == ["effects-air_drag", "effects-viscous", "floor", "observables"]
+    assert_stored(folder, [name for name in built if not name.startswith("effects-air_drag")])
 
 
 def check_development_target(tmp_path, repo_root):

@@ -21,7 +21,7 @@ import torch
 import yaml
 
 from synthetic_features import synth_split
-from workflow_helpers import ROOT, copy_workflow, plant_table
+from workflow_helpers import ROOT, copy_workflow, plant_table, snakemake_command
 
 pytestmark = pytest.mark.slow
 
@@ -52,13 +52,11 @@ def _plant(work: Path, tiny_table_path: Path) -> None:
         os.utime(path, (now - 1000 + i, now - 1000 + i))
 
 
-def _command(work: Path, *extra: str) -> list[str]:
-    # options that take several values go last, with "--" before the target; a Snakemake process of its own (not the
-    # fork server's), whose process group the test signals as a terminal would
+def _command(work: Path, *extra: str, signalled: bool = True) -> list[str]:
+    # options that take several values go last, with "--" before the target; a run the test signals is a Snakemake
+    # process of its own (not the fork server's), whose process group gets the signal as from a terminal
     return [
-        sys.executable,
-        "-m",
-        "snakemake",
+        *([sys.executable, "-m", "snakemake"] if signalled else snakemake_command()),
         "--cores",
         "1",
         "--directory",
@@ -142,8 +140,10 @@ def test_interrupted_training_resumes_through_snakemake(tmp_path, tiny_table_pat
     assert not (work / TARGET).exists()
 
     # after a hard kill: unlock, then rerun (marking incomplete outputs for rerun)
-    subprocess.run(_command(work, "--unlock"), check=True, capture_output=True)
-    done = subprocess.run(_command(work, "--rerun-incomplete"), capture_output=True, text=True, timeout=300)
+    subprocess.run(_command(work, "--unlock", signalled=False), check=True, capture_output=True)
+    done = subprocess.run(
+        _command(work, "--rerun-incomplete", signalled=False), capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     assert f"after epoch {second}" in train_log.read_text()
     payload = torch.load(work / TARGET, map_location="cpu", weights_only=False)
