@@ -431,13 +431,18 @@ def run_pushes(
         left = np.asarray(counts, dtype=np.int64).copy()
         while ids.size:
             k = left if frames is None else np.minimum(left, frames.steps_to_next(ids, now, timesteps.values))
-            # one call per power of two: a handful of calls however the counts differ
-            bucket = np.floor(np.log2(np.maximum(k, 1))).astype(np.int64)
-            for b in np.unique(bucket):
-                sel = ids[bucket == b]
-                batch.step(ids=sel, nstep=int(2**b))
-                substeps[sel] += 2**b
-            left -= 2**bucket
+            if (k == k[0]).all():
+                # one call when every count is the same (with a frame due at every step, always)
+                taken = k[0]
+                batch.step(ids=ids, nstep=int(taken))
+            else:
+                # one call per power of two: a handful of calls however the counts differ
+                taken = 2 ** np.floor(np.log2(np.maximum(k, 1))).astype(np.int64)
+                for b in np.unique(taken):
+                    sel = ids[taken == b]
+                    batch.step(ids=sel, nstep=int(b))
+            substeps[ids] += taken
+            left -= taken
             record(ids)
             keep = left > 0
             ids, left = ids[keep], left[keep]
@@ -530,6 +535,10 @@ def run_pushes(
     return PushRun(result, frames.box, frames.pusher, frames.time, final, final_pusher)
 
 
+# steps to the next frame of a simulation that has taken its last
+_NO_FRAME_DUE = np.iinfo(np.int64).max // 4
+
+
 class _Frames:
     """Box and pusher states of n pushes at given times."""
 
@@ -542,22 +551,20 @@ class _Frames:
         self.pusher = np.zeros((n, ft.size))
         self.time = np.zeros((n, ft.size))
         self.next = np.zeros(n, dtype=np.int64)
-
-    def _due_time(self, ids: np.ndarray) -> np.ndarray:
-        pending = self.next[ids] < self.times.size
-        return np.where(pending, self.times[np.minimum(self.next[ids], self.times.size - 1)], np.inf)
+        # each simulation's next frame time (inf once all are taken), kept beside ``next``: it is read at every step
+        self.due = np.full(n, ft[0])
 
     def steps_to_next(self, ids: np.ndarray, now: np.ndarray, steps: np.ndarray) -> np.ndarray:
         """Substeps until each simulation's next frame is due (at least 1)."""
-        due = self._due_time(ids)
+        due = self.due[ids]
         with np.errstate(invalid="ignore"):
             k = np.ceil((due - now[ids]) / steps[ids] - 0.5)
-        return np.where(np.isfinite(k), np.maximum(k, 1), np.iinfo(np.int64).max // 4).astype(np.int64)
+        return np.where(np.isfinite(k), np.maximum(k, 1), _NO_FRAME_DUE).astype(np.int64)
 
     def record(self, ids, now, steps, box_qpos, box_xy, pusher) -> None:
         # a frame is due once simulation time reaches it within half a step
         while ids.size:
-            due = ids[now[ids] >= self._due_time(ids) - steps[ids] / 2]
+            due = ids[now[ids] >= self.due[ids] - steps[ids] / 2]
             if not due.size:
                 return
             k = self.next[due]
@@ -566,7 +573,10 @@ class _Frames:
             self.box[due, k] = state
             self.pusher[due, k] = pusher[due]
             self.time[due, k] = now[due]
-            self.next[due] += 1
+            self.next[due] = k + 1
+            self.due[due] = np.where(
+                k + 1 < self.times.size, self.times[np.minimum(k + 1, self.times.size - 1)], np.inf
+            )
             ids = due
 
     def fill_after_rest(self, final_box: np.ndarray, final_pusher: np.ndarray) -> None:
