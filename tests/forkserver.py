@@ -50,6 +50,33 @@ PRELOAD = (
     "snakemake.api",
     "snakemake.workflow",
     "snakemake.scheduling.job_scheduler",
+    # imported on first use: the optimizer's first step (torch._dynamo, with SymPy), Parquet files, PDF figures and
+    # their fonts, the workflow's config check (jsonschema), Snakemake's storage plugins (boto3, requests,
+    # smart_open), the diagnosis's corrected scene (mujoco.sysid) and each command's module
+    "torch._dynamo",
+    "pyarrow.parquet",
+    "pandas.io.parquet",
+    "matplotlib.backends.backend_agg",
+    "matplotlib.backends.backend_pdf",
+    "fontTools.subset",
+    "jsonschema",
+    "boto3",
+    "requests",
+    "smart_open",
+    "snakemake.storage",
+    "mujoco.sysid",
+    "imply.config_check",
+    "imply.kernels",
+    *(
+        f"imply.cli.{name}"
+        for name in (
+            "clips diagnose encoder evaluate gap gap_diagnoses gap_logs gap_scores model paper pixel readout score"
+            " section4 section5 sim study suite table"
+        ).split()
+    ),
+    "imply.paper.figures",
+    "imply.results",
+    "imply.readout",
 )
 # the program a client names, and the module that runs it as its console script would
 PROGRAMS = {"imply": "imply.cli", "snakemake": "snakemake"}
