@@ -145,6 +145,10 @@ def _run_job(conn: socket.socket) -> None:
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
+        # Ctrl-C and SIGTERM as the client's own process would take them, whatever the server was started with
+        ignored = set(request["ignored"])
+        signal.signal(signal.SIGINT, signal.SIG_IGN if signal.SIGINT in ignored else signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN if signal.SIGTERM in ignored else signal.SIG_DFL)
         program = request["program"]
         sys.argv = [program, *request["argv"]]
         conn.send(json.dumps({"pid": os.getpid()}).encode())
@@ -202,7 +206,9 @@ try:
     conn.connect(path)
 except OSError:  # no server: the real program
     os.execv({python!r}, [{python!r}, "-m", {module!r}, *argv])
-request = {{"program": {program!r}, "argv": argv, "cwd": os.getcwd(), "env": dict(os.environ)}}
+# the signals this process was started with ignored (a shell starts its background jobs so): the job ignores them too
+ignored = [int(s) for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) == signal.SIG_IGN]
+request = {{"program": {program!r}, "argv": argv, "cwd": os.getcwd(), "env": dict(os.environ), "ignored": ignored}}
 socket.send_fds(conn, [json.dumps(request).encode()], [0, 1, 2])
 pid = json.loads(conn.recv(4096))["pid"]
 for sig in (signal.SIGINT, signal.SIGTERM):

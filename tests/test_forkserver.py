@@ -46,9 +46,9 @@ def test_a_job_runs_in_the_clients_folder_with_its_environment(server_env, tmp_p
     assert plain.returncode == 0 and (tmp_path / "plain.csv").read_text() == (tmp_path / "log.csv").read_text()
 
 
-def test_a_client_killed_hard_takes_its_job_with_it(server_env, tmp_path):
-    """SIGKILL to the client (as to a job's process group) stops the fork that runs its command."""
-    # a table of many cells: a job that runs for longer than the test waits
+def _start_long_job(server_env: dict, tmp_path, sigint=signal.SIG_DFL) -> subprocess.Popen:
+    """A client whose job (a table of many cells) runs for longer than the test waits, started with ``sigint`` as its
+    SIGINT disposition; returns once the server's fork runs the job."""
     axis = '{"min": 0.2, "max": 1.0, "n": 40}'
     grid = f'{{"speeds": {axis}, "masses": {axis}, "frictions": {axis}}}'
     client = subprocess.Popen(
@@ -56,6 +56,8 @@ def test_a_client_killed_hard_takes_its_job_with_it(server_env, tmp_path):
         env=server_env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, sigint),
     )
     sock = server_env["IMPLY_FORKSERVER"]
     deadline = time.monotonic() + 60
@@ -64,12 +66,45 @@ def test_a_client_killed_hard_takes_its_job_with_it(server_env, tmp_path):
     assert _forks_running(sock), "the job never started"
     time.sleep(1.0)
     assert client.poll() is None, client.stderr.read()  # still building
-    client.send_signal(signal.SIGKILL)
-    client.wait()
+    return client
+
+
+def _wait_for_no_forks(sock: str) -> None:
     deadline = time.monotonic() + 30
     while _forks_running(sock) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not _forks_running(sock)
+
+
+def test_a_client_killed_hard_takes_its_job_with_it(server_env, tmp_path):
+    """SIGKILL to the client (as to a job's process group) stops the fork that runs its command."""
+    client = _start_long_job(server_env, tmp_path)
+    client.send_signal(signal.SIGKILL)
+    client.wait()
+    _wait_for_no_forks(server_env["IMPLY_FORKSERVER"])
+    assert not (tmp_path / "t.npz").exists()
+
+
+@pytest.mark.parametrize("sigint", [signal.SIG_DFL, signal.SIG_IGN], ids=["default", "ignored"])
+def test_ctrl_c_reaches_the_job_as_it_would_the_console_script(server_env, tmp_path, sigint):
+    """SIGINT to the client stops its job as it would the console script, with the console script's message and
+    status, where the client was started with SIGINT at its default; and the job carries on where the client was
+    started with SIGINT ignored (as a shell starts a background job), whichever the server itself was started with."""
+    client = _start_long_job(server_env, tmp_path, sigint)
+    try:
+        client.send_signal(signal.SIGINT)
+        if sigint == signal.SIG_IGN:
+            time.sleep(1.0)
+            assert client.poll() is None, client.stderr.read()
+            client.send_signal(signal.SIGKILL)
+        _, err = client.communicate(timeout=60)
+    finally:
+        if client.poll() is None:  # the job took no notice: stop it, and its fork with it
+            client.kill()
+            client.wait()
+    if sigint == signal.SIG_DFL:
+        assert client.returncode == 130 and err.strip().endswith("imply table build: interrupted"), err
+    _wait_for_no_forks(server_env["IMPLY_FORKSERVER"])
     assert not (tmp_path / "t.npz").exists()
 
 
