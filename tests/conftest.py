@@ -31,6 +31,21 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: not item.nodeid.startswith(LONGEST))  # a stable sort: the rest keep their order
 
 
+def pytest_collection_finish(session):
+    """Start the real-SLURM check in the background where the run holds its test (tests/slurm_background.py)."""
+    import slurm_background
+
+    if session.config.option.collectonly or not any(i.nodeid.startswith(slurm_background.TEST) for i in session.items):
+        return
+    slurm_background.start(run_folder(session.config._tmp_path_factory, "slurm-check"))
+
+
+def pytest_sessionfinish(session):
+    import slurm_background
+
+    slurm_background.finish()
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return ROOT
