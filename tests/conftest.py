@@ -40,10 +40,10 @@ def pytest_collection_finish(session):
     slurm_background.start(run_folder(session.config._tmp_path_factory, "slurm-check"))
 
 
-def pytest_sessionfinish(session):
+def pytest_sessionfinish(session, exitstatus):
     import slurm_background
 
-    slurm_background.finish()
+    slurm_background.finish(interrupted=exitstatus == pytest.ExitCode.INTERRUPTED)
 
 
 @pytest.fixture(scope="session")

@@ -60,13 +60,13 @@ def start(folder: Path) -> None:
         os.close(fd)
 
 
-def finish() -> None:
+def finish(interrupted: bool = False) -> None:
     """At the end of the worker's session: wait for a script it started (another worker's test may still read it),
-    stopping it past the time limit."""
+    stopping it past the time limit, or at once where the run was interrupted (Ctrl-C)."""
     if _started is None:
         return
     try:
-        _started.wait(timeout=TIME_LIMIT)
+        _started.wait(timeout=5 if interrupted else TIME_LIMIT)
     except subprocess.TimeoutExpired:
         os.killpg(_started.pid, signal.SIGTERM)
         try:
