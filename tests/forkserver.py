@@ -6,8 +6,9 @@ PyTorch takes 2 to 5 CPU-seconds, Snakemake's imports and plugin search about 3,
 imports them once; every ``imply`` the rules start, and every ``snakemake`` the test starts, then runs in a fork of
 it: ``bin/imply`` and ``bin/snakemake`` (written by :func:`write_clients`; ``bin`` first on the PATH of the test's
 Snakemake) hand the server their program, arguments, working folder, environment and standard input, output and
-error, and exit with the fork's exit status, forwarding SIGINT and SIGTERM to it; a client killed hard takes its fork
-with it. Where the server cannot be reached a client runs the real program instead.
+error, and exit with the fork's exit status, forwarding SIGINT and SIGTERM to it; the fork takes them as the client's
+own process would (ignored only where the client was started with them ignored), and a client killed hard takes its
+fork with it. Where the server cannot be reached a client runs the real program instead.
 
     python tests/forkserver.py SOCKET      # serve until stopped
 """
