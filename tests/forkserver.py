@@ -18,6 +18,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import pkgutil
 import signal
 import socket
 import sys
@@ -53,7 +54,7 @@ PRELOAD = (
     "snakemake.scheduling.job_scheduler",
     # imported on first use: the optimizer's first step (torch._dynamo, with SymPy), Parquet files, PDF figures and
     # their fonts, the workflow's config check (jsonschema), Snakemake's storage plugins (boto3, requests,
-    # smart_open), the diagnosis's corrected scene (mujoco.sysid) and each command's module
+    # smart_open), the diagnosis's corrected scene (mujoco.sysid); each command's module is imported by serve()
     "torch._dynamo",
     "pyarrow.parquet",
     "pandas.io.parquet",
@@ -68,13 +69,6 @@ PRELOAD = (
     "mujoco.sysid",
     "imply.config_check",
     "imply.kernels",
-    *(
-        f"imply.cli.{name}"
-        for name in (
-            "clips diagnose encoder evaluate gap gap_diagnoses gap_logs gap_scores model paper pixel readout score"
-            " section4 section5 sim study suite table"
-        ).split()
-    ),
     "imply.paper.figures",
     "imply.results",
     "imply.readout",
@@ -91,6 +85,16 @@ def serve(path: str) -> None:
     for name in PRELOAD:
         try:
             importlib.import_module(name)
+        except ImportError:
+            pass
+    import imply.cli
+
+    # each command's module, as a job first imports it (not __main__, which would run the command line)
+    for command in pkgutil.iter_modules(imply.cli.__path__):
+        if command.name.startswith("_"):
+            continue
+        try:
+            importlib.import_module(f"imply.cli.{command.name}")
         except ImportError:
             pass
     try:  # Snakemake's plugin search (its command line's options): once here, not in every run

@@ -10,6 +10,7 @@ import torch
 import yaml
 from snakemake.utils import update_config
 
+from conftest import tiny_workflow_config
 from imply.models.config import ViTConfig
 from imply.models.encoder import EncoderConfig, load_encoder
 from imply.models.vision_transformer import VisionTransformer
@@ -84,8 +85,7 @@ def test_the_cpu_default_needs_no_weights():
 
 
 def _tiny_config(repo_root: Path, work: Path, encoder: dict) -> Path:
-    cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
-    update_config(cfg, yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
+    cfg = tiny_workflow_config(repo_root / "tests/config/clips_tiny.yaml")
     update_config(cfg, {"encoder": encoder})
     path = work / "tiny.yaml"
     path.write_text(yaml.safe_dump(cfg))

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from snakemake.utils import update_config
 
+from conftest import tiny_workflow_config
 from imply.data.clips import load_clips
 from imply.models.encoder import load_features
 from imply.readout import load_readout
@@ -19,8 +19,7 @@ from workflow_helpers import copy_workflow, snakemake
 @pytest.mark.slow
 def test_clips_rules_on_tiny_config(repo_root: Path, tmp_path: Path, forked_imply):
     copy_workflow(tmp_path)
-    cfg = yaml.safe_load((repo_root / "config.yaml").read_text())
-    update_config(cfg, yaml.safe_load((repo_root / "tests/config/clips_tiny.yaml").read_text()))
+    cfg = tiny_workflow_config(repo_root / "tests/config/clips_tiny.yaml")
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     # targets go before --configfile, which takes every value after it
     targets = ("results/readout/ridge.npz", "results/paper/parts/clips.json")
