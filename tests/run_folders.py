@@ -30,9 +30,9 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
         try:
             if done.exists():  # built by the worker that held the lock a moment ago
                 return folder
-            # what a worker that died while building left behind
-            shutil.rmtree(folder)
-            folder.mkdir()
+            # what a worker that died while building left behind; the folder itself stays, for another worker's
+            # run_folder may create it again at any moment
+            _empty(folder)
             build(folder)
             done.touch()
         except BaseException as exc:
@@ -42,6 +42,15 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
             os.close(fd)
             lock.unlink(missing_ok=True)
     return folder
+
+
+def _empty(folder: Path) -> None:
+    """Remove what ``folder`` holds, keeping the folder."""
+    for entry in folder.iterdir():
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
 
 
 def _holder_alive(lock: Path) -> bool:
