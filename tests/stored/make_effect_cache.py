@@ -81,8 +81,8 @@ def assert_stored(built_dir: Path, names: list[str]) -> None:
 
 def assert_same_json(fresh, kept, where: str) -> None:
     """``fresh`` and ``kept`` (parsed JSON) alike: the same keys, lists and strings, numbers to 1e-9 relative. The
-    tables' accuracy figures come out of least squares whose last digits follow the CPU's vector width (seen: 1e-12
-    apart between AVX2 and AVX-512 machines)."""
+    tables' accuracy figures (interpolation errors' root mean squares) differ in their last digits with the CPU's
+    vector width (seen: 1e-12 apart between AVX2 and AVX-512 machines)."""
     if isinstance(kept, dict):
         assert isinstance(fresh, dict) and fresh.keys() == kept.keys(), (
             f"{where}: keys {sorted(fresh)} != {sorted(kept)}"
@@ -93,7 +93,7 @@ def assert_same_json(fresh, kept, where: str) -> None:
         assert isinstance(fresh, list) and len(fresh) == len(kept), f"{where}: {fresh!r} != {kept!r}"
         for i, (a, b) in enumerate(zip(fresh, kept, strict=True)):
             assert_same_json(a, b, f"{where}[{i}]")
-    elif isinstance(kept, float) and not isinstance(kept, bool):
+    elif isinstance(kept, float):
         assert isinstance(fresh, int | float), f"{where}: {fresh!r} != {kept!r}"
         np.testing.assert_allclose(fresh, kept, rtol=1e-9, atol=0, err_msg=where)
     else:
