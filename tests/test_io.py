@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import json
+import os
+import stat
+import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from imply import io
 from imply.io import (
     MANIFEST,
     OutputError,
+    atomic_path,
     check_folder,
     read_manifest,
     write_columns,
@@ -81,6 +86,73 @@ def test_a_failing_writer_leaves_nothing(tmp_path):
     with pytest.raises(RuntimeError):
         write_folder(out, broken)
     assert list(tmp_path.iterdir()) == []
+
+
+def _interrupted_at_line(k: int, codes: set, run) -> bool:
+    """Run ``run(started)``, raising KeyboardInterrupt at the ``k``-th line that the functions of ``codes`` reach before
+    ``started()`` is called (where a Ctrl-C would land between statements). Returns whether it was raised there."""
+    reached, started, raised = 0, False, False
+
+    def local(frame, event, arg):
+        nonlocal reached, raised
+        if event == "line" and not started:
+            if reached == k:
+                reached += 1
+                raised = True
+                raise KeyboardInterrupt
+            reached += 1
+        return local
+
+    def start():
+        nonlocal started
+        started = True
+
+    sys.settrace(lambda frame, event, arg: local if frame.f_code in codes else None)
+    try:
+        run(start)
+    except KeyboardInterrupt:
+        assert raised, "a KeyboardInterrupt that the test did not raise"
+    finally:
+        sys.settrace(None)
+    return raised
+
+
+@pytest.mark.parametrize("writer", ["atomic_path", "write_folder"])
+def test_a_ctrl_c_between_any_two_statements_before_the_writer_starts_leaves_nothing(tmp_path, writer):
+    """Seen: an interrupted training left an empty ``.checkpoint.XXXX.pt`` beside its checkpoint, the Ctrl-C having come
+    between the temporary file's creation and the cleanup's knowing its name."""
+    codes = {io._make_sibling.__code__, io._remove.__code__, io.write_folder.__code__}
+    codes.add(atomic_path.__wrapped__.__code__)
+    out = tmp_path / "out" / ("model.pt" if writer == "atomic_path" else "report")
+    out.parent.mkdir()
+
+    def run(start):
+        if writer == "atomic_path":
+            with atomic_path(out) as tmp:
+                start()
+                tmp.write_text("whole")
+        else:
+            write_folder(out, lambda folder: (start(), (folder / "summary.json").write_text("whole")))
+
+    k = 0
+    while _interrupted_at_line(k, codes, run):
+        assert sorted(p.name for p in out.parent.iterdir()) == [], f"left behind, interrupted at line {k}"
+        k += 1
+    assert k >= 5  # the lines before the writer starts, each interrupted once
+    # not interrupted: the output, with the usual permissions
+    written = out if writer == "atomic_path" else out / "summary.json"
+    assert written.read_text() == "whole"
+    assert [p.name for p in out.parent.iterdir()] == [out.name]
+    umask = _umask()
+    assert stat.S_IMODE(written.stat().st_mode) == 0o666 & ~umask
+    if writer == "write_folder":
+        assert stat.S_IMODE(out.stat().st_mode) == 0o777 & ~umask
+
+
+def _umask() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
 
 
 def test_write_columns_writes_what_write_csv_writes(tmp_path):

@@ -11,8 +11,8 @@ import io
 import json
 import logging
 import os
+import secrets
 import shutil
-import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -22,27 +22,50 @@ import numpy as np
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success."""
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success. On failure, a Ctrl-C included,
+    nothing is left beside ``path`` (:func:`_make_sibling`)."""
     path = Path(path)
     suffix = suffix if suffix is not None else "".join(path.suffixes)
+    made: list[Path] = []
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
-    except OSError as exc:
-        # name the output the user asked for, not the temporary file beside it
-        raise OSError(exc.errno, f"cannot write here: {exc.strerror}", str(path)) from exc
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        # mkstemp makes owner-only files; give the output the usual umask permissions
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp_path, 0o666 & ~umask)
-        os.replace(tmp_path, path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = _make_sibling(path, made, suffix=suffix)
+        except OSError as exc:
+            # name the output the user asked for, not the temporary file beside it
+            raise OSError(exc.errno, f"cannot write here: {exc.strerror}", str(path)) from exc
+        yield tmp
+        os.replace(tmp, path)
     finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
+        _remove(made)
+
+
+def _make_sibling(path: Path, made: list[Path], *, suffix: str = "", folder: bool = False) -> Path:
+    """Make a new, empty file (or ``folder``) beside ``path``, with the usual umask permissions, and return its path.
+
+    Its name goes into ``made`` before it is made, so the caller's cleanup (:func:`_remove`) knows it wherever a Ctrl-C
+    lands; a name returned only once the file exists (``tempfile.mkstemp``) left an empty file behind when the
+    interrupt came just after the call."""
+    base = path.name if folder else path.stem
+    while True:
+        made.append(path.parent / f".{base}.{os.getpid()}.{secrets.token_hex(4)}{suffix}")  # path may be "."
+        try:
+            if folder:
+                os.mkdir(made[-1], 0o777)
+            else:
+                os.close(os.open(made[-1], os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return made[-1]
+        except FileExistsError:  # another writer's: not ours to remove
+            made.pop()
+
+
+def _remove(made: list[Path]) -> None:
+    """Remove what :func:`_make_sibling` made and is still there (a temporary renamed into place is not)."""
+    for tmp in made:
+        if tmp.is_dir() and not tmp.is_symlink():
+            shutil.rmtree(tmp)
+        elif tmp.exists() or tmp.is_symlink():
+            tmp.unlink()
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
@@ -189,14 +212,12 @@ def write_folder(folder: str | os.PathLike, write: Callable[[Path], None], force
     """
     folder = Path(folder)
     folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    made: list[Path] = []
     try:
+        tmp = _make_sibling(folder, made, folder=True)
         write(tmp)
         names = sorted(p.name for p in tmp.iterdir() if p.is_file())
         (tmp / MANIFEST).write_text(json.dumps({"written_by": "imply", "files": names}, indent=2) + "\n")
-        umask = os.umask(0)
-        os.umask(umask)
-        tmp.chmod(0o777 & ~umask)
         if not folder.exists() or (folder.is_dir() and not any(folder.iterdir())):
             os.replace(tmp, folder)
             return names
@@ -209,5 +230,4 @@ def write_folder(folder: str | os.PathLike, write: Callable[[Path], None], force
         os.replace(tmp / MANIFEST, folder / MANIFEST)
         return names
     finally:
-        if tmp.exists():
-            shutil.rmtree(tmp)
+        _remove(made)
