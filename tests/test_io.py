@@ -107,13 +107,14 @@ def _interrupted_at_line(k: int, codes: set, run) -> bool:
         nonlocal started
         started = True
 
+    previous = sys.gettrace()
     sys.settrace(lambda frame, event, arg: local if frame.f_code in codes else None)
     try:
         run(start)
     except KeyboardInterrupt:
         assert raised, "a KeyboardInterrupt that the test did not raise"
     finally:
-        sys.settrace(None)
+        sys.settrace(previous)
     return raised
 
 
