@@ -22,7 +22,7 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
         try:
             fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
         except FileExistsError:
-            if not _holder_alive(lock):  # a worker that died while building
+            if not pid_file_alive(lock):  # a worker that died while building
                 lock.unlink(missing_ok=True)
             time.sleep(0.5)
             continue
@@ -53,10 +53,10 @@ def _empty(folder: Path) -> None:
             entry.unlink()
 
 
-def _holder_alive(lock: Path) -> bool:
-    """Whether the process whose pid the lock file holds still runs (a lock just created, still empty, counts)."""
+def pid_file_alive(pid_file: Path) -> bool:
+    """Whether the process whose pid ``pid_file`` holds still runs (a file just created, still empty, counts)."""
     try:
-        text = lock.read_text().strip()
+        text = pid_file.read_text().strip()
     except FileNotFoundError:
         return True
     if not text:

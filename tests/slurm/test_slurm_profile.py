@@ -9,23 +9,12 @@ on purpose.
 
 from __future__ import annotations
 
-import os
 import time
 
 import pytest
 
-from run_folders import run_folder
+from run_folders import pid_file_alive, run_folder
 from slurm_background import SKIPPED, TIME_LIMIT, cannot_run_here, start
-
-
-def _alive(pid_file) -> bool:
-    try:
-        os.kill(int(pid_file.read_text()), 0)
-    except (ValueError, ProcessLookupError):
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 @pytest.mark.slow
@@ -38,9 +27,10 @@ def test_profile_runs_on_a_real_slurm_without_accounting(tmp_path_factory):
     rc, deadline = folder / "rc", time.monotonic() + TIME_LIMIT + 120
     while not rc.exists():
         assert time.monotonic() < deadline, f"the SLURM check ran past {TIME_LIMIT} s: {folder / 'out'}"
-        # the pid is written right after the start: an empty file is a start under way
-        started = folder / "started"
-        assert not started.read_text() or _alive(started), f"the SLURM check stopped without its status: {folder}"
+        # the pid is written right after the start: an empty file is a start under way; the status is written just
+        # before the script's shell ends
+        alive = pid_file_alive(folder / "started")
+        assert alive or rc.exists(), f"the SLURM check stopped without its status: {folder}"
         time.sleep(0.5)
     code, out = int(rc.read_text()), (folder / "out").read_text()
     if code == SKIPPED:
